@@ -1,0 +1,139 @@
+#pragma once
+// What a scene declares about the cloth and its simulation: plain structs with defaults and units
+// in the field names. A spec is validated once (BuildClothModel in sim_loop/cloth.h) into an
+// immutable model; scene files (sim_loop/scene_file.h) parse into these structs.
+//
+// World frame (_W, the default for every position here): metres, y up, gravity along -y.
+
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "sim_loop/mesh.h"
+
+namespace felt {
+
+/// The time integrators a scene may choose (001_0f9f1b7fedff7723.txt §3, §6.2).
+enum class IntegratorKind {
+  kLeapfrogVerlet,    ///< default: kick-drift with velocities at half steps (001 §3.5)
+  kExplicitEuler,     ///< x += h v, v += h a (001 eq. 2)
+  kSymplecticEuler,   ///< v += h a(x), x += h v_new
+  kExplicitMidpoint,  ///< second-order Runge-Kutta, midpoint rule
+  kRk4,               ///< classical fourth-order Runge-Kutta
+  kBasicVerlet,       ///< position Verlet, x_next = 2x - x_prev + a h^2 (001 eq. 5)
+  kVelocityVerlet,    ///< x += h v + h^2 a / 2, v += h (a + a_next) / 2
+  kImplicitEuler,     ///< backward Euler, linearised, solved by CG (Baraff & Witkin 1998)
+};
+
+/// One spring type's constants. Damping acts along the spring on the relative velocity.
+struct SpringSpec {
+  double stiffness_N_per_m = 0.0;  ///< Hooke constant k, > 0
+  double damping_N_s_per_m = 0.0;  ///< dashpot constant along the spring, >= 0
+};
+
+/// Scripted motion of a pin: offset(t) = velocity * clamp(t, start, stop) - velocity * start
+///                                       + amplitude * sin(2 pi frequency (t - start)) for t>=start.
+/// All zero (the default) means the pin is fixed.
+struct PinMotionSpec {
+  Vec3 velocity_m_per_s = Vec3::Zero();  ///< constant drift, e.g. a curtain rail sliding sideways
+  Vec3 amplitude_m = Vec3::Zero();       ///< sinusoidal amplitude
+  double frequency_hz = 0.0;             ///< sinusoid frequency, >= 0
+  double start_s = 0.0;                  ///< motion starts at this sim time
+  double stop_s = std::numeric_limits<double>::infinity();  ///< drift stops at this sim time
+};
+
+/// Which particles a pin holds.
+enum class PinKind {
+  kParticle,  ///< one particle at (col, row)
+  kCorner,    ///< one of "top_left", "top_right", "bottom_left", "bottom_right"
+  kEdge,      ///< every particle of "top", "bottom", "left" or "right"
+};
+
+/// A pin: the particles it holds have inverse mass 0 and follow `motion` from their rest place.
+/// Row 0 is the "top" edge, column 0 the "left" edge.
+struct PinSpec {
+  PinKind kind = PinKind::kCorner;
+  int32_t col = 0;         ///< kParticle only
+  int32_t row = 0;         ///< kParticle only
+  std::string name;        ///< kCorner / kEdge: the corner's or edge's name
+  PinMotionSpec motion;    ///< scripted motion; fixed by default
+};
+
+/// An infinite plane through `point_m` with unit `normal` pointing to the free side.
+struct PlaneSpec {
+  Vec3 point_m = Vec3::Zero();
+  Vec3 normal = Vec3::UnitY();
+};
+/// A solid sphere.
+struct SphereSpec {
+  Vec3 center_m = Vec3::Zero();
+  double radius_m = 0.1;
+};
+/// A solid axis-aligned box (a table), min corner < max corner on every axis.
+struct BoxSpec {
+  Vec3 min_m = Vec3(-0.5, -0.1, -0.5);
+  Vec3 max_m = Vec3(0.5, 0.0, 0.5);
+};
+/// A solid capsule: the points within radius_m of the segment a_m-b_m.
+struct CapsuleSpec {
+  Vec3 a_m = Vec3::Zero();
+  Vec3 b_m = Vec3::UnitX();
+  double radius_m = 0.05;
+};
+
+/// A static obstacle the cloth's particles are kept out of.
+struct ObstacleSpec {
+  std::variant<PlaneSpec, SphereSpec, BoxSpec, CapsuleSpec> shape;
+  double friction = 0.0;     ///< Coulomb coefficient mu >= 0; 0 = frictionless
+  double margin_m = 0.002;   ///< particles are kept this far outside the surface, >= 0
+};
+
+/// The cloth: a rectangular grid of `width` x `height` particles.
+/// Particle (col, row) rests at origin_m + col * spacing_m * u_axis + row * spacing_m * v_axis.
+struct ClothSpec {
+  int32_t width = 32;                      ///< particles along u, >= 2
+  int32_t height = 32;                     ///< particles along v, >= 2
+  double spacing_m = 0.016;                ///< rest distance between neighbours, > 0
+  double mass_kg = 0.1;                    ///< total mass, divided uniformly over the particles
+  Vec3 origin_m = Vec3(-0.248, 0.25, 0.0); ///< rest position of particle (0, 0), the top-left
+  Vec3 u_axis = Vec3::UnitX();             ///< unit direction of increasing column
+  Vec3 v_axis = -Vec3::UnitY();            ///< unit direction of increasing row, orthogonal to u
+  std::optional<SpringSpec> structural = SpringSpec{200.0, 0.05};  ///< (i,j)-(i+1,j), (i,j)-(i,j+1)
+  std::optional<SpringSpec> shear = SpringSpec{50.0, 0.02};        ///< the two cell diagonals
+  std::optional<SpringSpec> bend = SpringSpec{10.0, 0.01};         ///< (i,j)-(i+2,j), (i,j)-(i,j+2)
+  double drag_N_s_per_m = 0.002;           ///< viscous drag per particle, F = -c v, >= 0
+  Vec3 gravity_m_per_s2 = Vec3(0.0, -9.81, 0.0);
+  std::vector<PinSpec> pins;               ///< may be empty (a falling cloth)
+  std::vector<ObstacleSpec> obstacles;     ///< only these are built and tested
+};
+
+/// How a 60 Hz frame is integrated.
+struct IntegrationSpec {
+  IntegratorKind integrator = IntegratorKind::kLeapfrogVerlet;
+  int32_t substeps = 0;            ///< per frame; 0 = "auto" from the stability limit
+  double frame_rate_hz = 60.0;     ///< nominal frame rate, > 0
+  double max_frame_dt_s = 1.0 / 30.0;  ///< a late frame integrates at most this much time
+  double auto_safety = 0.5;        ///< auto substeps keep h <= auto_safety * h_stable, in (0, 1]
+  int32_t cg_max_iterations = 200; ///< implicit Euler: conjugate-gradient iteration cap
+  double cg_tolerance = 1e-8;      ///< implicit Euler: relative residual to stop at
+};
+
+/// Provot 1995 deformation constraints (000_25210a744b053ca5.txt slide 9).
+struct ProvotSpec {
+  bool enabled = true;
+  double max_elongation = 0.10;  ///< a spring never ends a substep longer than (1 + this) * rest
+  int32_t iterations = 10;       ///< relaxation sweeps per substep, >= 1
+  bool shear = true;             ///< also constrain shear springs (structural always)
+};
+
+/// Everything the 60 Hz simulation needs from a scene.
+struct SimSpec {
+  ClothSpec cloth;
+  IntegrationSpec integration;
+  ProvotSpec provot;
+};
+
+}  // namespace felt
