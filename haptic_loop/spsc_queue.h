@@ -4,7 +4,11 @@
 
 #include <atomic>
 #include <cstddef>
+#include <limits>
 #include <new>
+#include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 namespace felt {
@@ -14,8 +18,10 @@ namespace felt {
 template <typename T>
 class SpscQueue {
  public:
-  /// A queue holding up to `capacity` items (>= 1). Allocates once, here.
-  explicit SpscQueue(size_t capacity) : buffer_(capacity + 1) {}
+  /// A queue holding up to `capacity` items (>= 1). Allocates once, here. Throws
+  /// std::invalid_argument for a capacity of 0 or one so large that capacity + 1 overflows (which
+  /// would leave an empty buffer that TryPush writes past).
+  explicit SpscQueue(size_t capacity) : buffer_(CheckedSize(capacity)) {}
 
   SpscQueue(const SpscQueue&) = delete;
   SpscQueue& operator=(const SpscQueue&) = delete;
@@ -40,7 +46,7 @@ class SpscQueue {
       tail_cache_ = tail_.load(std::memory_order_acquire);
       if (head == tail_cache_) return false;
     }
-    *out = buffer_[head];
+    *out = std::move(buffer_[head]);
     head_.store(Next(head), std::memory_order_release);
     return true;
   }
@@ -49,6 +55,13 @@ class SpscQueue {
   size_t capacity() const { return buffer_.size() - 1; }
 
  private:
+  static size_t CheckedSize(size_t capacity) {
+    if (capacity == 0 || capacity >= std::numeric_limits<size_t>::max() / sizeof(T)) {
+      throw std::invalid_argument("SpscQueue: capacity must be in [1, max / sizeof(T)), got " +
+                                  std::to_string(capacity));
+    }
+    return capacity + 1;
+  }
   size_t Next(size_t i) const { return i + 1 == buffer_.size() ? 0 : i + 1; }
 
   std::vector<T> buffer_;

@@ -44,17 +44,22 @@ class TripleBuffer {
   /// The slot the reader holds (the newest at its last Acquire()). Reader thread only.
   const T& read_slot() const { return slots_[read_]; }
 
-  /// The reader's slot, mutable (e.g. to keep it as the "previous" snapshot). Reader thread only.
+  /// The reader's slot, mutable. Reader thread only. The next Acquire() that returns true hands
+  /// this slot back to the writer, so a reader that must keep the previous snapshot copies it or
+  /// swaps its contents into storage of its own (e.g. std::swap of equally sized vectors, which
+  /// does not allocate) before that call.
   T& read_slot_mutable() { return slots_[read_]; }
 
  private:
   static constexpr uint32_t kFreshBit = 4;
   static constexpr uint32_t kIndexMask = 3;
 
+  // Each index on its own cache line: the writer's, the shared one and the reader's are written
+  // by different threads on every publish and acquire (no false sharing between them).
   T slots_[3];
-  uint32_t write_ = 0;                 // owned by the writer
-  uint32_t read_ = 1;                  // owned by the reader
-  std::atomic<uint32_t> middle_{2};    // the slot in between, plus "fresh" bit
+  alignas(64) uint32_t write_ = 0;               // owned by the writer
+  alignas(64) std::atomic<uint32_t> middle_{2};  // the slot in between, plus "fresh" bit
+  alignas(64) uint32_t read_ = 1;                // owned by the reader
 };
 
 }  // namespace felt
