@@ -1,0 +1,190 @@
+// PeriodicLoop and RunLoop: rate, absolute deadlines, overruns skipped (never bunched), no
+// allocation per tick. Timing bounds are loose: the machine is shared.
+#include "haptic_loop/periodic_loop.h"
+
+#include <gtest/gtest.h>
+#include <time.h>
+
+#include <atomic>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "haptic_loop/alloc_counter.h"
+#include "haptic_loop/loop_runner.h"
+#include "haptic_loop/loop_stats.h"
+
+namespace felt {
+namespace {
+
+constexpr int64_t kMs = 1'000'000;
+
+// Busy work standing in for a stalled tick (no sleep: the stall is what is being tested).
+void StallFor(int64_t ns) {
+  const int64_t end = MonotonicNowNs() + ns;
+  while (MonotonicNowNs() < end) {
+  }
+}
+
+TEST(PeriodicLoopTest, BadPeriodOrSpinThrowsNamingIt) {
+  try {
+    PeriodicLoop loop(0);
+    FAIL() << "no exception for a zero period";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("period_ns"), std::string::npos) << e.what();
+  }
+  try {
+    PeriodicLoop loop(kMs, kMs);
+    FAIL() << "no exception for a spin as long as the period";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("spin_ns"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(PeriodicLoop(kMs, -1), std::invalid_argument);
+}
+
+TEST(PeriodicLoopTest, OneKilohertzForThreeHundredMilliseconds) {
+  PeriodicLoop loop(kMs);
+  const int64_t start = MonotonicNowNs() + kMs;
+  loop.Start(start);
+  std::vector<TickInfo> ticks;
+  ticks.reserve(1000);
+  while (true) {
+    const TickInfo tick = loop.WaitNext();
+    if (tick.deadline_ns >= start + 300 * kMs) break;
+    ticks.push_back(tick);
+  }
+  // Periods elapsed (ticks + skipped) within +-10 % of 300; most of them ticked.
+  const uint64_t elapsed = ticks.size() + loop.skipped_periods();
+  EXPECT_GE(elapsed, 270u);
+  EXPECT_LE(elapsed, 330u);
+  EXPECT_GE(ticks.size(), 150u) << "more than half the periods skipped";
+  // Absolute deadlines on the period grid; never early; indices increasing.
+  for (size_t i = 0; i < ticks.size(); ++i) {
+    const TickInfo& t = ticks[i];
+    EXPECT_EQ(t.index, i);
+    EXPECT_EQ(t.deadline_ns, start + static_cast<int64_t>(t.period_index) * kMs);
+    EXPECT_GE(t.wake_ns, t.deadline_ns);
+    EXPECT_EQ(t.lateness_ns, t.wake_ns - t.deadline_ns);
+    if (i > 0) {
+      EXPECT_EQ(t.period_index, ticks[i - 1].period_index + 1 + t.periods_skipped);
+      EXPECT_EQ(t.previous_wake_ns, ticks[i - 1].wake_ns);
+    }
+  }
+}
+
+TEST(PeriodicLoopTest, StallIsSkippedNotBunched) {
+  PeriodicLoop loop(kMs);
+  loop.Start(MonotonicNowNs() + kMs);
+  for (int i = 0; i < 10; ++i) loop.WaitNext();
+  const uint64_t overruns_before = loop.overruns();
+  const uint64_t skipped_before = loop.skipped_periods();
+
+  // A 20 ms stall in tick 10's work.
+  const TickInfo stalled = loop.WaitNext();
+  StallFor(20 * kMs);
+  const int64_t stall_end = MonotonicNowNs();
+  const TickInfo after = loop.WaitNext();
+  const TickInfo next = loop.WaitNext();
+
+  // The first tick after the stall is due on the first boundary after the stall, not in the past.
+  EXPECT_TRUE(after.overrun);
+  EXPECT_GT(after.deadline_ns, stall_end);
+  EXPECT_LE(after.deadline_ns, stall_end + kMs + 5 * kMs);  // + slack for a loaded machine
+  EXPECT_GE(after.periods_skipped, 20u);
+  EXPECT_LE(after.periods_skipped, 26u);
+  EXPECT_EQ(after.period_index, stalled.period_index + 1 + after.periods_skipped);
+  EXPECT_EQ(loop.overruns(), overruns_before + 1 + (next.overrun ? 1 : 0));
+  EXPECT_EQ(loop.skipped_periods(), skipped_before + after.periods_skipped + next.periods_skipped);
+  // Not bunched: the next tick waits a full period after the resumed one.
+  EXPECT_GE(next.deadline_ns, after.deadline_ns + kMs);
+  EXPECT_GE(next.wake_ns, after.deadline_ns + kMs);
+}
+
+TEST(PeriodicLoopTest, FirstDeadlineInThePastIsSkipped) {
+  PeriodicLoop loop(kMs);
+  const int64_t start = MonotonicNowNs() - 10 * kMs - kMs / 2;
+  loop.Start(start);
+  const int64_t called = MonotonicNowNs();
+  const TickInfo tick = loop.WaitNext();
+  EXPECT_TRUE(tick.overrun);
+  EXPECT_GE(tick.periods_skipped, 11u);
+  EXPECT_GT(tick.deadline_ns, called);
+  EXPECT_EQ(tick.deadline_ns, start + static_cast<int64_t>(tick.period_index) * kMs);
+  EXPECT_EQ(tick.index, 0u);
+}
+
+TEST(PeriodicLoopTest, SpinWakesAtOrAfterTheDeadline) {
+  PeriodicLoop loop(kMs, 200'000);
+  EXPECT_EQ(loop.spin_ns(), 200'000);
+  for (int i = 0; i < 50; ++i) {
+    const TickInfo tick = loop.WaitNext();
+    EXPECT_GE(tick.wake_ns, tick.deadline_ns);
+    EXPECT_GE(tick.lateness_ns, 0);
+  }
+  EXPECT_EQ(loop.ticks(), 50u);
+}
+
+TEST(PeriodicLoopTest, TickAndStatsDoNotAllocate) {
+  PeriodicLoop loop(kMs / 4, kMs / 20);
+  LoopStats stats(kMs / 4);
+  loop.WaitNext();
+  AllocationGuard guard;
+  for (int i = 0; i < 100; ++i) {
+    const TickInfo tick = loop.WaitNext();
+    stats.RecordTick(tick, MonotonicNowNs() - tick.wake_ns);
+    stats.RecordSnapshotAge(5 * kMs);
+  }
+  EXPECT_EQ(guard.allocations(), 0u);
+}
+
+TEST(RunLoopTest, RunsTheBodyEveryPeriodAndRecords) {
+  LoopStats stats(kMs);
+  LoopRunOptions options;
+  options.period_ns = kMs;
+  options.duration_ns = 100 * kMs;
+  uint64_t body_calls = 0;
+  uint64_t body_allocations = 0;
+  const RealtimeReport report = RunLoopOnThread(options, &stats, [&](const TickInfo& tick) {
+    AllocationGuard guard;
+    ++body_calls;
+    EXPECT_GE(tick.wake_ns, tick.deadline_ns);
+    body_allocations += guard.allocations();
+  });
+  EXPECT_TRUE(report.all_granted());
+  EXPECT_FALSE(report.fifo_granted);  // not requested
+  LoopStatsSnapshot snapshot;
+  stats.Snapshot(&snapshot);
+  EXPECT_EQ(snapshot.ticks, body_calls);
+  EXPECT_GE(snapshot.ticks + snapshot.skipped_periods, 90u);
+  EXPECT_LE(snapshot.ticks + snapshot.skipped_periods, 101u);
+  EXPECT_EQ(snapshot.lateness.count, snapshot.ticks);
+  EXPECT_EQ(snapshot.compute.count, snapshot.ticks);
+  EXPECT_EQ(snapshot.period.count, snapshot.ticks - 1);
+  EXPECT_EQ(body_allocations, 0u);
+}
+
+TEST(RunLoopTest, StopsOnTheStopFlag) {
+  LoopStats stats(kMs);
+  std::atomic<bool> stop{false};
+  LoopRunOptions options;
+  options.stop = &stop;
+  RunLoopOnThread(options, &stats, [&](const TickInfo& tick) {
+    if (tick.index == 4) stop.store(true);
+  });
+  LoopStatsSnapshot snapshot;
+  stats.Snapshot(&snapshot);
+  EXPECT_EQ(snapshot.ticks, 5u);
+}
+
+TEST(RunLoopTest, NoEndOrBadSpinThrows) {
+  LoopStats stats(kMs);
+  LoopRunOptions options;  // no duration, no stop flag
+  EXPECT_THROW(RunLoopOnThread(options, &stats, [](const TickInfo&) {}), std::invalid_argument);
+  options.duration_ns = kMs;
+  options.realtime.spin_us = 1000;  // the whole period
+  EXPECT_THROW(RunLoopOnThread(options, &stats, [](const TickInfo&) {}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace felt
