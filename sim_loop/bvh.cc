@@ -1,0 +1,543 @@
+#include "sim_loop/bvh.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+
+namespace felt {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Fixed traversal stack: a depth-first walk holds at most (arity - 1) * depth + 1 nodes.
+constexpr int32_t kMaxStack = 256;
+
+// AABB volume operations (van den Bergen 1997 for refitting boxes from children).
+struct AabbOps {
+  using BV = Aabb;
+  static Aabb Leaf(const Vec3& a, const Vec3& b, const Vec3& c) {
+    return {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)};
+  }
+  static Aabb Merge(const Aabb& x, const Aabb& y) {
+    return {x.lo.cwiseMin(y.lo), x.hi.cwiseMax(y.hi)};
+  }
+  static bool Contains(const Aabb& outer, const Aabb& inner) {
+    return (outer.lo.array() <= inner.lo.array()).all() &&
+           (inner.hi.array() <= outer.hi.array()).all();
+  }
+  static bool Equal(const Aabb& x, const Aabb& y) { return x.lo == y.lo && x.hi == y.hi; }
+  static Aabb Inflate(const Aabb& x, double d) { return {x.lo.array() - d, x.hi.array() + d}; }
+  // Is p within `reach` of the box?
+  static bool Near(const Aabb& x, const Vec3& p, double reach) {
+    const Vec3 excess = (x.lo - p).cwiseMax(p - x.hi).cwiseMax(0.0);
+    return excess.squaredNorm() <= reach * reach;
+  }
+  // First t in [0, t_max] at which p0 + t d is within `reach` of the box (the box enlarged by
+  // reach on every side, a superset of its Minkowski sum with the sphere), or +inf; slab test,
+  // Ericson §5.3.3.
+  static double Entry(const Aabb& x, const Vec3& p0, const Vec3& d, double reach, double t_max) {
+    double t0 = 0.0;
+    double t1 = t_max;
+    for (int i = 0; i < 3; ++i) {
+      const double lo = x.lo[i] - reach;
+      const double hi = x.hi[i] + reach;
+      if (d[i] == 0.0) {
+        if (p0[i] < lo || p0[i] > hi) return kInf;
+        continue;
+      }
+      const double inv = 1.0 / d[i];
+      double ta = (lo - p0[i]) * inv;
+      double tb = (hi - p0[i]) * inv;
+      if (ta > tb) std::swap(ta, tb);
+      t0 = std::max(t0, ta);
+      t1 = std::min(t1, tb);
+      if (t0 > t1) return kInf;
+    }
+    return t0;
+  }
+};
+
+// Sphere volume operations.
+struct SphereOps {
+  using BV = BoundingSphere;
+  // The smallest sphere around a triangle: on the longest edge's midpoint when the triangle is
+  // right or obtuse, else its circumcentre (Ericson §4.3.1 for minimum spheres; circumcentre by
+  // the cross-product formula). The radius is the largest vertex distance, so it always encloses.
+  static BoundingSphere Leaf(const Vec3& a, const Vec3& b, const Vec3& c) {
+    const Vec3 ab = b - a;
+    const Vec3 ac = c - a;
+    Vec3 center;
+    if (ab.dot(ac) <= 0.0) {
+      center = 0.5 * (b + c);
+    } else if ((a - b).dot(c - b) <= 0.0) {
+      center = 0.5 * (a + c);
+    } else if ((a - c).dot(b - c) <= 0.0) {
+      center = 0.5 * (a + b);
+    } else {
+      const Vec3 n = ab.cross(ac);
+      center = a + (ac.squaredNorm() * n.cross(ab) + ab.squaredNorm() * ac.cross(n)) /
+                       (2.0 * n.squaredNorm());
+    }
+    const double r_sq = std::max(
+        {(a - center).squaredNorm(), (b - center).squaredNorm(), (c - center).squaredNorm()});
+    return {center, std::sqrt(r_sq)};
+  }
+  // The smallest sphere enclosing two spheres.
+  static BoundingSphere Merge(const BoundingSphere& x, const BoundingSphere& y) {
+    const Vec3 d = y.center - x.center;
+    const double dist = d.norm();
+    if (dist + y.radius <= x.radius) return x;
+    if (dist + x.radius <= y.radius) return y;
+    const double r = 0.5 * (dist + x.radius + y.radius);
+    return {x.center + ((r - x.radius) / dist) * d, r};
+  }
+  static bool Contains(const BoundingSphere& outer, const BoundingSphere& inner) {
+    return (outer.center - inner.center).norm() + inner.radius <= outer.radius;
+  }
+  static bool Equal(const BoundingSphere& x, const BoundingSphere& y) {
+    return x.center == y.center && x.radius == y.radius;
+  }
+  static BoundingSphere Inflate(const BoundingSphere& x, double d) {
+    return {x.center, x.radius + d};
+  }
+  static bool Near(const BoundingSphere& x, const Vec3& p, double reach) {
+    const double r = x.radius + reach;
+    return (p - x.center).squaredNorm() <= r * r;
+  }
+  // Entry time of the ray into the sphere enlarged by reach (Ericson §5.3.2).
+  static double Entry(const BoundingSphere& x, const Vec3& p0, const Vec3& d, double reach,
+                      double t_max) {
+    const Vec3 m = p0 - x.center;
+    const double r = x.radius + reach;
+    const double c = m.squaredNorm() - r * r;
+    if (c <= 0.0) return 0.0;
+    const double b = m.dot(d);
+    if (b >= 0.0) return kInf;
+    const double a = d.squaredNorm();
+    const double disc = b * b - a * c;
+    if (disc < 0.0) return kInf;
+    const double t = (-b - std::sqrt(disc)) / a;
+    return t <= t_max ? t : kInf;
+  }
+};
+
+}  // namespace
+
+BvhTopology BvhTopology::Make(int32_t num_triangles, int32_t arity) {
+  if (arity != 2 && arity != 4) {
+    throw std::invalid_argument("BvhOptions.arity: must be 2 or 4, got " + std::to_string(arity));
+  }
+  if (num_triangles < 0) throw std::invalid_argument("BvhTopology: negative triangle count");
+  BvhTopology t;
+  t.arity = arity;
+  if (num_triangles == 0) return t;
+  const auto add = [&t](int32_t b, int32_t e, int32_t parent) {
+    t.first_child.push_back(-1);
+    t.num_children.push_back(0);
+    t.parent.push_back(parent);
+    t.begin.push_back(b);
+    t.end.push_back(e);
+  };
+  add(0, num_triangles, -1);
+  std::vector<int32_t> depth(1, 0);
+  // Breadth-first: children are appended after every node already numbered, so parent < child.
+  for (int32_t i = 0; i < static_cast<int32_t>(t.parent.size()); ++i) {
+    const int64_t b = t.begin[i];
+    const int64_t m = t.end[i] - t.begin[i];
+    if (m == 1) continue;
+    const int64_t k = std::min<int64_t>(arity, m);
+    t.first_child[i] = static_cast<int32_t>(t.parent.size());
+    t.num_children[i] = static_cast<int32_t>(k);
+    ++t.num_internal;
+    for (int64_t j = 0; j < k; ++j) {
+      add(static_cast<int32_t>(b + m * j / k), static_cast<int32_t>(b + m * (j + 1) / k), i);
+      depth.push_back(depth[i] + 1);
+    }
+  }
+  for (int32_t i = t.num_nodes() - 1; i >= 0; --i) {
+    if (t.first_child[i] < 0) t.leaves_desc.push_back(i);
+  }
+  t.depth = *std::max_element(depth.begin(), depth.end());
+  if ((arity - 1) * t.depth + 1 > kMaxStack) {
+    throw std::invalid_argument("BvhTopology: too many triangles for the traversal stack");
+  }
+  return t;
+}
+
+// The volume-type-specific work of a Bvh; one instantiation per volume kind, chosen once per call.
+template <class Ops>
+struct BvhImpl {
+  using BV = typename Ops::BV;
+
+  static std::vector<BV>& Bounds(Bvh& h) {
+    if constexpr (std::is_same_v<BV, Aabb>) {
+      return h.aabb_;
+    } else {
+      return h.sphere_;
+    }
+  }
+  static const std::vector<BV>& Bounds(const Bvh& h) {
+    if constexpr (std::is_same_v<BV, Aabb>) {
+      return h.aabb_;
+    } else {
+      return h.sphere_;
+    }
+  }
+
+  // Stores `fit` in `stored` if needed; returns whether the stored volume changed. Exact mode:
+  // whenever it differs. Inflated mode: only when fit escapes it, and then enlarged by d.
+  static bool Store(double d, BV* stored, const BV& fit) {
+    if (d > 0.0) {
+      if (Ops::Contains(*stored, fit)) return false;
+      *stored = Ops::Inflate(fit, d);
+      return true;
+    }
+    if (Ops::Equal(*stored, fit)) return false;
+    *stored = fit;
+    return true;
+  }
+
+  static BV MergeChildren(const BvhTopology& t, const std::vector<BV>& bv, int32_t node) {
+    const int32_t first = t.first_child[node];
+    BV merged = bv[first];
+    for (int32_t k = 1; k < t.num_children[node]; ++k) merged = Ops::Merge(merged, bv[first + k]);
+    return merged;
+  }
+
+  // Tight leaf volume of triangle `tri` at one snapshot, or over two.
+  struct LeafFit {
+    const std::vector<Triangle>& tris;
+    std::span<const Vec3> x0;
+    std::span<const Vec3> x1;  // empty: one snapshot
+    BV operator()(int32_t tri) const {
+      const Triangle& t = tris[tri];
+      const BV fit0 = Ops::Leaf(x0[t[0]], x0[t[1]], x0[t[2]]);
+      if (x1.empty()) return fit0;
+      return Ops::Merge(fit0, Ops::Leaf(x1[t[0]], x1[t[1]], x1[t[2]]));
+    }
+  };
+
+  // 001 §6.3: the leaves sit in an array in decreasing id order; a changed node queues its
+  // parent. Nodes are taken in decreasing id order from the merge of the leaf array and the
+  // queue; since a breadth-first parent id never increases as the child id decreases, the queue
+  // fills in decreasing order and a parent already queued is always the last one added ("last
+  // added parent" test), so each parent is refitted at most once, after all its children.
+  static RepairStats BottomUp(Bvh& h, const LeafFit& fit) {
+    const BvhTopology& t = *h.topology_;
+    std::vector<BV>& bv = Bounds(h);
+    const double d = h.options_.inflation_m;
+    RepairStats stats;
+    int32_t* queue = h.queue_.data();
+    int32_t head = 0;
+    int32_t tail = 0;
+    int32_t last_added = -1;
+    size_t next_leaf = 0;
+    const size_t num_leaves = t.leaves_desc.size();
+    while (true) {
+      // The larger id of the next leaf and the queue's head.
+      int32_t node;
+      const bool have_leaf = next_leaf < num_leaves;
+      if (have_leaf && (head == tail || t.leaves_desc[next_leaf] > queue[head])) {
+        node = t.leaves_desc[next_leaf++];
+      } else if (head < tail) {
+        node = queue[head++];
+      } else {
+        break;
+      }
+      // Refit it from its triangle or its children.
+      bool changed;
+      if (t.is_leaf(node)) {
+        changed = Store(d, &bv[node], fit(h.order_[t.begin[node]]));
+        ++stats.leaves_refit;
+      } else {
+        changed = Store(d, &bv[node], MergeChildren(t, bv, node));
+        ++stats.parents_refit;
+      }
+      if (!changed) continue;
+      ++stats.node_updates;
+      const int32_t parent = t.parent[node];
+      if (parent >= 0 && parent != last_added) {
+        queue[tail++] = parent;
+        last_added = parent;
+      }
+    }
+    return stats;
+  }
+
+  // Recursive top-down refit: every child first, then the parent if any child changed.
+  static bool TopDownNode(Bvh& h, const LeafFit& fit, int32_t node, RepairStats* stats) {
+    const BvhTopology& t = *h.topology_;
+    std::vector<BV>& bv = Bounds(h);
+    const double d = h.options_.inflation_m;
+    bool changed;
+    if (t.is_leaf(node)) {
+      changed = Store(d, &bv[node], fit(h.order_[t.begin[node]]));
+      ++stats->leaves_refit;
+    } else {
+      bool any_child = false;
+      for (int32_t k = 0; k < t.num_children[node]; ++k) {
+        any_child = TopDownNode(h, fit, t.first_child[node] + k, stats) || any_child;
+      }
+      if (!any_child) return false;
+      changed = Store(d, &bv[node], MergeChildren(t, bv, node));
+      ++stats->parents_refit;
+    }
+    if (changed) ++stats->node_updates;
+    return changed;
+  }
+
+  // Every volume recomputed from scratch in decreasing id order (children before parents).
+  static RepairStats All(Bvh& h, const LeafFit& fit) {
+    const BvhTopology& t = *h.topology_;
+    std::vector<BV>& bv = Bounds(h);
+    const double d = h.options_.inflation_m;
+    RepairStats stats;
+    for (int32_t node = t.num_nodes() - 1; node >= 0; --node) {
+      BV v;
+      if (t.is_leaf(node)) {
+        v = fit(h.order_[t.begin[node]]);
+        ++stats.leaves_refit;
+      } else {
+        v = MergeChildren(t, bv, node);
+        ++stats.parents_refit;
+      }
+      bv[node] = d > 0.0 ? Ops::Inflate(v, d) : v;
+      ++stats.node_updates;
+    }
+    return stats;
+  }
+
+  static RepairStats Run(Bvh& h, std::span<const Vec3> x0, std::span<const Vec3> x1) {
+    const LeafFit fit{*h.triangles_, x0, x1};
+    if (h.topology_->num_nodes() == 0) return {};
+    switch (h.options_.repair) {
+      case BvhRepair::kBottomUp:
+        return BottomUp(h, fit);
+      case BvhRepair::kTopDown: {
+        RepairStats stats;
+        TopDownNode(h, fit, 0, &stats);
+        return stats;
+      }
+      case BvhRepair::kRebuild:
+        break;
+    }
+    Partition(h, x1.empty() ? x0 : x1);
+    return All(h, fit);
+  }
+
+  // Top-down median split (001 §4.1, "top-down ... using heuristics"): each internal node's range
+  // of the leaf order is partitioned along the longest axis of its centroids' box so that every
+  // child gets the triangles of its rank range. nth_element works in place (no allocation).
+  static void Partition(Bvh& h, std::span<const Vec3> x) {
+    const BvhTopology& t = *h.topology_;
+    const std::vector<Triangle>& tris = *h.triangles_;
+    for (size_t i = 0; i < tris.size(); ++i) {
+      h.centroid_[i] = (x[tris[i][0]] + x[tris[i][1]] + x[tris[i][2]]) / 3.0;
+    }
+    int32_t* order = h.order_.data();
+    const Vec3* centroid = h.centroid_.data();
+    for (int32_t node = 0; node < t.num_nodes(); ++node) {
+      if (t.is_leaf(node)) continue;
+      const int32_t b = t.begin[node];
+      const int32_t e = t.end[node];
+      // Longest axis of the centroids' bounding box.
+      Vec3 lo = centroid[order[b]];
+      Vec3 hi = lo;
+      for (int32_t s = b + 1; s < e; ++s) {
+        lo = lo.cwiseMin(centroid[order[s]]);
+        hi = hi.cwiseMax(centroid[order[s]]);
+      }
+      int axis;
+      (hi - lo).maxCoeff(&axis);
+      const auto less = [centroid, axis](int32_t i, int32_t j) {
+        const double ci = centroid[i][axis];
+        const double cj = centroid[j][axis];
+        return ci < cj || (ci == cj && i < j);
+      };
+      // Split at each child's first slot, left to right.
+      int32_t from = b;
+      for (int32_t k = 1; k < t.num_children[node]; ++k) {
+        const int32_t at = t.begin[t.first_child[node] + k];
+        std::nth_element(order + from, order + at, order + e, less);
+        from = at;
+      }
+    }
+  }
+
+  // Query 1: depth-first walk of the volumes within r (+ slack) of p.
+  static void Within(const Bvh& h, std::span<const Vec3> x, WithinAccumulator* acc) {
+    const BvhTopology& t = *h.topology_;
+    if (t.num_nodes() == 0) return;
+    const std::vector<BV>& bv = Bounds(h);
+    const std::vector<Triangle>& tris = *h.triangles_;
+    const double reach = acc->r + CullSlack(acc->p, acc->p, acc->r);
+    std::array<int32_t, kMaxStack> stack;
+    int32_t top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const int32_t node = stack[--top];
+      if (!Ops::Near(bv[node], acc->p, reach)) continue;
+      if (t.is_leaf(node)) {
+        const int32_t tri = h.order_[t.begin[node]];
+        const Triangle& tr = tris[tri];
+        acc->Test(tri, x[tr[0]], x[tr[1]], x[tr[2]]);
+        continue;
+      }
+      for (int32_t k = t.num_children[node] - 1; k >= 0; --k) {
+        stack[top++] = t.first_child[node] + k;
+      }
+    }
+  }
+
+  // Queries 2 and 3: depth-first along the segment p0 -> p1, nearest entry first, skipping
+  // nodes entered after the best toi so far. `test(tri)` runs the per-triangle test.
+  template <class Acc, class Test>
+  static void Segment(const Bvh& h, const Vec3& p0, const Vec3& p1, double r, const Acc& acc,
+                      Test&& test) {
+    const BvhTopology& t = *h.topology_;
+    if (t.num_nodes() == 0) return;
+    const std::vector<BV>& bv = Bounds(h);
+    const Vec3 d = p1 - p0;
+    const double reach = r + CullSlack(p0, p1, r);
+    struct Entry {
+      int32_t node;
+      double t;
+    };
+    std::array<Entry, kMaxStack> stack;
+    int32_t top = 0;
+    const double t_root = Ops::Entry(bv[0], p0, d, reach, 1.0);
+    if (t_root == kInf) return;
+    stack[top++] = {0, t_root};
+    while (top > 0) {
+      const Entry e = stack[--top];
+      const double bound = std::min(1.0, acc.bound());
+      if (e.t > bound) continue;
+      if (t.is_leaf(e.node)) {
+        test(h.order_[t.begin[e.node]]);
+        continue;
+      }
+      // Children's entry times, pushed latest first so the earliest is popped next.
+      std::array<Entry, 4> kids;
+      int32_t n = 0;
+      for (int32_t k = 0; k < t.num_children[e.node]; ++k) {
+        const int32_t child = t.first_child[e.node] + k;
+        const double tc = Ops::Entry(bv[child], p0, d, reach, bound);
+        if (tc == kInf) continue;
+        int32_t j = n++;
+        while (j > 0 && kids[j - 1].t < tc) {
+          kids[j] = kids[j - 1];
+          --j;
+        }
+        kids[j] = {child, tc};
+      }
+      for (int32_t k = 0; k < n; ++k) stack[top++] = kids[k];
+    }
+  }
+};
+
+Bvh::Bvh(std::shared_ptr<const std::vector<Triangle>> triangles, std::span<const Vec3> x,
+         const BvhOptions& options)
+    : options_(options), triangles_(std::move(triangles)) {
+  if (!triangles_) throw std::invalid_argument("Bvh: triangles must not be null");
+  if (!(options_.inflation_m >= 0.0) || !std::isfinite(options_.inflation_m)) {
+    throw std::invalid_argument("BvhOptions.inflation_m: must be finite and >= 0, got " +
+                                std::to_string(options_.inflation_m));
+  }
+  const std::vector<Triangle>& tris = *triangles_;
+  for (size_t i = 0; i < tris.size(); ++i) {
+    for (int32_t v : tris[i]) {
+      if (v < 0 || static_cast<size_t>(v) >= x.size()) {
+        throw std::invalid_argument("Bvh: triangle " + std::to_string(i) + " has vertex index " +
+                                    std::to_string(v) + " outside [0, " + std::to_string(x.size()) +
+                                    ")");
+      }
+    }
+  }
+  topology_ = std::make_shared<const BvhTopology>(
+      BvhTopology::Make(static_cast<int32_t>(tris.size()), options_.arity));
+  // Sized once: nothing below or in any repair or query allocates.
+  order_.resize(tris.size());
+  std::iota(order_.begin(), order_.end(), 0);
+  centroid_.resize(tris.size());
+  queue_.resize(static_cast<size_t>(std::max(topology_->num_internal, 1)));
+  if (options_.volume == BoundingVolume::kAabb) {
+    aabb_.resize(static_cast<size_t>(topology_->num_nodes()));
+    BvhImpl<AabbOps>::Partition(*this, x);
+  } else {
+    sphere_.resize(static_cast<size_t>(topology_->num_nodes()));
+    BvhImpl<SphereOps>::Partition(*this, x);
+  }
+  RefitAll(x);
+}
+
+RepairStats Bvh::Repair(std::span<const Vec3> x) {
+  covers_motion_ = false;
+  return options_.volume == BoundingVolume::kAabb ? BvhImpl<AabbOps>::Run(*this, x, {})
+                                                  : BvhImpl<SphereOps>::Run(*this, x, {});
+}
+
+RepairStats Bvh::RepairSwept(std::span<const Vec3> x_old, std::span<const Vec3> x_new) {
+  covers_motion_ = true;
+  return options_.volume == BoundingVolume::kAabb ? BvhImpl<AabbOps>::Run(*this, x_old, x_new)
+                                                  : BvhImpl<SphereOps>::Run(*this, x_old, x_new);
+}
+
+RepairStats Bvh::RefitAll(std::span<const Vec3> x) {
+  covers_motion_ = false;
+  if (options_.volume == BoundingVolume::kAabb) {
+    return BvhImpl<AabbOps>::All(*this, {*triangles_, x, {}});
+  }
+  return BvhImpl<SphereOps>::All(*this, {*triangles_, x, {}});
+}
+
+WithinResult Bvh::TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
+                                  std::span<PointContact> out) const {
+  WithinAccumulator acc{p, r, out, {}};
+  if (options_.volume == BoundingVolume::kAabb) {
+    BvhImpl<AabbOps>::Within(*this, x, &acc);
+  } else {
+    BvhImpl<SphereOps>::Within(*this, x, &acc);
+  }
+  return acc.result;
+}
+
+SweepHit Bvh::SweepSphere(std::span<const Vec3> x, const Vec3& p0, const Vec3& p1, double r) const {
+  SweepAccumulator acc{p0, p1, r, {}};
+  const std::vector<Triangle>& tris = *triangles_;
+  const auto test = [&](int32_t tri) {
+    const Triangle& t = tris[tri];
+    acc.Test(tri, x[t[0]], x[t[1]], x[t[2]]);
+  };
+  if (options_.volume == BoundingVolume::kAabb) {
+    BvhImpl<AabbOps>::Segment(*this, p0, p1, r, acc, test);
+  } else {
+    BvhImpl<SphereOps>::Segment(*this, p0, p1, r, acc, test);
+  }
+  return acc.best;
+}
+
+SweepHit Bvh::SweepSphereMoving(std::span<const Vec3> x_old, std::span<const Vec3> x_new,
+                                const Vec3& c0, const Vec3& c1, double r,
+                                const MovingContactOptions& options) const {
+  MovingAccumulator acc{c0, c1, r, options, {}};
+  const std::vector<Triangle>& tris = *triangles_;
+  const auto test = [&](int32_t tri) {
+    const Triangle& t = tris[tri];
+    acc.Test(tri, x_old[t[0]], x_old[t[1]], x_old[t[2]], x_new[t[0]], x_new[t[1]], x_new[t[2]]);
+  };
+  if (!covers_motion_) {
+    // The volumes do not bound the motion: test every triangle (correct, O(n)).
+    for (size_t i = 0; i < tris.size(); ++i) test(static_cast<int32_t>(i));
+  } else if (options_.volume == BoundingVolume::kAabb) {
+    BvhImpl<AabbOps>::Segment(*this, c0, c1, r, acc, test);
+  } else {
+    BvhImpl<SphereOps>::Segment(*this, c0, c1, r, acc, test);
+  }
+  return acc.keep.best;
+}
+
+}  // namespace felt
