@@ -72,6 +72,15 @@ int64_t HistogramSnapshot::BinWidthNs(int64_t value_ns) const {
   return static_cast<int64_t>(HistogramBins::Width(HistogramBins::Index(units))) * unit_ns;
 }
 
+uint64_t HistogramSnapshot::CountAtLeastNs(int64_t threshold_ns) const {
+  uint64_t total = 0;
+  for (int i = HistogramBins::kOverflow; i >= 0; --i) {
+    if (static_cast<int64_t>(HistogramBins::Lower(i)) * unit_ns < threshold_ns) break;
+    total += bins[static_cast<size_t>(i)];
+  }
+  return total;
+}
+
 double HistogramSnapshot::MeanNs() const {
   return count == 0 ? 0.0 : static_cast<double>(sum_ns) / static_cast<double>(count);
 }

@@ -57,6 +57,10 @@ struct HistogramSnapshot {
   int64_t PercentileLowerNs(double q) const;
   /// The width in ns of the bin that holds a value of `value_ns` (the percentile error bound).
   int64_t BinWidthNs(int64_t value_ns) const;
+  /// Values at or above `threshold_ns`: counts every bin whose lower edge is >= the threshold,
+  /// so it is exact when the threshold is a bin edge (any whole number of units below 256 units,
+  /// e.g. 1 ms at a 1 us unit) and otherwise may miss values in the bin straddling it.
+  uint64_t CountAtLeastNs(int64_t threshold_ns) const;
   /// Mean value in ns (0 when empty).
   double MeanNs() const;
   /// What was recorded between `earlier` (a snapshot of the same histogram) and this one. The

@@ -129,8 +129,11 @@ TEST(HistogramTest, WindowHoldsOnlyTheNewValues) {
   histogram.Snapshot(after.get());
   const HistogramSnapshot window = after->Minus(*before);
   EXPECT_EQ(window.count, 100u);
-  EXPECT_EQ(window.PercentileNs(0.5), 15'000);  // 10 us + 49 * 0.1 us = 14.9 us -> bin [14, 15)
-  EXPECT_EQ(window.max_ns, 20'000);             // known to its bin: [19, 20) us
+  EXPECT_EQ(window.PercentileNs(0.5), 15'000);    // 10 us + 49 * 0.1 us = 14.9 us -> bin [14, 15)
+  EXPECT_EQ(window.max_ns, 20'000);               // known to its bin: [19, 20) us
+  EXPECT_EQ(window.CountAtLeastNs(15'000), 50u);  // 15.0 .. 19.9 us
+  EXPECT_EQ(after->CountAtLeastNs(900'000), 1000u);
+  EXPECT_EQ(after->CountAtLeastNs(1'000'000), 0u);
   EXPECT_EQ(after->max_ns, 900'000);
 }
 

@@ -1,0 +1,222 @@
+// `felt bench loops`: the lateness of a 1 kHz loop under each timing setting (issue 5, "Target").
+// The empty loop measures the machine's own floor; the server half (the 64 x 64 curtain with a
+// trace replayed in-process) runs through the same RunLoop() with the server's tick as the body
+// once the server exists, and its table sits next to this one.
+#include <spdlog/fmt/fmt.h>
+#include <spdlog/spdlog.h>
+#include <sys/utsname.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "app/command.h"
+#include "haptic_loop/json_writer.h"
+#include "haptic_loop/loop_runner.h"
+#include "haptic_loop/loop_stats.h"
+#include "haptic_loop/realtime.h"
+
+namespace felt::bench {
+namespace {
+
+constexpr int64_t kPeriodNs = 1'000'000;  // 1 kHz
+constexpr int64_t kLateNs = 1'000'000;    // "later than 1 ms"
+
+/// One timing setting of the table.
+struct TimingSetting {
+  std::string name;  ///< table row and JSON key
+  RealtimeSettings realtime;
+};
+
+/// What one run of a loop gave.
+struct LoopResult {
+  TimingSetting setting;
+  RealtimeReport report;
+  std::unique_ptr<LoopStatsSnapshot> stats = std::make_unique<LoopStatsSnapshot>();
+};
+
+struct Args {
+  bool empty_only = false;
+  double minutes = 0.0;
+  double seconds = 0.0;
+  std::string json_path;
+  int priority = 80;
+  int cpu = -1;
+  int spin_us = 50;
+  bool hold_dma_latency = false;
+};
+
+// The three settings of the notes' table: normal, SCHED_FIFO, SCHED_FIFO + sleep-then-spin.
+std::vector<TimingSetting> Settings(const Args& args) {
+  TimingSetting normal{"normal", {}};
+  normal.realtime.cpu = args.cpu;
+  TimingSetting fifo{"fifo", {}};
+  fifo.realtime.fifo_priority = args.priority;
+  fifo.realtime.cpu = args.cpu;
+  fifo.realtime.lock_memory = true;
+  fifo.realtime.timer_slack_ns = 1;
+  TimingSetting spin = fifo;
+  spin.name = "fifo_spin";
+  spin.realtime.spin_us = args.spin_us;
+  return {normal, fifo, spin};
+}
+
+/// Runs `body(const TickInfo&)` at 1 kHz for `duration_ns` under `setting` on a thread of its
+/// own, logging a windowed summary every 10 s from this thread, and returns the statistics.
+/// The empty loop passes an empty body; the server half passes the server's tick.
+template <typename Body>
+LoopResult RunTimedLoop(const TimingSetting& setting, int64_t duration_ns, Body&& body) {
+  LoopResult result;
+  result.setting = setting;
+  auto stats = std::make_unique<LoopStats>(kPeriodNs);
+  LoopRunOptions options;
+  options.period_ns = kPeriodNs;
+  options.duration_ns = duration_ns;
+  options.realtime = setting.realtime;
+
+  // The loop on its own thread; this thread is the monitor.
+  std::atomic<bool> done{false};
+  std::thread loop([&] {
+    result.report = RunLoop(options, stats.get(), std::forward<Body>(body));
+    done.store(true, std::memory_order_release);
+  });
+  auto previous = std::make_unique<LoopStatsSnapshot>();
+  auto current = std::make_unique<LoopStatsSnapshot>();
+  stats->Snapshot(previous.get());
+  int64_t next_log = MonotonicNowNs() + 10'000'000'000;
+  while (!done.load(std::memory_order_acquire)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (MonotonicNowNs() >= next_log) {
+      stats->Snapshot(current.get());
+      spdlog::info("{}: {}", setting.name, FormatHapticSummary(*current, previous.get()));
+      std::swap(previous, current);
+      next_log += 10'000'000'000;
+    }
+  }
+  loop.join();
+  stats->Snapshot(result.stats.get());
+  return result;
+}
+
+std::string Us(int64_t ns) { return fmt::format("{:.1f}", static_cast<double>(ns) / 1e3); }
+
+void PrintTable(const std::vector<LoopResult>& results, double seconds) {
+  utsname name{};
+  uname(&name);
+  std::printf("felt bench loops: empty 1 kHz loop, %.0f s per setting, %ld CPUs, Linux %s\n",
+              seconds, sysconf(_SC_NPROCESSORS_ONLN), name.release);
+  std::printf("lateness of wake-up in us (percentiles: bin upper edge, < 1 us or 0.8 %% above)\n");
+  std::printf("%-10s %-8s %8s %8s %8s %8s %9s %8s %8s %8s\n", "setting", "realtime", "ticks", "p50",
+              "p99", "p99.9", "max", "overruns", "skipped", ">1ms");
+  for (const LoopResult& r : results) {
+    const HistogramSnapshot& late = r.stats->lateness;
+    std::printf("%-10s %-8s %8llu %8s %8s %8s %9s %8llu %8llu %8llu\n", r.setting.name.c_str(),
+                r.report.fifo_granted ? "yes" : "no",
+                static_cast<unsigned long long>(r.stats->ticks), Us(late.PercentileNs(0.5)).c_str(),
+                Us(late.PercentileNs(0.99)).c_str(), Us(late.PercentileNs(0.999)).c_str(),
+                Us(late.max_ns).c_str(), static_cast<unsigned long long>(r.stats->overruns),
+                static_cast<unsigned long long>(r.stats->skipped_periods),
+                static_cast<unsigned long long>(late.CountAtLeastNs(kLateNs)));
+  }
+  for (const LoopResult& r : results) {
+    std::printf("%-10s %s\n", r.setting.name.c_str(), r.report.Summary().c_str());
+  }
+  std::fflush(stdout);
+}
+
+// One setting's JSON: ticks, overruns, skipped, >1 ms count, realtime steps, lateness.
+void WriteSettingJson(JsonWriter& json, std::string_view key, const LoopResult& r) {
+  json.BeginObject(key);
+  json.Bool("realtime", r.report.fifo_granted);
+  json.String("realtime_steps", r.report.Summary());
+  json.Integer("spin_us", r.setting.realtime.spin_us);
+  json.Unsigned("ticks", r.stats->ticks);
+  json.Unsigned("overruns", r.stats->overruns);
+  json.Unsigned("skipped_periods", r.stats->skipped_periods);
+  json.Unsigned("late_over_1ms", r.stats->lateness.CountAtLeastNs(kLateNs));
+  WriteHistogramJson(json, "lateness_us", r.stats->lateness, 1e3);
+  WriteHistogramJson(json, "period_us", r.stats->period, 1e3);
+  json.EndObject();
+}
+
+// {"seconds_per_setting", "empty": {<the fifo_spin row as lateness_us, overruns, ticks>,
+// "settings": {normal, fifo, fifo_spin}}}; "server" will sit next to "empty".
+std::string BenchJson(const std::vector<LoopResult>& results, double seconds) {
+  JsonWriter json;
+  json.BeginObject();
+  json.Number("seconds_per_setting", seconds);
+  json.Number("period_us", static_cast<double>(kPeriodNs) / 1e3);
+  const LoopResult& server_like = results.back();  // the setting the server runs with
+  json.BeginObject("empty");
+  json.String("setting", server_like.setting.name);
+  json.Bool("realtime", server_like.report.fifo_granted);
+  json.Unsigned("ticks", server_like.stats->ticks);
+  json.Unsigned("overruns", server_like.stats->overruns);
+  json.Unsigned("skipped_periods", server_like.stats->skipped_periods);
+  WriteHistogramJson(json, "lateness_us", server_like.stats->lateness, 1e3);
+  json.BeginObject("settings");
+  for (const LoopResult& r : results) WriteSettingJson(json, r.setting.name, r);
+  json.EndObject();
+  json.EndObject();
+  json.EndObject();
+  return json.str();
+}
+
+app::CommandRun Setup(CLI::App& cmd) {
+  auto args = std::make_shared<Args>();
+  cmd.add_flag("--empty-only", args->empty_only,
+               "run only the empty loop (the server half needs `felt serve`, issue 5)");
+  auto* minutes = cmd.add_option("--minutes", args->minutes, "minutes per setting");
+  cmd.add_option("--seconds", args->seconds, "seconds per setting (default 30)")->excludes(minutes);
+  cmd.add_option("--json", args->json_path, "write the results as JSON to this file");
+  cmd.add_option("--priority", args->priority, "SCHED_FIFO priority (default 80)")
+      ->check(CLI::Range(1, 99));
+  cmd.add_option("--cpu", args->cpu, "pin the loop to this CPU (default: no pinning)");
+  cmd.add_option("--spin-us", args->spin_us, "spin before each deadline, us (default 50)")
+      ->check(CLI::Range(1, 999));
+  cmd.add_flag("--hold-dma-latency", args->hold_dma_latency,
+               "hold /dev/cpu_dma_latency at 0 during the runs");
+  return [args]() -> int {
+    if (!args->empty_only) {
+      throw std::invalid_argument(
+          "the server half of `felt bench loops` needs the server (issue 5), which is not in "
+          "this build yet; pass --empty-only for the empty loop");
+    }
+    const double seconds = args->minutes > 0.0   ? args->minutes * 60.0
+                           : args->seconds > 0.0 ? args->seconds
+                                                 : 30.0;
+    if (!(seconds >= 0.01)) throw std::invalid_argument("--seconds/--minutes must be > 0");
+    const auto duration_ns = static_cast<int64_t>(seconds * 1e9);
+
+    // Optional: keep idle cores out of deep C-states for the whole benchmark.
+    std::unique_ptr<CpuDmaLatencyHold> dma;
+    if (args->hold_dma_latency) dma = std::make_unique<CpuDmaLatencyHold>();
+
+    std::vector<LoopResult> results;
+    for (const TimingSetting& setting : Settings(*args)) {
+      spdlog::info("bench loops: empty loop, setting {}, {:.0f} s", setting.name, seconds);
+      results.push_back(RunTimedLoop(setting, duration_ns, [](const TickInfo&) {}));
+    }
+    PrintTable(results, seconds);
+    if (!args->json_path.empty()) {
+      std::ofstream out(args->json_path);
+      out << BenchJson(results, seconds);
+      if (!out) throw std::runtime_error("cannot write --json file '" + args->json_path + "'");
+    }
+    return 0;
+  };
+}
+
+const bool kRegistered = felt::app::RegisterCommand(
+    {"bench", "loops", "lateness of the 1 kHz loop: empty (machine floor) and server", Setup});
+
+}  // namespace
+}  // namespace felt::bench
