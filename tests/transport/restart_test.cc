@@ -1,0 +1,147 @@
+// Across two processes over loopback (the embedded configuration): a device client in a child
+// process keeps publishing at 1 kHz while the server transport in this process is destroyed and
+// created again; the new server receives the client's samples and its forces reach the client.
+// The child is this test binary, running the disabled helper test below.
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "tests/transport/transport_test_util.h"
+#include "transport/client_transport.h"
+#include "transport/server_transport.h"
+
+extern char** environ;
+
+namespace felt::transport {
+namespace {
+
+using testing::kWait;
+using testing::TestDds;
+using testing::TestDevice;
+
+constexpr uint64_t kStopMarker = ~uint64_t{0};  // answers_seq of the force that ends the child
+constexpr char kChildTest[] = "TransportChildProcess.DISABLED_PublishUntilStopped";
+
+// The child: publishes device "hand" at 1 kHz (absolute deadlines) until a force answering
+// kStopMarker arrives, then checks it received forces. Topic suffix from FELT_CHILD_SUFFIX.
+TEST(TransportChildProcess, DISABLED_PublishUntilStopped) {
+  const char* suffix = std::getenv("FELT_CHILD_SUFFIX");
+  ASSERT_NE(suffix, nullptr) << "run by RestartTest only";
+  ClientTransportConfig config;
+  config.dds = TestDds();
+  config.topics = TopicNames::WithAffixes("", suffix);
+  config.device_ids = {"hand"};
+  config.subscribe_status = false;
+  ClientTransport client(config);
+  timespec next{};
+  clock_gettime(CLOCK_MONOTONIC, &next);
+  const int64_t give_up_ns = MonotonicNowNs() + 60'000'000'000;
+  bool stopped = false;
+  for (uint64_t seq = 1; !stopped && MonotonicNowNs() < give_up_ns; ++seq) {
+    PointerSampleView sample = testing::Sample(seq, 0.1);
+    client.PublishPointer(sample);
+    ForceCommandView force;
+    while (client.TakeForce(0, &force)) stopped = stopped || force.answers_seq == kStopMarker;
+    next.tv_nsec += 1000000;
+    if (next.tv_nsec >= 1000000000) next.tv_nsec -= 1000000000, ++next.tv_sec;
+    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr);
+  }
+  EXPECT_TRUE(stopped) << "no stop force within 60 s";
+  EXPECT_GE(client.Stats().forces_received, 2u);
+  EXPECT_EQ(client.Stats().dds_errors, 0u);
+}
+
+// Starts this binary as the child with `suffix`; returns its pid.
+pid_t SpawnChild(const std::string& suffix) {
+  std::string filter = std::string("--gtest_filter=") + kChildTest;
+  std::string disabled = "--gtest_also_run_disabled_tests";
+  std::string exe = "/proc/self/exe";
+  std::vector<char*> argv = {exe.data(), filter.data(), disabled.data(), nullptr};
+  std::vector<std::string> env_strings = {"FELT_CHILD_SUFFIX=" + suffix};
+  for (char** e = environ; *e != nullptr; ++e) {
+    if (std::string(*e).rfind("FELT_CHILD_SUFFIX=", 0) != 0) env_strings.emplace_back(*e);
+  }
+  std::vector<char*> envp;
+  for (std::string& s : env_strings) envp.push_back(s.data());
+  envp.push_back(nullptr);
+  pid_t pid = 0;
+  const int rc = posix_spawn(&pid, exe.c_str(), nullptr, nullptr, argv.data(), envp.data());
+  EXPECT_EQ(rc, 0);
+  return rc == 0 ? pid : -1;
+}
+
+// Waits for a sample of device 0 received after `after_ns`.
+bool WaitForFreshSample(ServerTransport& server, int64_t after_ns) {
+  return WaitUntil(
+      [&] {
+        PointerSampleView view;
+        return server.LatestPointer(0, &view) && view.receive_time_ns > after_ns;
+      },
+      kWait);
+}
+
+TEST(RestartTest, ANewServerReceivesAClientThatKeptPublishing) {
+  const std::string suffix = testing::UniqueSuffix();
+  ServerTransportConfig config;
+  config.dds = TestDds();
+  config.topics = TopicNames::WithAffixes("", suffix);
+  config.devices = {TestDevice("hand")};
+  const pid_t child = SpawnChild(suffix);
+  ASSERT_GT(child, 0);
+  int child_status = -1;
+  bool child_done = false;
+  const auto reap = [&](bool block) {
+    if (!child_done && waitpid(child, &child_status, block ? 0 : WNOHANG) == child) {
+      child_done = true;
+    }
+    return child_done;
+  };
+
+  // First server: the child's samples arrive and a force reaches it.
+  auto server = std::make_unique<ServerTransport>(config);
+  ASSERT_TRUE(WaitForFreshSample(*server, 0));
+  PointerSampleView first;
+  ASSERT_TRUE(server->LatestPointer(0, &first));
+  ForceCommandView force;
+  force.answers_seq = first.seq;
+  ASSERT_TRUE(server->PushForce(force));
+
+  // Restart: the domain goes away with the only server in this process, then comes back.
+  server.reset();
+  const int64_t restarted_ns = MonotonicNowNs();
+  server = std::make_unique<ServerTransport>(config);
+  ASSERT_TRUE(WaitForFreshSample(*server, restarted_ns)) << "the new server got no sample";
+  PointerSampleView later;
+  ASSERT_TRUE(server->LatestPointer(0, &later));
+  EXPECT_GT(later.seq, first.seq) << "the client kept publishing through the restart";
+  EXPECT_EQ(server->Stats().rejected_seq, 0u);
+
+  // The new server's forces reach the client: answer a few samples, then stop the child (a
+  // best-effort force can be lost, so the stop marker repeats until the child exits).
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(server->LatestPointer(0, &later));
+    force.answers_seq = later.seq;
+    server->PushForce(force);
+  }
+  force.answers_seq = kStopMarker;
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        server->PushForce(force);
+        return reap(false);
+      },
+      std::chrono::seconds(30)));
+  ASSERT_TRUE(WIFEXITED(child_status));
+  EXPECT_EQ(WEXITSTATUS(child_status), 0) << "the child's checks failed (see its output above)";
+}
+
+}  // namespace
+}  // namespace felt::transport

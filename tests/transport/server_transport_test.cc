@@ -1,0 +1,299 @@
+// ServerTransport against the real Cyclone DDS (in-process client, same domain): samples reach the
+// slots, forces reach the client, every kind of bad input is rejected and counted and never
+// reaches a slot. Each test uses its own topic names.
+
+#include "transport/server_transport.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "tests/transport/transport_test_util.h"
+#include "transport/client_transport.h"
+
+namespace felt::transport {
+namespace {
+
+using testing::kWait;
+using testing::Sample;
+using testing::TestDds;
+using testing::TestDevice;
+using testing::UniqueTopics;
+
+// A server with devices "left" and "right", and a client publishing for "left" (index 0).
+class ServerTransportTest : public ::testing::TestWithParam<ReceiveMode> {
+ protected:
+  void Start(double max_rate_hz = 2000.0, double burst = 50.0, size_t queue = 256) {
+    ServerTransportConfig config;
+    config.dds = TestDds();
+    config.topics = topics_;
+    config.devices = {TestDevice("left"), TestDevice("right")};
+    for (DeviceLimits& d : config.devices) {
+      d.max_rate_hz = max_rate_hz;
+      d.burst_samples = burst;
+    }
+    config.force_queue_capacity = queue;
+    config.receive_mode = GetParam();
+    server_ = std::make_unique<ServerTransport>(config);
+    ClientTransportConfig client_config;
+    client_config.dds = TestDds();
+    client_config.topics = topics_;
+    client_config.device_ids = {"left"};
+    client_ = std::make_unique<ClientTransport>(client_config);
+    ASSERT_TRUE(WaitUntil(
+        [&] {
+          return server_->MatchedPointerWriters() >= 1 && client_->MatchedForceWriters() >= 1;
+        },
+        kWait));
+  }
+
+  // Publishes `sample` and waits until the server has counted it, accepted or rejected.
+  void PublishAndWait(const PointerSampleView& sample) {
+    const uint64_t before = Handled();
+    ASSERT_TRUE(client_->PublishPointer(sample));
+    ASSERT_TRUE(WaitUntil([&] { return Handled() > before; }, kWait));
+  }
+
+  uint64_t Handled() const {
+    const TransportStats s = server_->Stats();
+    return s.pointer_accepted + s.rejected_nonfinite + s.rejected_workspace + s.rejected_seq +
+           s.rejected_unknown_device + s.rejected_flood;
+  }
+
+  TopicNames topics_ = UniqueTopics();
+  std::unique_ptr<ServerTransport> server_;
+  std::unique_ptr<ClientTransport> client_;
+};
+
+TEST_P(ServerTransportTest, SamplesReachTheDeviceSlot) {
+  Start();
+  PointerSampleView view;
+  EXPECT_FALSE(server_->LatestPointer(0, &view)) << "nothing received yet";
+  // Publish a few samples; the slot ends on the last one, intact.
+  for (uint64_t seq = 1; seq <= 5; ++seq) {
+    PublishAndWait(Sample(seq, 0.01 * static_cast<double>(seq)));
+  }
+  ASSERT_TRUE(server_->LatestPointer(0, &view));
+  EXPECT_EQ(view.device_index, 0u);
+  EXPECT_EQ(view.seq, 5u);
+  EXPECT_EQ(view.device_time_ns, 5000000);
+  EXPECT_DOUBLE_EQ(view.position_m_D[0], 0.05);
+  EXPECT_DOUBLE_EQ(view.velocity_m_per_s_D[1], 0.01);
+  EXPECT_EQ(view.buttons, 1u);
+  EXPECT_GT(view.receive_time_ns, 0);
+  // The other device and an index out of range have nothing.
+  EXPECT_FALSE(server_->LatestPointer(1, &view));
+  EXPECT_FALSE(server_->LatestPointer(2, &view));
+  EXPECT_EQ(server_->Stats().pointer_accepted, 5u);
+  EXPECT_GE(server_->Stats().receive_hop.count, 1u);
+}
+
+TEST_P(ServerTransportTest, ForcesReachTheClientReader) {
+  Start();
+  ForceCommandView force;
+  force.device_index = 0;
+  force.answers_seq = 77;
+  force.answers_device_time_ns = 123456;
+  force.force_N_D = {1.5, -2.0, 0.25};
+  force.proxy_position_m_D = {0.1, 0.2, 0.3};
+  force.in_contact = true;
+  force.flags = kForceClamped | kForceRamping;
+  ASSERT_TRUE(server_->PushForce(force));
+  ForceCommandView received;
+  ASSERT_TRUE(client_->WaitForce(0, kWait, &received));
+  EXPECT_EQ(received.seq, 1u) << "the server numbers each device's forces from 1";
+  EXPECT_EQ(received.answers_seq, 77u);
+  EXPECT_EQ(received.answers_device_time_ns, 123456);
+  EXPECT_DOUBLE_EQ(received.force_N_D[0], 1.5);
+  EXPECT_DOUBLE_EQ(received.force_N_D[1], -2.0);
+  EXPECT_DOUBLE_EQ(received.force_N_D[2], 0.25);
+  EXPECT_DOUBLE_EQ(received.proxy_position_m_D[2], 0.3);
+  EXPECT_TRUE(received.in_contact);
+  EXPECT_EQ(received.flags, kForceClamped | kForceRamping);
+  // A force for the other device is not this client's; a bad index is refused and counted.
+  force.device_index = 1;
+  ASSERT_TRUE(server_->PushForce(force));
+  force.device_index = 0;
+  force.answers_seq = 78;
+  ASSERT_TRUE(server_->PushForce(force));
+  ASSERT_TRUE(client_->WaitForce(0, kWait, &received));
+  EXPECT_EQ(received.answers_seq, 78u);
+  EXPECT_EQ(received.seq, 2u);
+  force.device_index = 7;
+  EXPECT_FALSE(server_->PushForce(force));
+  EXPECT_EQ(server_->Stats().forces_bad_device, 1u);
+  EXPECT_TRUE(WaitUntil([&] { return server_->Stats().forces_published == 3; }, kWait));
+  EXPECT_GE(server_->Stats().write_hop.count, 3u);
+}
+
+TEST_P(ServerTransportTest, AFullForceQueueIsCountedAndNothingIsLostSilently) {
+  Start(2000.0, 50.0, /*queue=*/1);
+  constexpr int kPushes = 20000;
+  int accepted = 0;
+  ForceCommandView force;
+  for (int i = 0; i < kPushes; ++i) accepted += server_->PushForce(force) ? 1 : 0;
+  const TransportStats s = server_->Stats();
+  EXPECT_EQ(s.forces_pushed, static_cast<uint64_t>(accepted));
+  EXPECT_EQ(s.forces_pushed + s.forces_queue_full, static_cast<uint64_t>(kPushes));
+  EXPECT_GT(s.forces_queue_full, 0u) << "a one-slot queue cannot keep up with a tight loop";
+  // Everything queued is published.
+  EXPECT_TRUE(WaitUntil(
+      [&] { return server_->Stats().forces_published == static_cast<uint64_t>(accepted); }, kWait));
+}
+
+TEST_P(ServerTransportTest, NonFiniteSamplesAreRejected) {
+  Start();
+  PublishAndWait(Sample(1, 0.2));
+  PointerSampleView bad = Sample(2);
+  bad.position_m_D[1] = std::numeric_limits<double>::quiet_NaN();
+  PublishAndWait(bad);
+  bad = Sample(3);
+  bad.velocity_m_per_s_D[2] = std::numeric_limits<double>::infinity();
+  PublishAndWait(bad);
+  bad = Sample(4);
+  bad.position_m_D[0] = -std::numeric_limits<double>::infinity();
+  PublishAndWait(bad);
+  const TransportStats s = server_->Stats();
+  EXPECT_EQ(s.rejected_nonfinite, 3u);
+  EXPECT_EQ(s.pointer_accepted, 1u);
+  PointerSampleView view;
+  ASSERT_TRUE(server_->LatestPointer(0, &view));
+  EXPECT_EQ(view.seq, 1u) << "no rejected sample reaches the slot";
+  EXPECT_DOUBLE_EQ(view.position_m_D[0], 0.2);
+}
+
+TEST_P(ServerTransportTest, OutOfWorkspaceSamplesAreRejected) {
+  Start();
+  PublishAndWait(Sample(1, 0.5));  // on the boundary: inside
+  PublishAndWait(Sample(2, 0.5000001));
+  PointerSampleView bad = Sample(3);
+  bad.position_m_D[2] = -0.7;
+  PublishAndWait(bad);
+  bad = Sample(4);
+  bad.position_m_D = {1e9, 1e9, 1e9};
+  PublishAndWait(bad);
+  const TransportStats s = server_->Stats();
+  EXPECT_EQ(s.rejected_workspace, 3u);
+  EXPECT_EQ(s.pointer_accepted, 1u);
+  PointerSampleView view;
+  ASSERT_TRUE(server_->LatestPointer(0, &view));
+  EXPECT_EQ(view.seq, 1u);
+}
+
+TEST_P(ServerTransportTest, SequenceNumbersGoingBackwardsOrRepeatedAreRejected) {
+  Start();
+  PublishAndWait(Sample(10, 0.1));
+  PublishAndWait(Sample(5, 0.2));    // backwards
+  PublishAndWait(Sample(10, 0.3));   // repeated
+  PublishAndWait(Sample(0, 0.4));    // back to zero from the same writer
+  PublishAndWait(Sample(12, 0.25));  // forward (a gap is fine)
+  const TransportStats s = server_->Stats();
+  EXPECT_EQ(s.rejected_seq, 3u);
+  EXPECT_EQ(s.pointer_accepted, 2u);
+  PointerSampleView view;
+  ASSERT_TRUE(server_->LatestPointer(0, &view));
+  EXPECT_EQ(view.seq, 12u);
+  EXPECT_DOUBLE_EQ(view.position_m_D[0], 0.25);
+}
+
+TEST_P(ServerTransportTest, UnknownDevicesAreRejected) {
+  Start();
+  ClientTransportConfig config;
+  config.dds = TestDds();
+  config.topics = topics_;
+  config.device_ids = {"intruder", "right"};
+  config.subscribe_status = false;
+  ClientTransport intruder(config);
+  ASSERT_TRUE(WaitUntil([&] { return server_->MatchedPointerWriters() >= 2; }, kWait));
+  const uint64_t before = Handled();
+  PointerSampleView sample = Sample(1);
+  sample.device_index = 0;  // "intruder"
+  ASSERT_TRUE(intruder.PublishPointer(sample));
+  ASSERT_TRUE(WaitUntil([&] { return Handled() > before; }, kWait));
+  EXPECT_EQ(server_->Stats().rejected_unknown_device, 1u);
+  EXPECT_EQ(server_->Stats().pointer_accepted, 0u);
+  PointerSampleView view;
+  EXPECT_FALSE(server_->LatestPointer(0, &view));
+  EXPECT_FALSE(server_->LatestPointer(1, &view));
+  // The same client's allowed device goes through to its own slot.
+  sample.device_index = 1;  // "right"
+  ASSERT_TRUE(intruder.PublishPointer(sample));
+  ASSERT_TRUE(WaitUntil([&] { return server_->LatestPointer(1, &view); }, kWait));
+  EXPECT_FALSE(server_->LatestPointer(0, &view));
+}
+
+TEST_P(ServerTransportTest, AFloodingPublisherIsRateLimited) {
+  // 1 kHz sustained with a burst of 20: a publisher writing as fast as it can gets about 20 plus
+  // 1 per elapsed millisecond through, the rest counted as flood.
+  Start(/*max_rate_hz=*/1000.0, /*burst=*/20.0);
+  constexpr uint64_t kSamples = 3000;
+  const int64_t start_ns = MonotonicNowNs();
+  for (uint64_t seq = 1; seq <= kSamples; ++seq) ASSERT_TRUE(client_->PublishPointer(Sample(seq)));
+  // Count only what the server saw (keep-last 1 may replace samples in the waitset mode).
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        PointerSampleView v;
+        return Handled() > 0 && server_->LatestPointer(0, &v) &&
+               (v.seq == kSamples || server_->Stats().rejected_flood > 0);
+      },
+      kWait));
+  const int64_t elapsed_ns = MonotonicNowNs() - start_ns;
+  const TransportStats s = server_->Stats();
+  const double allowed = 20.0 + 1000.0 * static_cast<double>(elapsed_ns) * 1e-9 + 1.0;
+  EXPECT_LE(static_cast<double>(s.pointer_accepted), allowed);
+  EXPECT_GT(s.rejected_flood, 0u);
+  EXPECT_GE(s.pointer_accepted, 20u);
+  // A well-behaved rate afterwards is accepted again once the bucket refills.
+  ASSERT_TRUE(
+      WaitUntil([&] { return MonotonicNowNs() - start_ns > elapsed_ns + 30000000; }, kWait));
+  PublishAndWait(Sample(kSamples + 1, 0.3));
+  PointerSampleView view;
+  ASSERT_TRUE(server_->LatestPointer(0, &view));
+  EXPECT_EQ(view.seq, kSamples + 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(ReceiveModes, ServerTransportTest,
+                         ::testing::Values(ReceiveMode::kListener, ReceiveMode::kWaitset),
+                         [](const ::testing::TestParamInfo<ReceiveMode>& param_info) {
+                           return param_info.param == ReceiveMode::kListener
+                                      ? std::string("Listener")
+                                      : std::string("Waitset");
+                         });
+
+// Bad configurations are refused with a message naming the field.
+TEST(ServerTransportConfigTest, InvalidConfigurationsNameTheField) {
+  const auto message_of = [](ServerTransportConfig config) -> std::string {
+    config.dds = TestDds();
+    config.topics = UniqueTopics();
+    try {
+      ServerTransport server(config);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  ServerTransportConfig config;
+  EXPECT_NE(message_of(config).find("devices: at least one"), std::string::npos);
+  config.devices = {TestDevice("a"), TestDevice("a")};
+  EXPECT_NE(message_of(config).find("devices[1].device_id \"a\": listed twice"), std::string::npos);
+  config.devices = {TestDevice("")};
+  EXPECT_NE(message_of(config).find("devices[0].device_id"), std::string::npos);
+  config.devices = {TestDevice(std::string(65, 'x'))};
+  EXPECT_NE(message_of(config).find("1 to 64 characters"), std::string::npos);
+  config.devices = {TestDevice("a")};
+  config.devices[0].workspace_min_m_D[1] = 0.6;
+  EXPECT_NE(message_of(config).find("axis 1 must be finite with min < max"), std::string::npos);
+  config.devices = {TestDevice("a")};
+  config.devices[0].max_rate_hz = 0;
+  EXPECT_NE(message_of(config).find("devices[0].max_rate_hz"), std::string::npos);
+  config.devices = {TestDevice("a")};
+  config.force_queue_capacity = 0;
+  EXPECT_NE(message_of(config).find("force_queue_capacity"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace felt::transport

@@ -1,0 +1,462 @@
+#include "transport/server_transport.h"
+
+#include <pthread.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+#include <utility>
+
+#include "felt_types.h"
+#include "haptic_loop/spsc_queue.h"
+#include "haptic_loop/triple_buffer.h"
+#include "transport/dds_config.h"
+#include "transport/qos.h"
+
+namespace felt::transport {
+namespace {
+
+constexpr int kTakeBatch = 16;  // samples per dds_take; more are taken in the next round
+
+// Relaxed counter bump for a counter with one writer at a time.
+void Bump(std::atomic<uint64_t>& counter) {
+  counter.store(counter.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+}
+
+uint64_t Load(const std::atomic<uint64_t>& counter) {
+  return counter.load(std::memory_order_relaxed);
+}
+
+bool AllFinite(const double (&v)[3]) {
+  return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+}
+
+void ValidateConfig(const ServerTransportConfig& config) {
+  if (config.devices.empty()) {
+    throw std::invalid_argument("ServerTransportConfig.devices: at least one device is required");
+  }
+  for (size_t i = 0; i < config.devices.size(); ++i) {
+    const DeviceLimits& d = config.devices[i];
+    const std::string field = "ServerTransportConfig.devices[" + std::to_string(i) + "]";
+    char scratch[65];
+    CopyId(d.device_id, scratch, field + ".device_id");
+    for (size_t j = 0; j < i; ++j) {
+      if (config.devices[j].device_id == d.device_id) {
+        throw std::invalid_argument(field + ".device_id \"" + d.device_id + "\": listed twice");
+      }
+    }
+    for (int k = 0; k < 3; ++k) {
+      if (!(std::isfinite(d.workspace_min_m_D[k]) && std::isfinite(d.workspace_max_m_D[k]) &&
+            d.workspace_min_m_D[k] < d.workspace_max_m_D[k])) {
+        throw std::invalid_argument(field + ".workspace_min_m_D/workspace_max_m_D: axis " +
+                                    std::to_string(k) + " must be finite with min < max");
+      }
+    }
+    if (!(d.max_rate_hz > 0 && std::isfinite(d.max_rate_hz))) {
+      throw std::invalid_argument(field + ".max_rate_hz: must be positive and finite");
+    }
+    if (!(d.burst_samples >= 1 && std::isfinite(d.burst_samples))) {
+      throw std::invalid_argument(field + ".burst_samples: must be at least 1");
+    }
+  }
+  if (config.force_queue_capacity == 0) {
+    throw std::invalid_argument("ServerTransportConfig.force_queue_capacity: must be at least 1");
+  }
+}
+
+void NameThisThread(const char* name) { pthread_setname_np(pthread_self(), name); }
+
+}  // namespace
+
+class ServerTransport::Impl {
+ public:
+  explicit Impl(ServerTransportConfig config);
+  ~Impl();
+
+  // Per-device state of the receive path (receive_mutex_ held) and the haptic thread's slot.
+  struct Device {
+    char id[65] = {};
+    DeviceLimits limits;
+    // Receive path only.
+    double tokens = 0;
+    int64_t last_refill_ns = 0;
+    bool has_last = false;
+    uint64_t last_seq = 0;
+    dds_instance_handle_t last_writer = 0;
+    // Haptic thread only.
+    uint64_t next_force_seq = 1;
+  };
+
+  static void OnDataAvailable(dds_entity_t reader, void* arg);
+  void WaitsetLoop();
+  void WriterLoop();
+  void DrainPointers();
+  void Accept(const felt_msgs_PointerSample& sample, dds_instance_handle_t writer, int64_t now_ns);
+
+  ServerTransportConfig config_;
+  std::vector<Device> devices_;
+  std::unique_ptr<TripleBuffer<PointerSampleView>[]> slots_;
+  SpscQueue<ForceCommandView> forces_;
+
+  // DDS entities, deleted in reverse order by the destructor.
+  Participant participant_;
+  Entity pointer_topic_, force_topic_, status_topic_;
+  Entity pointer_reader_, force_writer_, status_writer_;
+  Entity waitset_, stop_guard_, read_condition_;
+
+  // Receive path: the listener may be called on more than one Cyclone thread over time (the
+  // receive thread, or a local writer's thread), and each slot is single-producer, so takes are
+  // serialised here. The haptic thread never touches this mutex.
+  std::mutex receive_mutex_;
+  std::array<felt_msgs_PointerSample, kTakeBatch> take_buffer_{};
+  std::array<void*, kTakeBatch> take_ptrs_{};
+  std::array<dds_sample_info_t, kTakeBatch> take_infos_{};
+
+  std::thread waitset_thread_, writer_thread_;
+  std::atomic<bool> stop_receive_{false};
+  std::atomic<bool> stop_writer_{false};
+  std::atomic<uint32_t> force_epoch_{0};  // bumped per push; the writer thread waits on it
+
+  std::atomic<uint64_t> accepted_{0}, nonfinite_{0}, workspace_{0}, seq_{0}, unknown_{0}, flood_{0};
+  std::atomic<uint64_t> pushed_{0}, queue_full_{0}, bad_device_{0}, published_{0}, statuses_{0};
+  std::atomic<uint64_t> dds_errors_receive_{0}, dds_errors_write_{0}, dds_errors_status_{0};
+  HopHistogram receive_hop_, write_hop_;
+};
+
+ServerTransport::Impl::Impl(ServerTransportConfig config)
+    : config_((ValidateConfig(config), std::move(config))),
+      devices_(config_.devices.size()),
+      slots_(new TripleBuffer<PointerSampleView>[config_.devices.size()]),
+      forces_(config_.force_queue_capacity),
+      participant_(AcquireDomain(config_.dds)) {
+  // Devices: ids as fixed C strings for allocation-free comparison; full token buckets.
+  const int64_t now_ns = MonotonicNowNs();
+  for (size_t i = 0; i < devices_.size(); ++i) {
+    devices_[i].limits = config_.devices[i];
+    CopyId(config_.devices[i].device_id, devices_[i].id, "device_id");
+    devices_[i].tokens = devices_[i].limits.burst_samples;
+    devices_[i].last_refill_ns = now_ns;
+  }
+  for (int i = 0; i < kTakeBatch; ++i) take_ptrs_[i] = &take_buffer_[i];
+
+  // Topics, writers, and the pointer reader (last, so nothing arrives before the rest exists).
+  pointer_topic_ = CreateTopic(participant_, &felt_msgs_PointerSample_desc, config_.topics.pointer);
+  force_topic_ = CreateTopic(participant_, &felt_msgs_ForceCommand_desc, config_.topics.force);
+  status_topic_ = CreateTopic(participant_, &felt_msgs_ServerStatus_desc, config_.topics.status);
+  const Qos stream_qos = StreamQos();
+  const Qos status_qos = StatusQos();
+  force_writer_ = CreateWriter(participant_, force_topic_, stream_qos.get(), config_.topics.force);
+  status_writer_ =
+      CreateWriter(participant_, status_topic_, status_qos.get(), config_.topics.status);
+
+  // Writer thread first: PushForce may be called as soon as the constructor returns.
+  writer_thread_ = std::thread([this] { WriterLoop(); });
+
+  try {
+    if (config_.receive_mode == ReceiveMode::kListener) {
+      std::unique_ptr<dds_listener_t, void (*)(dds_listener_t*)> listener(dds_create_listener(this),
+                                                                          &dds_delete_listener);
+      if (!listener) throw std::bad_alloc();
+      dds_lset_data_available(listener.get(), &Impl::OnDataAvailable);
+      pointer_reader_ = CreateReader(participant_, pointer_topic_, stream_qos.get(), listener.get(),
+                                     config_.topics.pointer);
+    } else {
+      pointer_reader_ = CreateReader(participant_, pointer_topic_, stream_qos.get(), nullptr,
+                                     config_.topics.pointer);
+      waitset_ = Entity(CheckDds(dds_create_waitset(participant_.get()), "dds_create_waitset"));
+      stop_guard_ = Entity(
+          CheckDds(dds_create_guardcondition(participant_.get()), "dds_create_guardcondition"));
+      read_condition_ =
+          Entity(CheckDds(dds_create_readcondition(pointer_reader_.get(), DDS_ANY_STATE),
+                          "dds_create_readcondition"));
+      CheckDds(dds_waitset_attach(waitset_.get(), stop_guard_.get(), 0), "dds_waitset_attach");
+      CheckDds(dds_waitset_attach(waitset_.get(), read_condition_.get(), 1), "dds_waitset_attach");
+      waitset_thread_ = std::thread([this] { WaitsetLoop(); });
+    }
+  } catch (...) {
+    stop_writer_.store(true);
+    force_epoch_.fetch_add(1, std::memory_order_release);
+    force_epoch_.notify_one();
+    writer_thread_.join();
+    throw;
+  }
+}
+
+ServerTransport::Impl::~Impl() {
+  // 1. Stop receiving: no callback or waitset wake-up runs after this block.
+  if (config_.receive_mode == ReceiveMode::kListener) {
+    (void)dds_set_listener(pointer_reader_.get(), nullptr);  // waits for a running callback
+  } else {
+    stop_receive_.store(true);
+    (void)dds_set_guardcondition(stop_guard_.get(), true);
+    if (waitset_thread_.joinable()) waitset_thread_.join();
+  }
+  pointer_reader_.Reset();
+  // 2. Publish what is queued, then stop the writer thread.
+  stop_writer_.store(true);
+  force_epoch_.fetch_add(1, std::memory_order_release);
+  force_epoch_.notify_one();
+  if (writer_thread_.joinable()) writer_thread_.join();
+  // 3. The remaining entities go with their members (conditions, waitset, writers, topics), and
+  //    the participant last.
+  read_condition_.Reset();
+  stop_guard_.Reset();
+  waitset_.Reset();
+}
+
+void ServerTransport::Impl::OnDataAvailable(dds_entity_t /*reader*/, void* arg) {
+  static_cast<Impl*>(arg)->DrainPointers();
+}
+
+void ServerTransport::Impl::WaitsetLoop() {
+  NameThisThread("felt-dds-recv");
+  while (!stop_receive_.load()) {
+    // Block until a sample or the stop guard; the result only says how many triggered.
+    const dds_return_t n = dds_waitset_wait(waitset_.get(), nullptr, 0, DDS_INFINITY);
+    if (n < 0) {
+      Bump(dds_errors_receive_);
+      continue;
+    }
+    if (stop_receive_.load()) break;
+    DrainPointers();
+  }
+}
+
+void ServerTransport::Impl::DrainPointers() {
+  std::lock_guard<std::mutex> lock(receive_mutex_);
+  const int64_t start_ns = MonotonicNowNs();
+  // Take everything available in batches into the preallocated buffer (fixed-size type: Cyclone
+  // copies into it and allocates nothing for us), validating each sample.
+  for (;;) {
+    const dds_return_t n = dds_take(pointer_reader_.get(), take_ptrs_.data(), take_infos_.data(),
+                                    kTakeBatch, kTakeBatch);
+    if (n < 0) {
+      Bump(dds_errors_receive_);
+      break;
+    }
+    if (n == 0) break;
+    const int64_t now_ns = MonotonicNowNs();
+    for (dds_return_t i = 0; i < n; ++i) {
+      // Invalid data = an instance state change (writer gone), not a sample.
+      if (take_infos_[i].valid_data) {
+        Accept(take_buffer_[i], take_infos_[i].publication_handle, now_ns);
+      }
+    }
+    if (n < kTakeBatch) break;
+  }
+  receive_hop_.Record(MonotonicNowNs() - start_ns);
+}
+
+void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
+                                   dds_instance_handle_t writer, int64_t now_ns) {
+  // Unknown device: the id is not in the scene.
+  size_t index = 0;
+  while (index < devices_.size() &&
+         std::strncmp(devices_[index].id, sample.device_id, sizeof(devices_[index].id)) != 0) {
+    ++index;
+  }
+  if (index == devices_.size()) return Bump(unknown_);
+  Device& device = devices_[index];
+
+  // Flood: a token bucket of max_rate_hz with burst_samples depth; every sample costs a token.
+  const double refill =
+      static_cast<double>(now_ns - device.last_refill_ns) * 1e-9 * device.limits.max_rate_hz;
+  device.tokens = std::min(device.limits.burst_samples, device.tokens + refill);
+  device.last_refill_ns = now_ns;
+  if (device.tokens < 1.0) return Bump(flood_);
+  device.tokens -= 1.0;
+
+  // Non-finite position or velocity.
+  if (!AllFinite(sample.position_m) || !AllFinite(sample.velocity_m_per_s)) {
+    return Bump(nonfinite_);
+  }
+
+  // Outside the device's workspace box (device frame).
+  for (int k = 0; k < 3; ++k) {
+    if (sample.position_m[k] < device.limits.workspace_min_m_D[k] ||
+        sample.position_m[k] > device.limits.workspace_max_m_D[k]) {
+      return Bump(workspace_);
+    }
+  }
+
+  // Sequence: strictly increasing per writer; a new writer (a restarted driver) starts afresh.
+  if (device.has_last && writer == device.last_writer && sample.seq <= device.last_seq) {
+    return Bump(seq_);
+  }
+  device.has_last = true;
+  device.last_seq = sample.seq;
+  device.last_writer = writer;
+
+  // Accepted: into the device's slot for the haptic thread.
+  TripleBuffer<PointerSampleView>& slot = slots_[index];
+  PointerSampleView& view = slot.write_slot();
+  view.device_index = static_cast<uint32_t>(index);
+  view.seq = sample.seq;
+  view.device_time_ns = sample.device_time_ns;
+  for (int k = 0; k < 3; ++k) {
+    view.position_m_D[k] = sample.position_m[k];
+    view.velocity_m_per_s_D[k] = sample.velocity_m_per_s[k];
+  }
+  view.buttons = sample.buttons;
+  view.receive_time_ns = now_ns;
+  slot.Publish();
+  Bump(accepted_);
+}
+
+void ServerTransport::Impl::WriterLoop() {
+  NameThisThread("felt-dds-force");
+  felt_msgs_ForceCommand message{};
+  ForceCommandView force;
+  for (;;) {
+    // Read the epoch before draining: a push after this read changes it, so wait() returns.
+    const uint32_t epoch = force_epoch_.load(std::memory_order_acquire);
+    while (forces_.TryPop(&force)) {
+      const int64_t start_ns = MonotonicNowNs();
+      std::memcpy(message.device_id, devices_[force.device_index].id, sizeof(message.device_id));
+      message.seq = force.seq;
+      message.answers_seq = force.answers_seq;
+      message.answers_device_time_ns = force.answers_device_time_ns;
+      for (int k = 0; k < 3; ++k) {
+        message.force_N[k] = force.force_N_D[k];
+        message.proxy_position_m[k] = force.proxy_position_m_D[k];
+      }
+      message.in_contact = force.in_contact;
+      message.flags = force.flags;
+      if (dds_write(force_writer_.get(), &message) < 0) {
+        Bump(dds_errors_write_);
+      } else {
+        Bump(published_);
+      }
+      write_hop_.Record(MonotonicNowNs() - start_ns);
+    }
+    if (stop_writer_.load()) break;  // after the drain: nothing queued is left behind
+    force_epoch_.wait(epoch, std::memory_order_acquire);
+  }
+}
+
+ServerTransport::ServerTransport(ServerTransportConfig config)
+    : impl_(std::make_unique<Impl>(std::move(config))) {}
+
+ServerTransport::~ServerTransport() = default;
+
+size_t ServerTransport::device_count() const { return impl_->devices_.size(); }
+
+int ServerTransport::DeviceIndex(const std::string& device_id) const {
+  for (size_t i = 0; i < impl_->devices_.size(); ++i) {
+    if (impl_->config_.devices[i].device_id == device_id) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+bool ServerTransport::LatestPointer(uint32_t device_index, PointerSampleView* out) {
+  if (device_index >= impl_->devices_.size()) return false;
+  TripleBuffer<PointerSampleView>& slot = impl_->slots_[device_index];
+  slot.Acquire();
+  const PointerSampleView& newest = slot.read_slot();
+  if (newest.receive_time_ns == 0) return false;  // nothing accepted yet
+  *out = newest;
+  return true;
+}
+
+bool ServerTransport::PushForce(const ForceCommandView& force) {
+  Impl& impl = *impl_;
+  if (force.device_index >= impl.devices_.size()) {
+    Bump(impl.bad_device_);
+    return false;
+  }
+  ForceCommandView queued = force;
+  queued.seq = impl.devices_[force.device_index].next_force_seq++;
+  if (!impl.forces_.TryPush(queued)) {
+    Bump(impl.queue_full_);
+    return false;
+  }
+  Bump(impl.pushed_);
+  impl.force_epoch_.fetch_add(1, std::memory_order_release);
+  impl.force_epoch_.notify_one();  // a futex wake only when the writer thread sleeps
+  return true;
+}
+
+bool ServerTransport::PublishStatus(const ServerStatusView& status) {
+  Impl& impl = *impl_;
+  const TransportStats stats = Stats();
+  felt_msgs_ServerStatus message{};
+  CopyId(status.server_id, message.server_id, "ServerStatusView.server_id");
+  message.wall_time_ns = status.wall_time_ns != 0 ? status.wall_time_ns : WallNowNs();
+  message.realtime = status.realtime;
+  message.haptic_ticks = status.haptic_ticks;
+  message.haptic_overruns = status.haptic_overruns;
+  const auto copy = [](const PercentilesView& in, felt_msgs_Percentiles* out) {
+    out->p50 = in.p50;
+    out->p99 = in.p99;
+    out->p999 = in.p999;
+    out->max = in.max;
+  };
+  copy(status.haptic_lateness_us, &message.haptic_lateness_us);
+  copy(status.haptic_compute_us, &message.haptic_compute_us);
+  message.sim_frames = status.sim_frames;
+  copy(status.sim_frame_ms, &message.sim_frame_ms);
+  copy(status.snapshot_age_ms, &message.snapshot_age_ms);
+  message.sim_stalled = status.sim_stalled;
+  // The transport's own counters replace whatever the caller put in these fields.
+  message.rejected_nonfinite = stats.rejected_nonfinite;
+  message.rejected_workspace = stats.rejected_workspace;
+  message.rejected_seq = stats.rejected_seq;
+  message.rejected_unknown_device = stats.rejected_unknown_device;
+  message.rejected_flood = stats.rejected_flood;
+  message.pointer_accepted = stats.pointer_accepted;
+  message.forces_published = stats.forces_published;
+  message.forces_queue_full = stats.forces_queue_full;
+  message.dds_errors = stats.dds_errors;
+  message.nan_events = status.nan_events;
+  message.devices_connected = status.devices_connected;
+  message.passivity_energy_J = status.passivity_energy_J;
+  if (dds_write(impl.status_writer_.get(), &message) < 0) {
+    impl.dds_errors_status_.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  impl.statuses_.fetch_add(1, std::memory_order_relaxed);
+  return true;
+}
+
+TransportStats ServerTransport::Stats() const {
+  const Impl& impl = *impl_;
+  TransportStats s;
+  s.pointer_accepted = Load(impl.accepted_);
+  s.rejected_nonfinite = Load(impl.nonfinite_);
+  s.rejected_workspace = Load(impl.workspace_);
+  s.rejected_seq = Load(impl.seq_);
+  s.rejected_unknown_device = Load(impl.unknown_);
+  s.rejected_flood = Load(impl.flood_);
+  s.forces_pushed = Load(impl.pushed_);
+  s.forces_queue_full = Load(impl.queue_full_);
+  s.forces_bad_device = Load(impl.bad_device_);
+  s.forces_published = Load(impl.published_);
+  s.statuses_published = Load(impl.statuses_);
+  s.dds_errors =
+      Load(impl.dds_errors_receive_) + Load(impl.dds_errors_write_) + Load(impl.dds_errors_status_);
+  dds_requested_deadline_missed_status_t missed{};
+  if (dds_get_requested_deadline_missed_status(impl.pointer_reader_.get(), &missed) >= 0) {
+    s.pointer_deadline_missed = missed.total_count;
+  }
+  s.receive_hop = impl.receive_hop_.Summary();
+  s.write_hop = impl.write_hop_.Summary();
+  return s;
+}
+
+uint32_t ServerTransport::MatchedPointerWriters() const {
+  dds_subscription_matched_status_t status{};
+  if (dds_get_subscription_matched_status(impl_->pointer_reader_.get(), &status) < 0) return 0;
+  return status.current_count;
+}
+
+uint32_t ServerTransport::MatchedForceReaders() const {
+  dds_publication_matched_status_t status{};
+  if (dds_get_publication_matched_status(impl_->force_writer_.get(), &status) < 0) return 0;
+  return status.current_count;
+}
+
+}  // namespace felt::transport
