@@ -1,0 +1,282 @@
+// `felt run --scene FILE [--duration S] [--fast] [--json FILE]`: runs a scene's cloth headless at
+// its frame rate (60 Hz by default) for a few seconds and prints frame statistics. `make run`
+// calls it until the server exists.
+//
+// Each frame steps the nominal 1 / frame_rate_hz, so a run's physics is deterministic; in real
+// time the loop sleeps to absolute deadlines (clock_nanosleep TIMER_ABSTIME on CLOCK_MONOTONIC),
+// counts overruns and skips missed periods instead of bunching frames up. --fast never sleeps.
+#include <time.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "app/command.h"
+#include "sim_loop/cloth.h"
+#include "sim_loop/integrator_names.h"
+#include "sim_loop/scene_file.h"
+
+namespace felt::app {
+namespace {
+
+constexpr double kMaxDuration_s = 86400.0;  // one day of frames: the per-frame samples stay small
+constexpr int64_t kNsPerS = 1'000'000'000;
+
+struct RunArgs {
+  std::string scene;
+  std::optional<double> duration_s;
+  std::string json;
+  bool fast = false;
+};
+
+// What a run measured.
+struct RunStats {
+  int64_t frames = 0;
+  int64_t substeps = 0;
+  double sim_time_s = 0.0;
+  double wall_s = 0.0;
+  std::vector<double> frame_ms;  // compute time of each frame
+  double max_stretch = 1.0;      // over every frame
+  double final_stretch = 1.0;
+  double energy_start_J = 0.0;
+  double energy_end_J = 0.0;
+  double energy_min_J = 0.0;
+  double energy_max_J = 0.0;
+  int64_t overruns = 0;         // frames that ended after their deadline (real time only)
+  int64_t skipped_periods = 0;  // periods skipped after overruns
+};
+
+int64_t NowNs() {
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return static_cast<int64_t>(now.tv_sec) * kNsPerS + now.tv_nsec;
+}
+
+// Sleeps until CLOCK_MONOTONIC reads `deadline_ns` (absolute, so lateness never accumulates).
+void SleepUntil(int64_t deadline_ns) {
+  timespec deadline{};
+  deadline.tv_sec = static_cast<time_t>(deadline_ns / kNsPerS);
+  deadline.tv_nsec = static_cast<long>(deadline_ns % kNsPerS);
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
+  }
+}
+
+// Nearest-rank percentile (p in [0, 100]) of `samples`; 0 for none. Kept local to this command
+// until a shared statistics header exists.
+double Percentile(std::vector<double> samples, double p) {
+  if (samples.empty()) return 0.0;
+  std::sort(samples.begin(), samples.end());
+  const double rank = std::ceil(p / 100.0 * static_cast<double>(samples.size()));
+  const size_t index =
+      static_cast<size_t>(std::clamp(rank, 1.0, static_cast<double>(samples.size())));
+  return samples[index - 1];
+}
+
+// A string as a JSON string literal.
+std::string JsonString(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\u%04x", static_cast<unsigned>(c));
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+// A number for JSON: non-finite values become null.
+std::string JsonNumber(double value) {
+  if (!std::isfinite(value)) return "null";
+  return FormatSceneNumber(value);
+}
+
+// Steps `model` for `frames` frames of nominal length, in real time unless `fast`.
+RunStats RunFrames(const ClothModel& model, int64_t frames, bool fast, ClothState* state) {
+  RunStats stats;
+  stats.frame_ms.reserve(static_cast<size_t>(frames));
+  const double frame_dt_s = 1.0 / model.spec.integration.frame_rate_hz;
+  const int64_t period_ns = std::max<int64_t>(1, std::llround(frame_dt_s * 1e9));
+  const std::span<const ExternalForce> no_external;
+
+  stats.energy_start_J = TotalEnergy(model, *state);
+  stats.energy_min_J = stats.energy_max_J = stats.energy_start_J;
+  stats.max_stretch = stats.final_stretch = MaxStretch(model, *state);
+
+  const int64_t start_ns = NowNs();
+  int64_t deadline_ns = start_ns + period_ns;
+  for (int64_t frame = 0; frame < frames; ++frame) {
+    // Step one frame and time only the step.
+    const int64_t begin_ns = NowNs();
+    const FrameResult result = StepFrame(model, no_external, frame_dt_s, state);
+    const int64_t end_ns = NowNs();
+    stats.frame_ms.push_back(static_cast<double>(end_ns - begin_ns) * 1e-6);
+    stats.substeps += result.substeps;
+    stats.sim_time_s += result.dt_s;
+
+    // Frame statistics (outside the timed step).
+    stats.final_stretch = MaxStretch(model, *state);
+    stats.max_stretch = std::max(stats.max_stretch, stats.final_stretch);
+    stats.energy_end_J = TotalEnergy(model, *state);
+    stats.energy_min_J = std::min(stats.energy_min_J, stats.energy_end_J);
+    stats.energy_max_J = std::max(stats.energy_max_J, stats.energy_end_J);
+    ++stats.frames;
+
+    // Real time: sleep to the next absolute deadline; after an overrun skip the missed periods.
+    if (fast) continue;
+    const int64_t now_ns = NowNs();
+    if (now_ns > deadline_ns) {
+      ++stats.overruns;
+      const int64_t missed = (now_ns - deadline_ns) / period_ns + 1;
+      stats.skipped_periods += missed - 1;
+      deadline_ns += missed * period_ns;
+    }
+    if (frame + 1 < frames) SleepUntil(deadline_ns);
+    deadline_ns += period_ns;
+  }
+  stats.wall_s = static_cast<double>(NowNs() - start_ns) * 1e-9;
+  return stats;
+}
+
+void PrintStats(const SceneInfo& info, const std::string& file, const ClothModel& model,
+                const ClothState& state, const RunStats& stats, bool fast) {
+  const IntegrationSpec& integration = model.spec.integration;
+  std::printf("felt run: %s (%s)\n", info.name.c_str(), file.c_str());
+  if (!info.description.empty()) std::printf("  %s\n", info.description.c_str());
+  std::printf("  %d x %d particles, %zu springs, %zu pinned particles, %zu obstacles\n",
+              model.width, model.height, model.springs.size(), model.pinned.size(),
+              model.spec.cloth.obstacles.size());
+  std::printf("  %s, %d substeps per frame (%s), %s Hz, %s\n",
+              std::string(ToName(integration.integrator)).c_str(), model.substeps,
+              integration.substeps == 0 ? "auto" : "fixed",
+              FormatSceneNumber(integration.frame_rate_hz).c_str(),
+              fast ? "as fast as possible (--fast)" : "real time");
+  std::printf("frames             %lld (%.3f s simulated in %.3f s wall)\n",
+              static_cast<long long>(stats.frames), stats.sim_time_s, stats.wall_s);
+  std::printf("substeps           %lld\n", static_cast<long long>(stats.substeps));
+  std::printf("frame compute ms   p50 %.3f  p99 %.3f  max %.3f\n", Percentile(stats.frame_ms, 50),
+              Percentile(stats.frame_ms, 99), Percentile(stats.frame_ms, 100));
+  std::printf("max stretch        %.4f (at the end %.4f)\n", stats.max_stretch,
+              stats.final_stretch);
+  std::printf("energy J           start %.6g  end %.6g  min %.6g  max %.6g\n", stats.energy_start_J,
+              stats.energy_end_J, stats.energy_min_J, stats.energy_max_J);
+  std::printf("nan events         %llu\n",
+              static_cast<unsigned long long>(state.counters.nan_events));
+  std::printf("clamped frames     %llu\n",
+              static_cast<unsigned long long>(state.counters.clamped_frames));
+  if (integration.integrator == IntegratorKind::kImplicitEuler) {
+    std::printf("cg not converged   %llu\n",
+                static_cast<unsigned long long>(state.counters.cg_not_converged));
+  }
+  if (!fast) {
+    std::printf("overruns           %lld (%lld periods skipped)\n",
+                static_cast<long long>(stats.overruns),
+                static_cast<long long>(stats.skipped_periods));
+  }
+  std::fflush(stdout);
+}
+
+void WriteJson(std::ofstream& out, const std::string& json_path, const SceneInfo& info,
+               const std::string& file, const ClothModel& model, const ClothState& state,
+               const RunStats& stats, bool fast) {
+  const IntegrationSpec& integration = model.spec.integration;
+  out << "{\n"
+      << "  \"scene\": " << JsonString(info.name) << ",\n"
+      << "  \"file\": " << JsonString(file) << ",\n"
+      << "  \"width\": " << model.width << ",\n"
+      << "  \"height\": " << model.height << ",\n"
+      << "  \"integrator\": " << JsonString(std::string(ToName(integration.integrator))) << ",\n"
+      << "  \"substeps_per_frame\": " << model.substeps << ",\n"
+      << "  \"auto_substeps\": " << (integration.substeps == 0 ? "true" : "false") << ",\n"
+      << "  \"frame_rate_hz\": " << JsonNumber(integration.frame_rate_hz) << ",\n"
+      << "  \"realtime\": " << (fast ? "false" : "true") << ",\n"
+      << "  \"frames\": " << stats.frames << ",\n"
+      << "  \"substeps\": " << stats.substeps << ",\n"
+      << "  \"sim_time_s\": " << JsonNumber(stats.sim_time_s) << ",\n"
+      << "  \"wall_s\": " << JsonNumber(stats.wall_s) << ",\n"
+      << "  \"frame_ms\": {\"p50\": " << JsonNumber(Percentile(stats.frame_ms, 50))
+      << ", \"p99\": " << JsonNumber(Percentile(stats.frame_ms, 99))
+      << ", \"max\": " << JsonNumber(Percentile(stats.frame_ms, 100)) << "},\n"
+      << "  \"max_stretch\": " << JsonNumber(stats.max_stretch) << ",\n"
+      << "  \"final_stretch\": " << JsonNumber(stats.final_stretch) << ",\n"
+      << "  \"energy_J\": {\"start\": " << JsonNumber(stats.energy_start_J)
+      << ", \"end\": " << JsonNumber(stats.energy_end_J)
+      << ", \"min\": " << JsonNumber(stats.energy_min_J)
+      << ", \"max\": " << JsonNumber(stats.energy_max_J) << "},\n"
+      << "  \"nan_events\": " << state.counters.nan_events << ",\n"
+      << "  \"clamped_frames\": " << state.counters.clamped_frames << ",\n"
+      << "  \"cg_not_converged\": " << state.counters.cg_not_converged << ",\n"
+      << "  \"overruns\": " << stats.overruns << ",\n"
+      << "  \"skipped_periods\": " << stats.skipped_periods << "\n"
+      << "}\n";
+  out.flush();
+  if (!out) throw std::runtime_error("--json " + json_path + ": write failed");
+}
+
+CommandRun SetupRun(CLI::App& cmd) {
+  auto args = std::make_shared<RunArgs>();
+  cmd.add_option("--scene", args->scene, "scene file (TOML, see docs/scenes.md)")->required();
+  cmd.add_option("--duration", args->duration_s,
+                 "seconds of simulated time (default: the scene's [scene] duration_s, else 5)");
+  cmd.add_flag("--fast", args->fast, "run as fast as possible instead of in real time");
+  cmd.add_option("--json", args->json, "also write the statistics to this JSON file");
+  return [args]() {
+    // Everything is read and validated before anything starts: a bad scene throws (exit 2).
+    const SceneDocument doc = LoadSceneDocument(args->scene);
+    const SceneInfo info = ParseSceneInfo(doc);
+    const SimSpec spec = ParseSimSpec(doc);
+    const double duration_s = args->duration_s.value_or(info.duration_s);
+    if (!(duration_s > 0.0 && duration_s <= kMaxDuration_s)) {
+      throw std::invalid_argument("--duration must be in (0, " + FormatSceneNumber(kMaxDuration_s) +
+                                  "] s, got " + FormatSceneNumber(duration_s));
+    }
+    std::optional<ClothModel> model;
+    try {
+      model.emplace(BuildClothModel(spec));
+    } catch (const std::invalid_argument& error) {
+      throw SceneError(doc.source_name + ": " + error.what());
+    }
+    std::ofstream json;
+    if (!args->json.empty()) {
+      json.open(args->json);
+      if (!json) {
+        throw std::runtime_error("--json " + args->json +
+                                 ": cannot open for writing: " + std::strerror(errno));
+      }
+    }
+
+    // Run and report.
+    ClothState state = MakeClothState(*model);
+    const int64_t frames =
+        std::max<int64_t>(1, std::llround(duration_s * spec.integration.frame_rate_hz));
+    const RunStats stats = RunFrames(*model, frames, args->fast, &state);
+    PrintStats(info, doc.source_name, *model, state, stats, args->fast);
+    if (json.is_open()) {
+      WriteJson(json, args->json, info, doc.source_name, *model, state, stats, args->fast);
+    }
+    return 0;
+  };
+}
+
+const bool kRegistered = RegisterCommand(
+    {"", "run", "run a scene headless in real time and print frame statistics", SetupRun});
+
+}  // namespace
+}  // namespace felt::app
