@@ -227,33 +227,34 @@ TEST_P(ServerTransportTest, UnknownDevicesAreRejected) {
 }
 
 TEST_P(ServerTransportTest, AFloodingPublisherIsRateLimited) {
-  // 1 kHz sustained with a burst of 20: a publisher writing as fast as it can gets about 20 plus
-  // 1 per elapsed millisecond through, the rest counted as flood.
-  Start(/*max_rate_hz=*/1000.0, /*burst=*/20.0);
-  constexpr uint64_t kSamples = 3000;
+  // 100 Hz sustained with a burst of 10. The client publishes each sample as soon as the server has
+  // handled the previous one (far above 100 Hz; pacing it this way makes the server see every
+  // sample in both receive modes, where keep-last 1 would otherwise merge a burst). At most 10 + 1
+  // per elapsed 10 ms get through; the rest are counted as flood and never reach the slot.
+  constexpr double kRate_hz = 100.0;
+  constexpr double kBurst = 10.0;
+  Start(kRate_hz, kBurst);
+  constexpr uint64_t kSamples = 100;
   const int64_t start_ns = MonotonicNowNs();
-  for (uint64_t seq = 1; seq <= kSamples; ++seq) ASSERT_TRUE(client_->PublishPointer(Sample(seq)));
-  // Count only what the server saw (keep-last 1 may replace samples in the waitset mode).
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        PointerSampleView v;
-        return Handled() > 0 && server_->LatestPointer(0, &v) &&
-               (v.seq == kSamples || server_->Stats().rejected_flood > 0);
-      },
-      kWait));
-  const int64_t elapsed_ns = MonotonicNowNs() - start_ns;
+  for (uint64_t seq = 1; seq <= kSamples; ++seq) PublishAndWait(Sample(seq));
   const TransportStats s = server_->Stats();
-  const double allowed = 20.0 + 1000.0 * static_cast<double>(elapsed_ns) * 1e-9 + 1.0;
+  const int64_t elapsed_ns = MonotonicNowNs() - start_ns;
+  const double allowed = kBurst + kRate_hz * static_cast<double>(elapsed_ns) * 1e-9 + 1.0;
   EXPECT_LE(static_cast<double>(s.pointer_accepted), allowed);
+  EXPECT_GE(s.pointer_accepted, static_cast<uint64_t>(kBurst));
+  EXPECT_EQ(s.pointer_accepted + s.rejected_flood, kSamples);
   EXPECT_GT(s.rejected_flood, 0u);
-  EXPECT_GE(s.pointer_accepted, 20u);
-  // A well-behaved rate afterwards is accepted again once the bucket refills.
+  // The slot holds the newest accepted sample.
+  PointerSampleView view;
+  ASSERT_TRUE(server_->LatestPointer(0, &view));
+  const uint64_t last_accepted_seq = view.seq;
+  // A well-behaved rate afterwards is accepted again once the bucket refills (a token per 10 ms).
   ASSERT_TRUE(
       WaitUntil([&] { return MonotonicNowNs() - start_ns > elapsed_ns + 30000000; }, kWait));
   PublishAndWait(Sample(kSamples + 1, 0.3));
-  PointerSampleView view;
   ASSERT_TRUE(server_->LatestPointer(0, &view));
   EXPECT_EQ(view.seq, kSamples + 1);
+  EXPECT_GT(view.seq, last_accepted_seq);
 }
 
 INSTANTIATE_TEST_SUITE_P(ReceiveModes, ServerTransportTest,
