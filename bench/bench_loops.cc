@@ -108,11 +108,12 @@ LoopResult RunTimedLoop(const TimingSetting& setting, int64_t duration_ns, Body&
 
 std::string Us(int64_t ns) { return fmt::format("{:.1f}", static_cast<double>(ns) / 1e3); }
 
-void PrintTable(const std::vector<LoopResult>& results, double seconds) {
+void PrintTable(const std::vector<LoopResult>& results, double seconds, const char* dma) {
   utsname name{};
   uname(&name);
   std::printf("felt bench loops: empty 1 kHz loop, %.0f s per setting, %ld CPUs, Linux %s\n",
               seconds, sysconf(_SC_NPROCESSORS_ONLN), name.release);
+  std::printf("/dev/cpu_dma_latency held at 0: %s\n", dma);
   std::printf("lateness of wake-up in us (percentiles: bin upper edge, < 1 us or 0.8 %% above)\n");
   std::printf("%-10s %-8s %8s %8s %8s %8s %9s %8s %8s %8s\n", "setting", "realtime", "ticks", "p50",
               "p99", "p99.9", "max", "overruns", "skipped", ">1ms");
@@ -149,11 +150,12 @@ void WriteSettingJson(JsonWriter& json, std::string_view key, const LoopResult& 
 
 // {"seconds_per_setting", "empty": {<the fifo_spin row as lateness_us, overruns, ticks>,
 // "settings": {normal, fifo, fifo_spin}}}; "server" will sit next to "empty".
-std::string BenchJson(const std::vector<LoopResult>& results, double seconds) {
+std::string BenchJson(const std::vector<LoopResult>& results, double seconds, const char* dma) {
   JsonWriter json;
   json.BeginObject();
   json.Number("seconds_per_setting", seconds);
   json.Number("period_us", static_cast<double>(kPeriodNs) / 1e3);
+  json.String("cpu_dma_latency_held", dma);
   const LoopResult& server_like = results.back();  // the setting the server runs with
   json.BeginObject("empty");
   json.String("setting", server_like.setting.name);
@@ -205,10 +207,11 @@ app::CommandRun Setup(CLI::App& cmd) {
       spdlog::info("bench loops: empty loop, setting {}, {:.0f} s", setting.name, seconds);
       results.push_back(RunTimedLoop(setting, duration_ns, [](const TickInfo&) {}));
     }
-    PrintTable(results, seconds);
+    const char* dma_text = dma == nullptr ? "not requested" : dma->held() ? "yes" : "refused";
+    PrintTable(results, seconds, dma_text);
     if (!args->json_path.empty()) {
       std::ofstream out(args->json_path);
-      out << BenchJson(results, seconds);
+      out << BenchJson(results, seconds, dma_text);
       if (!out) throw std::runtime_error("cannot write --json file '" + args->json_path + "'");
     }
     return 0;

@@ -46,8 +46,8 @@ struct RealtimeReport {
 
   /// True when no requested step was refused.
   bool all_granted() const;
-  /// One line, e.g. "fifo 80 granted, cpu 1 refused (Invalid argument (EINVAL)), mlockall off,
-  /// timer slack 1 ns granted".
+  /// One line, e.g. "SCHED_FIFO granted, cpu pinning refused (Invalid argument (EINVAL)),
+  /// mlockall off, timer slack granted".
   std::string Summary() const;
 };
 

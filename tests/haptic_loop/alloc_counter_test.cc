@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
 #include <cstdint>
+#include <cstdlib>
 #include <new>
 #include <string>
 #include <thread>
@@ -73,6 +75,37 @@ TEST(AllocationGuardTest, CountsOnlyTheCallingThread) {
   other.join();
   // Only std::thread's own start-up state (one allocation) was made on this thread.
   EXPECT_LT(guard.allocations(), 10u);
+}
+
+TEST(AllocationGuardTest, CountsMallocAndEigenWithoutSanitizer) {
+  if (!alloc_counter_detail::kCountsMalloc) {
+    GTEST_SKIP() << "under a sanitizer only operator new is counted (it owns malloc)";
+  }
+  AllocationGuard guard;
+  void* p = std::malloc(32);
+  g_sink = p;
+  std::free(p);
+  EXPECT_EQ(guard.allocations(), 1u);
+  void* aligned = nullptr;
+  ASSERT_EQ(posix_memalign(&aligned, 64, 100), 0);
+  g_sink = aligned;
+  std::free(aligned);
+  EXPECT_EQ(guard.allocations(), 2u);
+
+  // Eigen's dynamic-size storage goes through std::malloc, not operator new.
+  guard.Reset();
+  Eigen::VectorXd v(static_cast<Eigen::Index>(100 + guard.allocations()));
+  v.setOnes();
+  g_sink = v.data();
+  EXPECT_EQ(guard.allocations(), 1u);
+  EXPECT_EQ(v.sum(), 100.0);
+
+  // A new counts once, not once for operator new and again for the malloc beneath it.
+  guard.Reset();
+  auto* value = new double(1.0);
+  g_sink = value;
+  delete value;
+  EXPECT_EQ(guard.allocations(), 1u);
 }
 
 }  // namespace
