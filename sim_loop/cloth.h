@@ -27,6 +27,25 @@ struct Spring {
   SpringType type = SpringType::kStructural;
 };
 
+/// One Provot deformation constraint (000_25210a744b053ca5.txt slide 9): particles i and j may be
+/// at most max_length_m apart; a violation is removed by moving i by share_i and j by share_j of
+/// it (share_i + share_j = 1; 0 for a pinned end).
+struct ProvotConstraint {
+  int32_t i = 0;
+  int32_t j = 0;
+  double max_length_m = 0.0;  ///< (1 + max_elongation) * rest length
+  double share_i = 0.5;
+  double share_j = 0.5;
+};
+
+/// A long range attachment (ProvotSpec::long_range_attachments): free particle `particle` may be
+/// at most max_length_m from pinned particle `pin`.
+struct PinAttachment {
+  int32_t particle = 0;
+  int32_t pin = 0;
+  double max_length_m = 0.0;  ///< (1 + max_elongation) * rest distance
+};
+
 /// A point force the haptic side puts on the cloth for the next frame (two-way coupling): applied
 /// at the point with barycentric weights `barycentric` in triangle `triangle`, split over its three
 /// particles by those weights. World frame, newtons.
@@ -38,17 +57,32 @@ struct ExternalForce {
 
 /// The validated, immutable cloth: shared read-only by every thread.
 struct ClothModel {
-  SimSpec spec;                        ///< the spec it was built from, as validated
-  int32_t width = 0;                   ///< particles along u
-  int32_t height = 0;                  ///< particles along v
-  std::vector<Vec3> rest_position_m;   ///< [width*height] rest places, index = row*width + col
-  std::vector<double> inv_mass_per_kg; ///< [width*height] 1/m, 0 for pinned particles
-  std::vector<int32_t> pinned;         ///< indices of pinned particles
-  std::vector<int32_t> pin_spec;       ///< [pinned.size()] index into spec.cloth.pins
-  std::vector<Spring> springs;         ///< only the spring types the spec declares
-  std::vector<Triangle> triangles;     ///< 2 (W-1)(H-1), see MakeGridTriangles
-  int32_t substeps = 1;                ///< per nominal frame, resolved from spec ("auto" -> number)
-  double stable_dt_s = 0.0;            ///< the integrator's stability limit for the stiffest pair
+  SimSpec spec;                         ///< the spec it was built from, as validated
+  int32_t width = 0;                    ///< particles along u
+  int32_t height = 0;                   ///< particles along v
+  std::vector<Vec3> rest_position_m;    ///< [width*height] rest places, index = row*width + col
+  std::vector<double> inv_mass_per_kg;  ///< [width*height] 1/m, 0 for pinned particles
+  std::vector<int32_t> pinned;          ///< indices of pinned particles
+  std::vector<int32_t> pin_spec;        ///< [pinned.size()] index into spec.cloth.pins
+  std::vector<Spring> springs;          ///< only the spring types the spec declares
+  std::vector<Triangle> triangles;      ///< 2 (W-1)(H-1), see MakeGridTriangles
+  int32_t substeps = 1;      ///< per nominal frame, resolved from spec ("auto" -> number)
+  double stable_dt_s = 0.0;  ///< the integrator's stability limit for the stiffest pair
+
+  // Derived constants (filled by BuildClothModel; read by the kernels and the benchmarks).
+  double particle_mass_kg = 0.0;         ///< mass of every particle (pinned ones included)
+  std::vector<uint8_t> pin_scripted;     ///< [pinned.size()] 1 if that pin's motion is not all zero
+  std::vector<ProvotConstraint> provot;  ///< structural (+ shear) springs Provot constrains, in
+                                         ///< sweep order: nearest the pins first
+  std::vector<PinAttachment> attachments;  ///< each free particle to its nearest pin (if any)
+  /// Bound on the highest natural frequency of the linearised spring system, rad/s: the
+  /// Gershgorin bound omega_max^2 <= max_i sum_s k_s (1/m_i + 1/sqrt(m_i m_j)) over free particles
+  /// (000_25210a744b053ca5.txt slide 8: the critical stiffness depends on the natural period).
+  double omega_max_rad_per_s = 0.0;
+  double drag_rate_per_s = 0.0;     ///< drag / particle mass: damping rate of every mode, 1/s
+  double damping_time_min_s = 0.0;  ///< smallest c/k over the declared spring types, s
+  double damping_time_max_s = 0.0;  ///< largest c/k over the declared spring types, s
+  double gamma_max_per_s = 0.0;     ///< Gershgorin bound on the highest modal damping rate, 1/s
 
   int32_t num_particles() const { return width * height; }
 };
@@ -59,6 +93,7 @@ struct ClothCounters {
   uint64_t nan_events = 0;        ///< frames that produced non-finite values (state restored)
   uint64_t clamped_frames = 0;    ///< frames whose dt was clamped to max_frame_dt_s
   uint64_t cg_not_converged = 0;  ///< implicit Euler solves that hit the iteration cap
+  uint64_t invalid_external_forces = 0;  ///< ExternalForce entries ignored (bad triangle/values)
 };
 
 /// Everything that changes while stepping, sized once by MakeClothState.
@@ -83,16 +118,21 @@ ClothState MakeClothState(const ClothModel& model);
 
 /// What one frame did.
 struct FrameResult {
-  int32_t substeps = 0;       ///< substeps integrated
-  double dt_s = 0.0;          ///< time integrated (after clamping)
-  bool clamped = false;       ///< frame_dt_s was larger than max_frame_dt_s
-  bool recovered = false;     ///< non-finite values appeared and the last good state was restored
+  int32_t substeps = 0;    ///< substeps integrated
+  double dt_s = 0.0;       ///< time integrated (after clamping)
+  bool clamped = false;    ///< frame_dt_s was larger than max_frame_dt_s
+  bool recovered = false;  ///< non-finite values appeared and the last good state was restored
 };
 
 /// Advances the cloth by `frame_dt_s` (clamped to spec.integration.max_frame_dt_s), applying
 /// `external` forces (held constant over the frame), pins, obstacles and Provot constraints, then
-/// recomputes normals. Non-finite results restore the last good state (counted, logged once).
-/// Does not allocate.
+/// recomputes normals. The frame is cut into ceil(dt / h_nominal) substeps, h_nominal = (1 /
+/// frame_rate_hz) / model.substeps, so a substep never exceeds the nominal one. Each substep:
+/// integrate, Provot, obstacles, pins. Non-finite results restore the last good state (x, v,
+/// time_s of the end of the last good frame; counted in counters.nan_events, logged once per
+/// state). A frame_dt_s that is not > 0 (or NaN) does nothing. External forces with a triangle
+/// out of range or non-finite values are skipped and counted. Does not allocate (the one-time
+/// NaN log line aside); does not throw.
 FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> external,
                       double frame_dt_s, ClothState* state);
 
@@ -101,5 +141,32 @@ double MaxStretch(const ClothModel& model, const ClothState& state);
 
 /// Kinetic + gravitational + spring potential energy, joules (pins excluded from kinetic).
 double TotalEnergy(const ClothModel& model, const ClothState& state);
+
+/// Adds the spring forces (Hooke term plus the dashpot along the spring, 001 §2) at positions `x`
+/// [m] and velocities `v` [m/s] into `f` [N]; all three have model.num_particles() entries. A
+/// spring shorter than 1e-12 m has no direction and adds nothing. Real-time safe.
+void AddSpringForces(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
+                     std::span<Vec3> f);
+
+/// The largest stable step [s] of `kind` for the model's stiffest spring/mass pair (its
+/// omega_max, damping included), without safety factor: +infinity for implicit Euler, 0 if no step
+/// is stable (explicit Euler or midpoint with neither damping nor drag).
+double StableStep(const ClothModel& model, IntegratorKind kind);
+
+/// Signed distance [m] from `p_m` (world) to the obstacle's surface, margin not included:
+/// negative inside. `normal` gets the unit outward direction to push along (the gradient).
+/// Exact for every shape outside it. Real-time safe.
+double ObstacleDistance(const ObstacleSpec& obstacle, const Vec3& p_m, Vec3* normal);
+
+/// Offset [m] of a pin from its rest place at sim time `t_s` (the formula of PinMotionSpec).
+Vec3 PinOffset(const PinMotionSpec& motion, double t_s);
+
+/// Time derivative [m/s] of PinOffset at `t_s`.
+Vec3 PinVelocity(const PinMotionSpec& motion, double t_s);
+
+/// Forgets the integrator's history (leapfrog's last acceleration, basic Verlet's previous
+/// positions); the next StepFrame restarts it from state->x and state->v. Call it after editing
+/// x or v by hand between frames. Real-time safe.
+void ResetIntegratorHistory(ClothState* state);
 
 }  // namespace felt

@@ -35,7 +35,8 @@ struct SpringSpec {
 };
 
 /// Scripted motion of a pin: offset(t) = velocity * clamp(t, start, stop) - velocity * start
-///                                       + amplitude * sin(2 pi frequency (t - start)) for t>=start.
+///                                       + amplitude * sin(2 pi frequency (t - start)) for
+///                                       t>=start.
 /// All zero (the default) means the pin is fixed.
 struct PinMotionSpec {
   Vec3 velocity_m_per_s = Vec3::Zero();  ///< constant drift, e.g. a curtain rail sliding sideways
@@ -56,10 +57,10 @@ enum class PinKind {
 /// Row 0 is the "top" edge, column 0 the "left" edge.
 struct PinSpec {
   PinKind kind = PinKind::kCorner;
-  int32_t col = 0;         ///< kParticle only
-  int32_t row = 0;         ///< kParticle only
-  std::string name;        ///< kCorner / kEdge: the corner's or edge's name
-  PinMotionSpec motion;    ///< scripted motion; fixed by default
+  int32_t col = 0;       ///< kParticle only
+  int32_t row = 0;       ///< kParticle only
+  std::string name;      ///< kCorner / kEdge: the corner's or edge's name
+  PinMotionSpec motion;  ///< scripted motion; fixed by default
 };
 
 /// An infinite plane through `point_m` with unit `normal` pointing to the free side.
@@ -87,38 +88,41 @@ struct CapsuleSpec {
 /// A static obstacle the cloth's particles are kept out of.
 struct ObstacleSpec {
   std::variant<PlaneSpec, SphereSpec, BoxSpec, CapsuleSpec> shape;
-  double friction = 0.0;     ///< Coulomb coefficient mu >= 0; 0 = frictionless
-  double margin_m = 0.002;   ///< particles are kept this far outside the surface, >= 0
+  double friction = 0.0;    ///< Coulomb coefficient mu >= 0; 0 = frictionless
+  double margin_m = 0.002;  ///< particles are kept this far outside the surface, >= 0
 };
 
 /// The cloth: a rectangular grid of `width` x `height` particles.
 /// Particle (col, row) rests at origin_m + col * spacing_m * u_axis + row * spacing_m * v_axis.
 struct ClothSpec {
-  int32_t width = 32;                      ///< particles along u, >= 2
-  int32_t height = 32;                     ///< particles along v, >= 2
-  double spacing_m = 0.016;                ///< rest distance between neighbours, > 0
-  double mass_kg = 0.1;                    ///< total mass, divided uniformly over the particles
-  Vec3 origin_m = Vec3(-0.248, 0.25, 0.0); ///< rest position of particle (0, 0), the top-left
-  Vec3 u_axis = Vec3::UnitX();             ///< unit direction of increasing column
-  Vec3 v_axis = -Vec3::UnitY();            ///< unit direction of increasing row, orthogonal to u
-  std::optional<SpringSpec> structural = SpringSpec{200.0, 0.05};  ///< (i,j)-(i+1,j), (i,j)-(i,j+1)
-  std::optional<SpringSpec> shear = SpringSpec{50.0, 0.02};        ///< the two cell diagonals
-  std::optional<SpringSpec> bend = SpringSpec{10.0, 0.01};         ///< (i,j)-(i+2,j), (i,j)-(i,j+2)
-  double drag_N_s_per_m = 0.002;           ///< viscous drag per particle, F = -c v, >= 0
+  int32_t width = 32;                       ///< particles along u, >= 2
+  int32_t height = 32;                      ///< particles along v, >= 2
+  double spacing_m = 0.016;                 ///< rest distance between neighbours, > 0
+  double mass_kg = 0.1;                     ///< total mass, divided uniformly over the particles
+  Vec3 origin_m = Vec3(-0.248, 0.25, 0.0);  ///< rest position of particle (0, 0), the top-left
+  Vec3 u_axis = Vec3::UnitX();              ///< unit direction of increasing column
+  Vec3 v_axis = -Vec3::UnitY();             ///< unit direction of increasing row, orthogonal to u
+  // Soft springs, stiff limit: the springs give the cloth its shape and wave; Provot's constraints
+  // (ProvotSpec) stop the stretch (000_25210a744b053ca5.txt slide 9: "avoid super elastic effect
+  // without decreasing dt"). Stiffer springs shorten the stable step (slide 8) and cost substeps.
+  std::optional<SpringSpec> structural = SpringSpec{1.0, 2e-4};  ///< (i,j)-(i+1,j), (i,j)-(i,j+1)
+  std::optional<SpringSpec> shear = SpringSpec{0.5, 1e-4};       ///< the two cell diagonals
+  std::optional<SpringSpec> bend = SpringSpec{0.1, 2e-5};        ///< (i,j)-(i+2,j), (i,j)-(i,j+2)
+  double drag_N_s_per_m = 5e-5;  ///< viscous drag per particle, F = -c v, >= 0
   Vec3 gravity_m_per_s2 = Vec3(0.0, -9.81, 0.0);
-  std::vector<PinSpec> pins;               ///< may be empty (a falling cloth)
-  std::vector<ObstacleSpec> obstacles;     ///< only these are built and tested
+  std::vector<PinSpec> pins;            ///< may be empty (a falling cloth)
+  std::vector<ObstacleSpec> obstacles;  ///< only these are built and tested
 };
 
 /// How a 60 Hz frame is integrated.
 struct IntegrationSpec {
   IntegratorKind integrator = IntegratorKind::kLeapfrogVerlet;
-  int32_t substeps = 0;            ///< per frame; 0 = "auto" from the stability limit
-  double frame_rate_hz = 60.0;     ///< nominal frame rate, > 0
+  int32_t substeps = 0;                ///< per frame; 0 = "auto" from the stability limit
+  double frame_rate_hz = 60.0;         ///< nominal frame rate, > 0
   double max_frame_dt_s = 1.0 / 30.0;  ///< a late frame integrates at most this much time
-  double auto_safety = 0.5;        ///< auto substeps keep h <= auto_safety * h_stable, in (0, 1]
-  int32_t cg_max_iterations = 200; ///< implicit Euler: conjugate-gradient iteration cap
-  double cg_tolerance = 1e-8;      ///< implicit Euler: relative residual to stop at
+  double auto_safety = 0.5;         ///< auto substeps keep h <= auto_safety * h_stable, in (0, 1]
+  int32_t cg_max_iterations = 200;  ///< implicit Euler: conjugate-gradient iteration cap
+  double cg_tolerance = 1e-8;       ///< implicit Euler: relative residual to stop at
 };
 
 /// Provot 1995 deformation constraints (000_25210a744b053ca5.txt slide 9).
@@ -127,6 +131,11 @@ struct ProvotSpec {
   double max_elongation = 0.10;  ///< a spring never ends a substep longer than (1 + this) * rest
   int32_t iterations = 10;       ///< relaxation sweeps per substep, >= 1
   bool shear = true;             ///< also constrain shear springs (structural always)
+  /// Also keep every free particle within (1 + max_elongation) times its rest distance of its
+  /// nearest pinned particle (long range attachments, Kim, Chentanez & Mueller 2012), projected
+  /// before Provot's sweeps. Pins are kinematic, so this only removes energy; it stops the
+  /// stretch that Gauss-Seidel sweeps carry only O(1/N^2) per sweep down an N-row hanging cloth.
+  bool long_range_attachments = true;
 };
 
 /// Everything the 60 Hz simulation needs from a scene.

@@ -1,0 +1,474 @@
+// Validation of a SimSpec into a ClothModel, and the state it is stepped in.
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <utility>
+
+#include "sim_loop/cloth.h"
+#include "sim_loop/cloth_internal.h"
+
+namespace felt {
+namespace {
+
+constexpr int64_t kMaxParticles = int64_t{1} << 22;  // 2048 x 2048; keeps 3n in int32 range
+constexpr int32_t kMaxSubsteps = 100000;             // per nominal frame
+constexpr double kUnitTolerance = 1e-9;              // |norm - 1| and |u . v| allowed for axes
+
+// Formats any streamable value the way error messages show it.
+template <typename T>
+std::string Show(const T& value) {
+  std::ostringstream out;
+  out.precision(17);
+  out << value;
+  return out.str();
+}
+
+std::string ShowVec(const Vec3& v) {
+  std::ostringstream out;
+  out.precision(17);
+  out << '(' << v.x() << ", " << v.y() << ", " << v.z() << ')';
+  return out.str();
+}
+
+[[noreturn]] void Fail(const std::string& field, const std::string& rule) {
+  throw std::invalid_argument(field + ": " + rule);
+}
+
+void RequireFinite(const std::string& field, double value) {
+  if (!std::isfinite(value)) Fail(field, "must be finite, got " + Show(value));
+}
+
+void RequirePositive(const std::string& field, double value) {
+  RequireFinite(field, value);
+  if (!(value > 0.0)) Fail(field, "must be > 0, got " + Show(value));
+}
+
+void RequireNonNegative(const std::string& field, double value) {
+  RequireFinite(field, value);
+  if (!(value >= 0.0)) Fail(field, "must be >= 0, got " + Show(value));
+}
+
+void RequireFiniteVec(const std::string& field, const Vec3& v) {
+  if (!v.allFinite()) Fail(field, "must be finite, got " + ShowVec(v));
+}
+
+void RequireUnitVec(const std::string& field, const Vec3& v) {
+  RequireFiniteVec(field, v);
+  if (std::abs(v.norm() - 1.0) > kUnitTolerance) {
+    Fail(field, "must be a unit vector, got " + ShowVec(v));
+  }
+}
+
+void ValidateSpring(const std::string& field, const std::optional<SpringSpec>& spring) {
+  if (!spring) return;
+  RequirePositive(field + ".stiffness_N_per_m", spring->stiffness_N_per_m);
+  RequireNonNegative(field + ".damping_N_s_per_m", spring->damping_N_s_per_m);
+}
+
+void ValidateMotion(const std::string& field, const PinMotionSpec& m) {
+  RequireFiniteVec(field + ".velocity_m_per_s", m.velocity_m_per_s);
+  RequireFiniteVec(field + ".amplitude_m", m.amplitude_m);
+  RequireNonNegative(field + ".frequency_hz", m.frequency_hz);
+  RequireNonNegative(field + ".start_s", m.start_s);
+  if (std::isnan(m.stop_s) || m.stop_s < m.start_s) {
+    Fail(field + ".stop_s", "must be >= start_s (" + Show(m.start_s) + "), got " + Show(m.stop_s));
+  }
+}
+
+bool SameMotion(const PinMotionSpec& a, const PinMotionSpec& b) {
+  return a.velocity_m_per_s == b.velocity_m_per_s && a.amplitude_m == b.amplitude_m &&
+         a.frequency_hz == b.frequency_hz && a.start_s == b.start_s && a.stop_s == b.stop_s;
+}
+
+bool IsScripted(const PinMotionSpec& m) {
+  return !m.velocity_m_per_s.isZero(0.0) || !m.amplitude_m.isZero(0.0);
+}
+
+// The particles a pin holds, as (col, row); throws naming the pin's field if it names nothing.
+std::vector<std::pair<int32_t, int32_t>> PinParticles(const std::string& field, const PinSpec& pin,
+                                                      int32_t w, int32_t h) {
+  std::vector<std::pair<int32_t, int32_t>> out;
+  switch (pin.kind) {
+    case PinKind::kParticle:
+      if (pin.col < 0 || pin.col >= w) {
+        Fail(field + ".col", "must be in [0, " + Show(w) + "), got " + Show(pin.col));
+      }
+      if (pin.row < 0 || pin.row >= h) {
+        Fail(field + ".row", "must be in [0, " + Show(h) + "), got " + Show(pin.row));
+      }
+      out.emplace_back(pin.col, pin.row);
+      break;
+    case PinKind::kCorner:
+      if (pin.name == "top_left") {
+        out.emplace_back(0, 0);
+      } else if (pin.name == "top_right") {
+        out.emplace_back(w - 1, 0);
+      } else if (pin.name == "bottom_left") {
+        out.emplace_back(0, h - 1);
+      } else if (pin.name == "bottom_right") {
+        out.emplace_back(w - 1, h - 1);
+      } else {
+        Fail(field + ".name",
+             "unknown corner '" + pin.name + "' (top_left, top_right, bottom_left, bottom_right)");
+      }
+      break;
+    case PinKind::kEdge:
+      if (pin.name == "top" || pin.name == "bottom") {
+        const int32_t row = pin.name == "top" ? 0 : h - 1;
+        for (int32_t c = 0; c < w; ++c) out.emplace_back(c, row);
+      } else if (pin.name == "left" || pin.name == "right") {
+        const int32_t col = pin.name == "left" ? 0 : w - 1;
+        for (int32_t r = 0; r < h; ++r) out.emplace_back(col, r);
+      } else {
+        Fail(field + ".name", "unknown edge '" + pin.name + "' (top, bottom, left, right)");
+      }
+      break;
+    default:
+      Fail(field + ".kind", "unknown pin kind " + Show(static_cast<int>(pin.kind)));
+  }
+  return out;
+}
+
+void ValidateObstacle(const std::string& field, const ObstacleSpec& o) {
+  RequireNonNegative(field + ".friction", o.friction);
+  RequireNonNegative(field + ".margin_m", o.margin_m);
+  if (const auto* plane = std::get_if<PlaneSpec>(&o.shape)) {
+    RequireFiniteVec(field + ".point_m", plane->point_m);
+    RequireUnitVec(field + ".normal", plane->normal);
+  } else if (const auto* sphere = std::get_if<SphereSpec>(&o.shape)) {
+    RequireFiniteVec(field + ".center_m", sphere->center_m);
+    RequirePositive(field + ".radius_m", sphere->radius_m);
+  } else if (const auto* box = std::get_if<BoxSpec>(&o.shape)) {
+    RequireFiniteVec(field + ".min_m", box->min_m);
+    RequireFiniteVec(field + ".max_m", box->max_m);
+    if (!(box->min_m.array() < box->max_m.array()).all()) {
+      Fail(field + ".max_m",
+           "must be > min_m " + ShowVec(box->min_m) + " on every axis, got " + ShowVec(box->max_m));
+    }
+  } else if (const auto* capsule = std::get_if<CapsuleSpec>(&o.shape)) {
+    RequireFiniteVec(field + ".a_m", capsule->a_m);
+    RequireFiniteVec(field + ".b_m", capsule->b_m);
+    RequirePositive(field + ".radius_m", capsule->radius_m);
+  }
+}
+
+void ValidateIntegration(const IntegrationSpec& s) {
+  const int kind = static_cast<int>(s.integrator);
+  if (kind < 0 || kind > static_cast<int>(IntegratorKind::kImplicitEuler)) {
+    Fail("integration.integrator", "unknown integrator " + Show(kind));
+  }
+  if (s.substeps < 0 || s.substeps > kMaxSubsteps) {
+    Fail("integration.substeps",
+         "must be in [0, " + Show(kMaxSubsteps) + "] (0 = auto), got " + Show(s.substeps));
+  }
+  RequirePositive("integration.frame_rate_hz", s.frame_rate_hz);
+  RequirePositive("integration.max_frame_dt_s", s.max_frame_dt_s);
+  RequireFinite("integration.auto_safety", s.auto_safety);
+  if (!(s.auto_safety > 0.0 && s.auto_safety <= 1.0)) {
+    Fail("integration.auto_safety", "must be in (0, 1], got " + Show(s.auto_safety));
+  }
+  if (s.cg_max_iterations < 1) {
+    Fail("integration.cg_max_iterations", "must be >= 1, got " + Show(s.cg_max_iterations));
+  }
+  RequireFinite("integration.cg_tolerance", s.cg_tolerance);
+  if (!(s.cg_tolerance > 0.0 && s.cg_tolerance < 1.0)) {
+    Fail("integration.cg_tolerance", "must be in (0, 1), got " + Show(s.cg_tolerance));
+  }
+}
+
+void ValidateProvot(const ProvotSpec& s) {
+  RequireNonNegative("provot.max_elongation", s.max_elongation);
+  if (s.iterations < 1) Fail("provot.iterations", "must be >= 1, got " + Show(s.iterations));
+}
+
+// Appends the springs of one type between (c, r) and (c + dc, r + dr) for every valid pair.
+void AddSprings(const ClothModel& model, const SpringSpec& spec, SpringType type, int32_t dc,
+                int32_t dr, std::vector<Spring>* springs) {
+  for (int32_t r = 0; r < model.height; ++r) {
+    for (int32_t c = 0; c < model.width; ++c) {
+      const int32_t c2 = c + dc, r2 = r + dr;
+      if (c2 < 0 || c2 >= model.width || r2 < 0 || r2 >= model.height) continue;
+      Spring s;
+      s.i = GridIndex(model.width, c, r);
+      s.j = GridIndex(model.width, c2, r2);
+      s.rest_length_m = (model.rest_position_m[s.j] - model.rest_position_m[s.i]).norm();
+      s.stiffness_N_per_m = spec.stiffness_N_per_m;
+      s.damping_N_s_per_m = spec.damping_N_s_per_m;
+      s.type = type;
+      springs->push_back(s);
+    }
+  }
+}
+
+// Provot's constraints in sweep order: springs nearest the pins first (breadth-first distance of
+// the nearer end, in springs), so a Gauss-Seidel sweep carries a correction from the pins
+// outward. Stable sort: ties keep their build order, which keeps the result deterministic.
+std::vector<ProvotConstraint> BuildProvot(const ClothModel& model, const ProvotSpec& spec) {
+  const int32_t n = model.num_particles();
+  std::vector<std::vector<int32_t>> neighbours(static_cast<size_t>(n));
+  for (const Spring& s : model.springs) {
+    neighbours[s.i].push_back(s.j);
+    neighbours[s.j].push_back(s.i);
+  }
+  constexpr int32_t kUnreached = std::numeric_limits<int32_t>::max();
+  std::vector<int32_t> depth(static_cast<size_t>(n), kUnreached);
+  std::deque<int32_t> queue;
+  for (int32_t p : model.pinned) {
+    depth[p] = 0;
+    queue.push_back(p);
+  }
+  while (!queue.empty()) {
+    const int32_t p = queue.front();
+    queue.pop_front();
+    for (int32_t q : neighbours[p]) {
+      if (depth[q] > depth[p] + 1) {
+        depth[q] = depth[p] + 1;
+        queue.push_back(q);
+      }
+    }
+  }
+  std::vector<ProvotConstraint> out;
+  std::vector<int32_t> level;
+  for (const Spring& s : model.springs) {
+    const bool kept =
+        s.type == SpringType::kStructural || (spec.shear && s.type == SpringType::kShear);
+    const bool free_i = model.inv_mass_per_kg[s.i] > 0.0, free_j = model.inv_mass_per_kg[s.j] > 0.0;
+    if (!kept || (!free_i && !free_j)) continue;
+    ProvotConstraint c;
+    c.i = s.i;
+    c.j = s.j;
+    c.max_length_m = (1.0 + spec.max_elongation) * s.rest_length_m;
+    // Provot 1995: a pinned end stays and the free end takes the whole correction; else halves.
+    if (!free_i) {
+      c.share_i = 0.0;
+      c.share_j = 1.0;
+    } else if (!free_j) {
+      c.share_i = 1.0;
+      c.share_j = 0.0;
+    }
+    out.push_back(c);
+    level.push_back(std::min(depth[s.i], depth[s.j]));
+  }
+  std::vector<int32_t> order(out.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int32_t>(k);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int32_t a, int32_t b) { return level[a] < level[b]; });
+  std::vector<ProvotConstraint> sorted;
+  sorted.reserve(out.size());
+  for (int32_t k : order) sorted.push_back(out[k]);
+  return sorted;
+}
+
+// Long range attachments: each free particle to the pinned particle nearest its rest place (ties:
+// the first pinned). Rest distances are geodesic on the flat rest grid.
+std::vector<PinAttachment> BuildAttachments(const ClothModel& model, const ProvotSpec& spec) {
+  std::vector<PinAttachment> out;
+  if (model.pinned.empty()) return out;
+  for (int32_t p = 0; p < model.num_particles(); ++p) {
+    if (model.inv_mass_per_kg[p] == 0.0) continue;
+    double best = std::numeric_limits<double>::infinity();
+    int32_t best_pin = model.pinned.front();
+    for (int32_t q : model.pinned) {
+      const double d = (model.rest_position_m[q] - model.rest_position_m[p]).squaredNorm();
+      if (d < best) {
+        best = d;
+        best_pin = q;
+      }
+    }
+    out.push_back({p, best_pin, (1.0 + spec.max_elongation) * std::sqrt(best)});
+  }
+  return out;
+}
+
+// Fills the stiffness and damping bounds used by StableStep.
+void ComputeFrequencyBounds(ClothModel* model) {
+  const int32_t n = model->num_particles();
+  std::vector<double> k_sum(static_cast<size_t>(n), 0.0), c_sum(static_cast<size_t>(n), 0.0);
+  double tau_min = std::numeric_limits<double>::infinity(), tau_max = 0.0;
+  for (const Spring& s : model->springs) {
+    k_sum[s.i] += s.stiffness_N_per_m;
+    k_sum[s.j] += s.stiffness_N_per_m;
+    c_sum[s.i] += s.damping_N_s_per_m;
+    c_sum[s.j] += s.damping_N_s_per_m;
+    const double tau = s.damping_N_s_per_m / s.stiffness_N_per_m;
+    tau_min = std::min(tau_min, tau);
+    tau_max = std::max(tau_max, tau);
+  }
+  // Gershgorin on M^-1/2 K M^-1/2 with uniform masses: each spring's 3x3 block has norm <= k (for
+  // springs longer than half their rest length), on the diagonal and off it, so every eigenvalue
+  // is <= 2 sum_s k_s / m (critical stiffness, 000_25210a744b053ca5.txt slide 8). Pinned rows drop.
+  double omega2 = 0.0, gamma = 0.0;
+  for (int32_t p = 0; p < n; ++p) {
+    if (model->inv_mass_per_kg[p] == 0.0) continue;
+    omega2 = std::max(omega2, 2.0 * k_sum[p] * model->inv_mass_per_kg[p]);
+    gamma = std::max(gamma, 2.0 * c_sum[p] * model->inv_mass_per_kg[p]);
+  }
+  model->omega_max_rad_per_s = std::sqrt(omega2);
+  model->drag_rate_per_s = model->spec.cloth.drag_N_s_per_m / model->particle_mass_kg;
+  model->damping_time_min_s = model->springs.empty() ? 0.0 : tau_min;
+  model->damping_time_max_s = tau_max;
+  model->gamma_max_per_s = gamma + model->drag_rate_per_s;
+}
+
+}  // namespace
+
+Vec3 PinOffset(const PinMotionSpec& m, double t_s) {
+  if (t_s < m.start_s) return Vec3::Zero();
+  const double drift_s = std::min(t_s, m.stop_s) - m.start_s;
+  return m.velocity_m_per_s * drift_s +
+         m.amplitude_m * std::sin(2.0 * M_PI * m.frequency_hz * (t_s - m.start_s));
+}
+
+Vec3 PinVelocity(const PinMotionSpec& m, double t_s) {
+  if (t_s < m.start_s) return Vec3::Zero();
+  const double omega = 2.0 * M_PI * m.frequency_hz;
+  const Vec3 drift = t_s < m.stop_s ? m.velocity_m_per_s : Vec3::Zero();
+  return drift + m.amplitude_m * omega * std::cos(omega * (t_s - m.start_s));
+}
+
+ClothModel BuildClothModel(const SimSpec& spec) {
+  const ClothSpec& cs = spec.cloth;
+  // Validate the cloth, field by field.
+  if (cs.width < 2) Fail("cloth.width", "must be >= 2, got " + Show(cs.width));
+  if (cs.height < 2) Fail("cloth.height", "must be >= 2, got " + Show(cs.height));
+  if (int64_t{cs.width} * cs.height > kMaxParticles) {
+    Fail("cloth.width", "width * height must be <= " + Show(kMaxParticles) + ", got " +
+                            Show(int64_t{cs.width} * cs.height));
+  }
+  RequirePositive("cloth.spacing_m", cs.spacing_m);
+  RequirePositive("cloth.mass_kg", cs.mass_kg);
+  RequireFiniteVec("cloth.origin_m", cs.origin_m);
+  RequireUnitVec("cloth.u_axis", cs.u_axis);
+  RequireUnitVec("cloth.v_axis", cs.v_axis);
+  if (std::abs(cs.u_axis.dot(cs.v_axis)) > kUnitTolerance) {
+    Fail("cloth.v_axis",
+         "must be orthogonal to u_axis, got dot product " + Show(cs.u_axis.dot(cs.v_axis)));
+  }
+  ValidateSpring("cloth.structural", cs.structural);
+  ValidateSpring("cloth.shear", cs.shear);
+  ValidateSpring("cloth.bend", cs.bend);
+  RequireNonNegative("cloth.drag_N_s_per_m", cs.drag_N_s_per_m);
+  RequireFiniteVec("cloth.gravity_m_per_s2", cs.gravity_m_per_s2);
+  for (size_t k = 0; k < cs.obstacles.size(); ++k) {
+    ValidateObstacle("cloth.obstacles[" + Show(k) + "]", cs.obstacles[k]);
+  }
+  ValidateIntegration(spec.integration);
+  ValidateProvot(spec.provot);
+
+  ClothModel model;
+  model.spec = spec;
+  model.width = cs.width;
+  model.height = cs.height;
+  const int32_t n = model.num_particles();
+
+  // Rest places and uniform masses (001 §6.1: the cloth's mass is divided uniformly).
+  model.rest_position_m.resize(static_cast<size_t>(n));
+  for (int32_t r = 0; r < cs.height; ++r) {
+    for (int32_t c = 0; c < cs.width; ++c) {
+      model.rest_position_m[GridIndex(cs.width, c, r)] =
+          cs.origin_m + (c * cs.spacing_m) * cs.u_axis + (r * cs.spacing_m) * cs.v_axis;
+    }
+  }
+  model.particle_mass_kg = cs.mass_kg / n;
+  model.inv_mass_per_kg.assign(static_cast<size_t>(n), 1.0 / model.particle_mass_kg);
+
+  // Pins: each held particle once; a particle two pins hold must get the same motion from both.
+  std::vector<int32_t> holder(static_cast<size_t>(n), -1);
+  for (size_t k = 0; k < cs.pins.size(); ++k) {
+    const std::string field = "cloth.pins[" + Show(k) + "]";
+    ValidateMotion(field + ".motion", cs.pins[k].motion);
+    for (const auto& [c, r] : PinParticles(field, cs.pins[k], cs.width, cs.height)) {
+      const int32_t p = GridIndex(cs.width, c, r);
+      if (holder[p] >= 0) {
+        if (!SameMotion(cs.pins[holder[p]].motion, cs.pins[k].motion)) {
+          Fail(field, "particle (" + Show(c) + ", " + Show(r) + ") is already held by cloth.pins[" +
+                          Show(holder[p]) + "] with a different motion");
+        }
+        continue;
+      }
+      holder[p] = static_cast<int32_t>(k);
+      model.pinned.push_back(p);
+      model.pin_spec.push_back(static_cast<int32_t>(k));
+      model.pin_scripted.push_back(IsScripted(cs.pins[k].motion) ? 1 : 0);
+      model.inv_mass_per_kg[p] = 0.0;
+    }
+  }
+
+  // Springs of the declared types only, grouped by type (001 §2, Figure 1).
+  if (cs.structural) {
+    AddSprings(model, *cs.structural, SpringType::kStructural, 1, 0, &model.springs);
+    AddSprings(model, *cs.structural, SpringType::kStructural, 0, 1, &model.springs);
+  }
+  if (cs.shear) {
+    AddSprings(model, *cs.shear, SpringType::kShear, 1, 1, &model.springs);
+    AddSprings(model, *cs.shear, SpringType::kShear, -1, 1, &model.springs);
+  }
+  if (cs.bend) {
+    AddSprings(model, *cs.bend, SpringType::kBend, 2, 0, &model.springs);
+    AddSprings(model, *cs.bend, SpringType::kBend, 0, 2, &model.springs);
+  }
+  model.triangles = MakeGridTriangles(cs.width, cs.height);
+  if (spec.provot.enabled) {
+    model.provot = BuildProvot(model, spec.provot);
+    if (spec.provot.long_range_attachments)
+      model.attachments = BuildAttachments(model, spec.provot);
+  }
+
+  // Substeps: fixed, or derived from the integrator's stability limit with the safety factor.
+  ComputeFrequencyBounds(&model);
+  const IntegrationSpec& is = spec.integration;
+  model.stable_dt_s = StableStep(model, is.integrator);
+  const double frame_s = 1.0 / is.frame_rate_hz;
+  if (is.substeps > 0) {
+    model.substeps = is.substeps;
+  } else if (std::isinf(model.stable_dt_s)) {
+    model.substeps = 1;  // implicit Euler (or no free particle): one step per frame is stable
+  } else if (!(model.stable_dt_s > 0.0)) {
+    Fail("integration.substeps",
+         "auto found no stable step for this integrator (it needs damping or drag on the stiffest "
+         "mode); give a fixed count");
+  } else {
+    const double count = std::ceil(frame_s / (is.auto_safety * model.stable_dt_s));
+    if (count > kMaxSubsteps) {
+      Fail("integration.substeps", "auto needs " + Show(count) +
+                                       " substeps per frame (stable step " +
+                                       Show(model.stable_dt_s) + " s), over the limit " +
+                                       Show(kMaxSubsteps) + "; soften the springs or add mass");
+    }
+    model.substeps = std::max(1, static_cast<int32_t>(count));
+  }
+  return model;
+}
+
+ClothState MakeClothState(const ClothModel& model) {
+  const size_t n = static_cast<size_t>(model.num_particles());
+  ClothState state;
+  state.x = model.rest_position_m;
+  state.v.assign(n, Vec3::Zero());
+  state.normals.assign(n, Vec3::Zero());
+  ComputeVertexNormals(state.x, model.triangles, state.normals);
+  state.scratch = std::make_shared<ClothState::Scratch>();
+  ClothState::Scratch& s = *state.scratch;
+  for (std::vector<Vec3>* a : {&s.force_N, &s.external_N, &s.accel, &s.x_stage, &s.v_stage,
+                               &s.kx_sum, &s.kv_sum, &s.x_start, &s.a_last, &s.x_prev}) {
+    a->assign(n, Vec3::Zero());
+  }
+  if (model.spec.integration.integrator == IntegratorKind::kImplicitEuler) {
+    BuildImplicitPattern(model, &s);
+  }
+  // Pins start where their script puts them at t = 0; that is the first good state.
+  ApplyPins(model, 0.0, &state);
+  s.good_x = state.x;
+  s.good_v = state.v;
+  return state;
+}
+
+void ResetIntegratorHistory(ClothState* state) { state->scratch->history_valid = false; }
+
+}  // namespace felt

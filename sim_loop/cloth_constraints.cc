@@ -1,0 +1,189 @@
+// What is enforced after each substep: Provot's deformation constraints, the obstacles, the pins.
+
+#include <algorithm>
+#include <cmath>
+
+#include "sim_loop/cloth.h"
+#include "sim_loop/cloth_internal.h"
+
+namespace felt {
+namespace {
+
+// Provot stops sweeping once the worst excess in a sweep is below this fraction of the limit.
+constexpr double kProvotConverged = 1e-3;
+// Sphere-tracing steps along a substep's path before it is taken as a graze.
+constexpr int kMaxMarchSteps = 48;
+
+// Removes the velocity into the surface with normal `n` and applies Coulomb friction: the
+// tangential speed drops by at most mu times the normal speed removed (sticking if it would
+// reverse).
+void ContactVelocity(const Vec3& n, double mu, Vec3* v) {
+  const double vn = v->dot(n);
+  if (vn >= 0.0) return;
+  Vec3 vt = *v - vn * n;
+  if (mu > 0.0) {
+    const double vt_len = vt.norm();
+    const double drop = -mu * vn;
+    vt = vt_len <= drop ? Vec3(Vec3::Zero()) : Vec3(vt * (1.0 - drop / vt_len));
+  }
+  *v = vt;
+}
+
+// The first point of the segment a -> b whose distance to the obstacle is <= margin, by sphere
+// tracing (every shape's distance is exact outside, so each step is safe). False if none.
+bool FirstContact(const ObstacleSpec& o, const Vec3& a, const Vec3& b, Vec3* hit, Vec3* normal) {
+  const Vec3 d = b - a;
+  const double len = d.norm();
+  if (!(len > 0.0)) return false;
+  const Vec3 dir = d / len;
+  double t = 0.0;
+  for (int i = 0; i < kMaxMarchSteps && t <= len; ++i) {
+    const Vec3 p = a + t * dir;
+    const double gap = ObstacleDistance(o, p, normal) - o.margin_m;
+    if (gap <= 1e-9) {
+      *hit = p;
+      return true;
+    }
+    t += gap;
+  }
+  return false;
+}
+
+}  // namespace
+
+double ObstacleDistance(const ObstacleSpec& o, const Vec3& p, Vec3* normal) {
+  if (const auto* plane = std::get_if<PlaneSpec>(&o.shape)) {
+    *normal = plane->normal;
+    return plane->normal.dot(p - plane->point_m);
+  }
+  if (const auto* sphere = std::get_if<SphereSpec>(&o.shape)) {
+    const Vec3 d = p - sphere->center_m;
+    const double len = d.norm();
+    *normal = len > 0.0 ? Vec3(d / len) : Vec3(Vec3::UnitY());
+    return len - sphere->radius_m;
+  }
+  if (const auto* box = std::get_if<BoxSpec>(&o.shape)) {
+    // Exact box distance: q = |p - centre| - half extent per axis.
+    const Vec3 centre = 0.5 * (box->min_m + box->max_m);
+    const Vec3 half = 0.5 * (box->max_m - box->min_m);
+    const Vec3 rel = p - centre;
+    const Vec3 q = rel.cwiseAbs() - half;
+    const Vec3 sign(rel.x() < 0.0 ? -1.0 : 1.0, rel.y() < 0.0 ? -1.0 : 1.0,
+                    rel.z() < 0.0 ? -1.0 : 1.0);
+    const Vec3 outside = q.cwiseMax(0.0);
+    const double out_len = outside.norm();
+    if (out_len > 0.0) {
+      *normal = sign.cwiseProduct(outside) / out_len;
+      return out_len;
+    }
+    // Inside: the nearest face.
+    Eigen::Index axis = 0;
+    const double depth = q.maxCoeff(&axis);
+    *normal = Vec3::Zero();
+    (*normal)[axis] = sign[axis];
+    return depth;
+  }
+  const auto& capsule = std::get<CapsuleSpec>(o.shape);
+  // Distance to the closest point of the segment a-b, less the radius.
+  const Vec3 ab = capsule.b_m - capsule.a_m;
+  const double ab2 = ab.squaredNorm();
+  const double t = ab2 > 0.0 ? std::clamp((p - capsule.a_m).dot(ab) / ab2, 0.0, 1.0) : 0.0;
+  const Vec3 d = p - (capsule.a_m + t * ab);
+  const double len = d.norm();
+  *normal = len > 0.0 ? Vec3(d / len) : Vec3(Vec3::UnitY());
+  return len - capsule.radius_m;
+}
+
+void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
+  const double inv_h = 1.0 / h_s;
+  Vec3* x = state->x.data();
+  Vec3* v = state->v.data();
+  // Long range attachments first: each free particle back into the ball around its pin (Kim,
+  // Chentanez & Mueller 2012); the pin is kinematic, so only the particle moves.
+  for (const PinAttachment& a : model.attachments) {
+    const Vec3 d = x[a.particle] - x[a.pin];
+    const double len2 = d.squaredNorm();
+    if (len2 <= a.max_length_m * a.max_length_m) continue;
+    const double len = std::sqrt(len2);
+    const Vec3 shorten = d * ((len - a.max_length_m) / len);
+    x[a.particle] -= shorten;
+    v[a.particle] -= inv_h * shorten;
+  }
+  const ProvotConstraint* constraints = model.provot.data();
+  const int32_t count = static_cast<int32_t>(model.provot.size());
+  for (int32_t sweep = 0; sweep < model.spec.provot.iterations; ++sweep) {
+    double worst = 0.0;
+    for (int32_t k = 0; k < count; ++k) {
+      // Provot 1995 (000_25210a744b053ca5.txt slides 9-10): a spring longer than its limit
+      // (1 + tau_c) L is shortened back to it by moving its ends by their shares.
+      const ProvotConstraint& c = constraints[k];
+      const Vec3 d = x[c.j] - x[c.i];
+      const double len2 = d.squaredNorm();
+      if (len2 <= c.max_length_m * c.max_length_m) continue;
+      const double len = std::sqrt(len2);
+      worst = std::max(worst, len / c.max_length_m - 1.0);
+      const Vec3 shorten = d * ((len - c.max_length_m) / len);
+      // Velocities follow the positions, v += dx / h, so (x, v) stay consistent.
+      x[c.i] += c.share_i * shorten;
+      x[c.j] -= c.share_j * shorten;
+      v[c.i] += (c.share_i * inv_h) * shorten;
+      v[c.j] -= (c.share_j * inv_h) * shorten;
+    }
+    if (worst < kProvotConverged) break;
+  }
+}
+
+void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state) {
+  const auto& obstacles = model.spec.cloth.obstacles;
+  const Vec3* x_start = state->scratch->x_start.data();
+  for (int32_t p = 0; p < model.num_particles(); ++p) {
+    if (model.inv_mass_per_kg[p] == 0.0) continue;
+    bool touched = false;
+    for (const ObstacleSpec& o : obstacles) {
+      Vec3& x = state->x[p];
+      Vec3 normal;
+      const double phi = ObstacleDistance(o, x, &normal);
+      const Vec3 start = x_start[p];
+      // The distance is 1-Lipschitz: a path that ends farther out than its length cannot have
+      // touched the margin shell, the common case, decided without a second distance.
+      const double path = (x - start).norm();
+      if (phi - o.margin_m >= path) continue;
+      Vec3 n_start, hit;
+      const double phi_start = ObstacleDistance(o, start, &n_start);
+      // Started clearly outside the shell (not resting on it): the first contact along the path
+      // is where the particle meets the obstacle, so a fast particle cannot tunnel through a thin
+      // one or exit on its far side.
+      const bool start_clear = phi_start - o.margin_m > 1e-9;
+      if (phi >= o.margin_m) {
+        if (!start_clear || phi_start + phi - 2.0 * o.margin_m > path) continue;
+        if (!FirstContact(o, start, x, &hit, &normal)) continue;
+        x = hit;
+      } else if (start_clear && FirstContact(o, start, x, &hit, &normal)) {
+        x = hit;
+      } else {
+        // Resting on or starting inside the shell: out to the nearest surface plus margin.
+        x += (o.margin_m - phi) * normal;
+      }
+      ContactVelocity(normal, o.friction, &state->v[p]);
+      touched = true;
+    }
+    if (touched) SyncVerletHistory(model, p, h_s, state);
+  }
+}
+
+void ApplyPins(const ClothModel& model, double t_s, ClothState* state) {
+  const auto& pins = model.spec.cloth.pins;
+  for (size_t k = 0; k < model.pinned.size(); ++k) {
+    const int32_t p = model.pinned[k];
+    if (model.pin_scripted[k]) {
+      const PinMotionSpec& motion = pins[model.pin_spec[k]].motion;
+      state->x[p] = model.rest_position_m[p] + PinOffset(motion, t_s);
+      state->v[p] = PinVelocity(motion, t_s);
+    } else {
+      state->x[p] = model.rest_position_m[p];
+      state->v[p].setZero();
+    }
+  }
+}
+
+}  // namespace felt

@@ -1,0 +1,77 @@
+#pragma once
+// Internals of the cloth step shared by sim_loop/cloth_*.cc: the scratch block every StepFrame
+// works in, and the kernels that operate on it. Not for use outside sim_loop/cloth_*.cc.
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "sim_loop/cloth.h"
+
+namespace felt {
+
+/// Preallocated work arrays of one ClothState, sized once by MakeClothState (n = particles).
+struct ClothState::Scratch {
+  // Forces and integrator stages, [n] each.
+  std::vector<Vec3> force_N;     ///< force accumulator
+  std::vector<Vec3> external_N;  ///< external point forces of this frame, per particle
+  std::vector<Vec3> accel;       ///< acceleration of the current stage, m/s^2
+  std::vector<Vec3> x_stage;     ///< stage positions (midpoint, RK4, velocity Verlet)
+  std::vector<Vec3> v_stage;     ///< stage velocities
+  std::vector<Vec3> kx_sum;      ///< RK4: weighted sum of position slopes
+  std::vector<Vec3> kv_sum;      ///< RK4: weighted sum of velocity slopes
+  std::vector<Vec3> x_start;     ///< positions at the start of the substep (obstacle sweeps)
+
+  // Integrator history (leapfrog, basic Verlet), [n] each.
+  bool history_valid = false;  ///< false: restart from x, v at the next substep
+  double history_h_s = 0.0;    ///< substep length the history was made with
+  std::vector<Vec3> a_last;    ///< acceleration of the previous substep
+  std::vector<Vec3> x_prev;    ///< basic Verlet: positions one substep back
+
+  // Last good state, restored when a frame produces non-finite values.
+  std::vector<Vec3> good_x;
+  std::vector<Vec3> good_v;
+  double good_time_s = 0.0;
+  bool nan_logged = false;
+
+  // Implicit Euler (Baraff & Witkin 1998): A dv = b on 3n unknowns; pattern built once.
+  Eigen::SparseMatrix<double, Eigen::RowMajor> A;
+  std::vector<std::array<int32_t, 3>> diag_offset;  ///< [n] value index of row 3i+r, col 3i
+  std::vector<std::array<int32_t, 3>> ij_offset;    ///< [springs] value index of (3i+r, 3j)
+  std::vector<std::array<int32_t, 3>> ji_offset;    ///< [springs] value index of (3j+r, 3i)
+  Eigen::VectorXd b, dv, r, z, p, Ap, inv_diag;     ///< [3n] CG vectors
+};
+
+/// Accelerations [m/s^2] at positions x and velocities v: gravity, drag, springs, and the frame's
+/// external forces (scratch.external_N); zero for pinned particles. Uses scratch.force_N.
+void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
+                          ClothState::Scratch* scratch, std::span<Vec3> a);
+
+/// Advances state->x, state->v by one substep of length h_s with the model's integrator
+/// (001_0f9f1b7fedff7723.txt §3). Pins keep the velocity they were given. Returns false if the
+/// implicit solve hit its iteration cap.
+bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state);
+
+/// Provot 1995 (000_25210a744b053ca5.txt slides 9-10): sweeps over model.provot, shortening every
+/// spring longer than its limit; velocities are corrected by the move / h_s.
+void ApplyProvot(const ClothModel& model, double h_s, ClothState* state);
+
+/// Keeps free particles outside every declared obstacle (surface + margin), sweeping the path
+/// from scratch.x_start so a fast particle cannot tunnel through a thin obstacle; removes the
+/// inward normal velocity and applies Coulomb friction to the tangential velocity.
+void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state);
+
+/// Sets every pinned particle to rest + PinOffset(t_s) and its velocity to PinVelocity(t_s).
+void ApplyPins(const ClothModel& model, double t_s, ClothState* state);
+
+/// After a substep moved free particles' positions by hand (obstacles): basic Verlet's previous
+/// position is re-derived from the corrected velocity so the two stay consistent.
+void SyncVerletHistory(const ClothModel& model, int32_t particle, double h_s, ClothState* state);
+
+/// Builds the implicit Euler matrix pattern and offsets in `scratch` (once, in MakeClothState).
+void BuildImplicitPattern(const ClothModel& model, ClothState::Scratch* scratch);
+
+}  // namespace felt

@@ -1,0 +1,101 @@
+// StepFrame: one 60 Hz frame of the cloth, cut into substeps.
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "sim_loop/cloth.h"
+#include "sim_loop/cloth_internal.h"
+
+namespace felt {
+namespace {
+
+// Spreads the frame's point forces over their triangles' particles by barycentric weight.
+void GatherExternalForces(const ClothModel& model, std::span<const ExternalForce> external,
+                          ClothState* state) {
+  std::vector<Vec3>& out = state->scratch->external_N;
+  std::fill(out.begin(), out.end(), Vec3::Zero());
+  const int32_t num_triangles = static_cast<int32_t>(model.triangles.size());
+  for (const ExternalForce& e : external) {
+    if (e.triangle < 0 || e.triangle >= num_triangles || !e.force_N.allFinite() ||
+        !e.barycentric.allFinite()) {
+      ++state->counters.invalid_external_forces;
+      continue;
+    }
+    const Triangle& t = model.triangles[e.triangle];
+    for (int c = 0; c < 3; ++c) out[t[c]] += e.barycentric[c] * e.force_N;
+  }
+}
+
+// True if every position and velocity is finite (x * 0 is 0 unless x is inf or NaN).
+bool AllFinite(const ClothState& state) {
+  double probe = 0.0;
+  for (size_t p = 0; p < state.x.size(); ++p) {
+    probe += (state.x[p] * 0.0).sum() + (state.v[p] * 0.0).sum();
+  }
+  return probe == 0.0;
+}
+
+}  // namespace
+
+FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> external,
+                      double frame_dt_s, ClothState* state) {
+  FrameResult result;
+  if (!(frame_dt_s > 0.0)) return result;
+  ClothState::Scratch& s = *state->scratch;
+  const IntegrationSpec& is = model.spec.integration;
+
+  // Clamp a late frame, then cut it into substeps no longer than the nominal one.
+  double dt = frame_dt_s;
+  if (dt > is.max_frame_dt_s) {
+    dt = is.max_frame_dt_s;
+    result.clamped = true;
+    ++state->counters.clamped_frames;
+  }
+  const double h_nominal = 1.0 / (is.frame_rate_hz * model.substeps);
+  const int32_t substeps = std::max(1, static_cast<int32_t>(std::ceil(dt / h_nominal - 1e-9)));
+  const double h = dt / substeps;
+  result.substeps = substeps;
+  result.dt_s = dt;
+
+  GatherExternalForces(model, external, state);
+  const bool obstacles = !model.spec.cloth.obstacles.empty();
+  const bool provot = model.spec.provot.enabled && !model.provot.empty();
+  const double t0 = state->time_s;
+  for (int32_t k = 0; k < substeps; ++k) {
+    // Integrate, then constrain: Provot (000 slide 9), obstacles, pins at the substep's end time.
+    if (obstacles) std::copy(state->x.begin(), state->x.end(), s.x_start.begin());
+    if (!IntegrateSubstep(model, h, state)) ++state->counters.cg_not_converged;
+    if (provot) ApplyProvot(model, h, state);
+    if (obstacles) ApplyObstacles(model, h, state);
+    ApplyPins(model, t0 + (k + 1) * h, state);
+  }
+  state->time_s = t0 + dt;
+
+  // Non-finite values never stay: restore the last good frame (MuJoCo-style count and warn once).
+  if (AllFinite(*state)) {
+    std::copy(state->x.begin(), state->x.end(), s.good_x.begin());
+    std::copy(state->v.begin(), state->v.end(), s.good_v.begin());
+    s.good_time_s = state->time_s;
+  } else {
+    ++state->counters.nan_events;
+    if (!s.nan_logged) {
+      s.nan_logged = true;
+      spdlog::warn(
+          "cloth: non-finite positions or velocities at t = {:.4f} s; restored the last "
+          "good state (t = {:.4f} s); further events are only counted",
+          state->time_s, s.good_time_s);
+    }
+    std::copy(s.good_x.begin(), s.good_x.end(), state->x.begin());
+    std::copy(s.good_v.begin(), s.good_v.end(), state->v.begin());
+    state->time_s = s.good_time_s;
+    s.history_valid = false;
+    result.recovered = true;
+  }
+  ComputeVertexNormals(state->x, model.triangles, state->normals);
+  ++state->counters.frames;
+  return result;
+}
+
+}  // namespace felt
