@@ -70,11 +70,18 @@ TEST(SceneFile, DefaultCurtainMatchesSpecDefaultsAndTraceGeometry) {
   EXPECT_EQ(spec.cloth.pins[0].name, "top_left");
   EXPECT_EQ(spec.cloth.pins[1].name, "top_right");
   ASSERT_TRUE(spec.cloth.structural && spec.cloth.shear && spec.cloth.bend);
-  EXPECT_EQ(spec.cloth.structural->stiffness_N_per_m, 200.0);
+  EXPECT_EQ(spec.cloth.structural->stiffness_N_per_m, defaults.structural->stiffness_N_per_m);
+  EXPECT_EQ(spec.cloth.structural->damping_N_s_per_m, defaults.structural->damping_N_s_per_m);
+  EXPECT_EQ(spec.cloth.shear->stiffness_N_per_m, defaults.shear->stiffness_N_per_m);
+  EXPECT_EQ(spec.cloth.shear->damping_N_s_per_m, defaults.shear->damping_N_s_per_m);
+  EXPECT_EQ(spec.cloth.bend->stiffness_N_per_m, defaults.bend->stiffness_N_per_m);
+  EXPECT_EQ(spec.cloth.bend->damping_N_s_per_m, defaults.bend->damping_N_s_per_m);
+  EXPECT_EQ(spec.cloth.drag_N_s_per_m, defaults.drag_N_s_per_m);
   EXPECT_EQ(spec.integration.integrator, IntegratorKind::kLeapfrogVerlet);
   EXPECT_EQ(spec.integration.substeps, 0);  // "auto"
   EXPECT_TRUE(spec.provot.enabled);
   EXPECT_EQ(spec.provot.max_elongation, 0.10);
+  EXPECT_TRUE(spec.provot.long_range_attachments);
   EXPECT_TRUE(spec.cloth.obstacles.empty());
 }
 
@@ -194,6 +201,7 @@ enabled = false
 max_elongation = 0.2
 iterations = 3
 shear = false
+long_range_attachments = false
 )");
   EXPECT_EQ(spec.cloth.width, 4);
   EXPECT_EQ(spec.cloth.height, 3);
@@ -226,6 +234,7 @@ shear = false
   EXPECT_EQ(spec.provot.max_elongation, 0.2);
   EXPECT_EQ(spec.provot.iterations, 3);
   EXPECT_FALSE(spec.provot.shear);
+  EXPECT_FALSE(spec.provot.long_range_attachments);
 }
 
 TEST(SceneFile, IntegratorNamesRoundTrip) {
@@ -338,7 +347,7 @@ TEST(SceneFileErrors, UnknownKey) {
   // No close match: the known keys are listed. The first unknown key in file order is reported.
   EXPECT_EQ(ErrorOf("[cloth]\n[provot]\nzzz = 1\naaa = 2\n"),
             "t.toml:3:1: provot.zzz: unknown key 'zzz' in [provot]; known keys: enabled, "
-            "max_elongation, iterations, shear");
+            "max_elongation, iterations, shear, long_range_attachments");
   EXPECT_EQ(ErrorOf("[cloth]\n[[cloth.pins]]\nkind = \"corner\"\nname = \"top_left\"\ncol = 3\n"),
             "t.toml:5:1: cloth.pins[0].col: unknown key 'col' in cloth.pins[0]; known keys: kind, "
             "name, motion");
