@@ -1,0 +1,106 @@
+#include "proxy/local_cloth.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace felt {
+namespace {
+
+// Squared distance from point c to segment [p0, p1].
+double SegmentPointDistance2(const Vec3& p0, const Vec3& p1, const Vec3& c) {
+  const Vec3 d = p1 - p0;
+  const double len2 = d.squaredNorm();
+  double s = len2 > 0.0 ? (c - p0).dot(d) / len2 : 0.0;
+  s = std::clamp(s, 0.0, 1.0);
+  return (p0 + s * d - c).squaredNorm();
+}
+
+// Whether a sphere of radius r moving along [p0, p1] can reach the triangle's bounding sphere.
+bool MayReach(const LocalTriangle& t, const Vec3& p0, const Vec3& p1, double r) {
+  const double reach = t.radius_m + r;
+  // Relative slack so that rounding never culls a triangle the exact test would accept.
+  const double slack = CullSlack(p0, p1, r);
+  return SegmentPointDistance2(p0, p1, t.center) <= (reach + slack) * (reach + slack);
+}
+
+// Keeps the earliest contact (lowest toi, then lowest triangle index), as SweepAccumulator does.
+void Keep(int32_t tri, const SweepContact& sc, SweepHit* best) {
+  if (!sc.hit) return;
+  if (best->hit && (sc.toi > best->toi || (sc.toi == best->toi && tri > best->triangle))) return;
+  *best = {true, sc.toi, tri, sc.point, sc.normal, sc.barycentric};
+}
+
+}  // namespace
+
+Vec3 ClothView::Normal(int32_t i) const {
+  const Vec3 n = from->normals[i] + alpha * (to->normals[i] - from->normals[i]);
+  const double len = n.norm();
+  return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
+}
+
+void ClothView::Corners(int32_t t, Vec3* a, Vec3* b, Vec3* c) const {
+  const Triangle& tri = (*to->triangles)[t];
+  *a = Position(tri[0]);
+  *b = Position(tri[1]);
+  *c = Position(tri[2]);
+}
+
+LocalCloth::LocalCloth(int32_t capacity) {
+  if (capacity < 1) throw std::invalid_argument("LocalCloth: capacity must be >= 1");
+  found_.resize(static_cast<size_t>(capacity));
+  tris_.resize(static_cast<size_t>(capacity));
+}
+
+bool LocalCloth::Gather(const ClothSnapshot& query, double inflation_m, const ClothView& now,
+                        const ClothView* before, const Vec3& center_W, double radius_m) {
+  // Query 1 on the snapshot's own positions, enlarged by how far the tick's cloth may lie from it.
+  const WithinResult within =
+      TrianglesWithin(query.structure, query.x, center_W, radius_m + inflation_m, found_);
+  size_ = static_cast<size_t>(within.written);
+  // Place each found triangle at this tick's cloth (and the previous tick's), with a bounding
+  // sphere over both for cheap culling in the sweeps.
+  for (size_t k = 0; k < size_; ++k) {
+    LocalTriangle& t = tris_[k];
+    t.triangle = found_[k].triangle;
+    now.Corners(t.triangle, &t.a, &t.b, &t.c);
+    if (before != nullptr) {
+      before->Corners(t.triangle, &t.a0, &t.b0, &t.c0);
+    } else {
+      t.a0 = t.a;
+      t.b0 = t.b;
+      t.c0 = t.c;
+    }
+    t.center = (t.a + t.b + t.c + t.a0 + t.b0 + t.c0) / 6.0;
+    const double r2 = std::max({(t.a - t.center).squaredNorm(), (t.b - t.center).squaredNorm(),
+                                (t.c - t.center).squaredNorm(), (t.a0 - t.center).squaredNorm(),
+                                (t.b0 - t.center).squaredNorm(), (t.c0 - t.center).squaredNorm()});
+    t.radius_m = std::sqrt(r2);
+  }
+  return !within.overflowed();
+}
+
+SweepHit LocalCloth::Sweep(const Vec3& p0, const Vec3& p1, double r) const {
+  SweepHit best;
+  for (size_t k = 0; k < size_; ++k) {
+    const LocalTriangle& t = tris_[k];
+    if (!MayReach(t, p0, p1, r)) continue;
+    Keep(t.triangle, SweepSphereTriangle(p0, p1, r, t.a, t.b, t.c), &best);
+  }
+  return best;
+}
+
+SweepHit LocalCloth::SweepMoving(const Vec3& c0, const Vec3& c1, double r,
+                                 std::span<const int32_t> skip) const {
+  SweepHit best;
+  for (size_t k = 0; k < size_; ++k) {
+    const LocalTriangle& t = tris_[k];
+    if (std::find(skip.begin(), skip.end(), t.triangle) != skip.end()) continue;
+    if (!MayReach(t, c0, c1, r)) continue;
+    Keep(t.triangle, MovingTriangleSphereContact(c0, c1, r, t.a0, t.b0, t.c0, t.a, t.b, t.c),
+         &best);
+  }
+  return best;
+}
+
+}  // namespace felt

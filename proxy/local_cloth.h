@@ -1,0 +1,93 @@
+#pragma once
+// The cloth near the proxy for one haptic tick: the triangles a proxy can touch this tick,
+// gathered once from a snapshot's collision structure (query 1, sim_loop/collision_structure.h)
+// with their vertices placed at the tick's cloth (a snapshot, an interpolation between two, or an
+// extrapolation), then swept against exactly (SweepSphereTriangle, MovingTriangleSphereContact).
+//
+// Why not query the structure directly: the interpolated and extrapolated cloths of the snapshot
+// modes (issue 4, modes c and d) have no repaired structure of their own, and repairing one per
+// tick costs more than the whole tick budget (bench/results/haptic.md). Every vertex of the tick's
+// cloth is within a known distance `inflation` of the snapshot the structure was repaired for, so
+// the triangles within r of a region in the tick's cloth are among those within r + inflation in
+// the snapshot's: the gather is exact as long as it does not overflow its capacity.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "sim_loop/collision.h"
+#include "sim_loop/geometry.h"
+#include "sim_loop/snapshot.h"
+
+namespace felt {
+
+/// A cloth at one instant, as a recipe over one or two snapshots (nothing is copied):
+/// x_i = from.x_i + alpha (to.x_i - from.x_i) + tau to.v_i, world, m. With from == to, alpha = 0,
+/// tau = 0 it is exactly `to` (bit for bit).
+struct ClothView {
+  const ClothSnapshot* from = nullptr;  ///< interpolation start (== to when not interpolating)
+  const ClothSnapshot* to = nullptr;    ///< interpolation end; its velocities extrapolate
+  double alpha = 0.0;                   ///< interpolation weight in [0, 1]
+  double tau_s = 0.0;                   ///< extrapolation time, s
+
+  /// The cloth `s` itself.
+  static ClothView Of(const ClothSnapshot& s) { return {&s, &s, 0.0, 0.0}; }
+  /// Position of particle i [m]. Real-time safe.
+  Vec3 Position(int32_t i) const {
+    return from->x[i] + alpha * (to->x[i] - from->x[i]) + tau_s * to->v[i];
+  }
+  /// Unit vertex normal of particle i (interpolated like the positions, not extrapolated); zero
+  /// where the snapshots have none. Real-time safe.
+  Vec3 Normal(int32_t i) const;
+  /// Positions of triangle t's three corners [m]. Real-time safe.
+  void Corners(int32_t t, Vec3* a, Vec3* b, Vec3* c) const;
+};
+
+/// One gathered triangle.
+struct LocalTriangle {
+  int32_t triangle = -1;  ///< index into the snapshot's triangle list
+  Vec3 a, b, c;           ///< corners at the tick's cloth, world, m
+  Vec3 a0, b0, c0;        ///< corners at the previous tick's cloth (for the moving test), m
+  Vec3 center;            ///< centre of a sphere bounding both a,b,c and a0,b0,c0, m
+  double radius_m = 0.0;  ///< its radius, m
+};
+
+/// The triangles near the proxy this tick. Sized once; Gather and the queries are real-time safe.
+class LocalCloth {
+ public:
+  /// Room for `capacity` >= 1 triangles. Allocates (set-up time).
+  explicit LocalCloth(int32_t capacity);
+
+  /// Replaces the contents with every triangle that comes within `radius_m` of `center_W` in
+  /// `now` (or in `before`, when given), found through `query`'s structure with the radius
+  /// enlarged by `inflation_m`, an upper bound on how far any vertex of `now` and `before` lies
+  /// from `query`'s positions. Without `before` the previous-tick corners equal the current ones.
+  /// Returns false when more triangles were found than fit (the first ones found are kept).
+  /// Real-time safe.
+  bool Gather(const ClothSnapshot& query, double inflation_m, const ClothView& now,
+              const ClothView* before, const Vec3& center_W, double radius_m);
+
+  /// First contact of a sphere of radius r [m] moving p0 -> p1 [m] against the gathered triangles
+  /// at the tick's cloth (SweepSphereTriangle's convention; ties: lowest triangle index).
+  /// Real-time safe.
+  SweepHit Sweep(const Vec3& p0, const Vec3& p1, double r) const;
+
+  /// First contact of a sphere moving c0 -> c1 while each gathered triangle moves from its
+  /// previous-tick corners to its current ones (MovingTriangleSphereContact), skipping the
+  /// triangles listed in `skip`. The hit's point, normal and barycentrics are at toi.
+  /// Real-time safe.
+  SweepHit SweepMoving(const Vec3& c0, const Vec3& c1, double r,
+                       std::span<const int32_t> skip) const;
+
+  /// The gathered triangles.
+  std::span<const LocalTriangle> triangles() const { return {tris_.data(), size_}; }
+  /// Capacity given at construction.
+  int32_t capacity() const { return static_cast<int32_t>(tris_.size()); }
+
+ private:
+  std::vector<PointContact> found_;  // [capacity] query 1's buffer
+  std::vector<LocalTriangle> tris_;  // [capacity]
+  size_t size_ = 0;
+};
+
+}  // namespace felt

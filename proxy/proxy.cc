@@ -1,0 +1,519 @@
+#include "proxy/proxy.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <span>
+
+#include "sim_loop/geometry.h"
+
+namespace felt {
+namespace {
+
+// An orthonormal frame of a triangle (e1 along ab, n the face normal); ok = false if degenerate.
+struct TriFrame {
+  Vec3 e1 = Vec3::UnitX();
+  Vec3 e2 = Vec3::UnitY();
+  Vec3 n = Vec3::UnitZ();
+  bool ok = false;
+};
+
+TriFrame FrameOf(const Vec3& a, const Vec3& b, const Vec3& c) {
+  TriFrame f;
+  const Vec3 ab = b - a;
+  const Vec3 nn = ab.cross(c - a);
+  const double lab = ab.norm();
+  const double ln = nn.norm();
+  if (lab <= 0.0 || ln <= 0.0 || IsDegenerateTriangle(a, b, c)) return f;
+  f.e1 = ab / lab;
+  f.n = nn / ln;
+  f.e2 = f.n.cross(f.e1);
+  f.ok = true;
+  return f;
+}
+
+// World offset -> triangle frame, and back (a degenerate frame keeps world coordinates: the
+// proxy then only translates with its contact point).
+Vec3 ToLocal(const TriFrame& f, const Vec3& d) {
+  return f.ok ? Vec3(f.e1.dot(d), f.e2.dot(d), f.n.dot(d)) : d;
+}
+Vec3 FromLocal(const TriFrame& f, const Vec3& l) {
+  return f.ok ? Vec3(l(0) * f.e1 + l(1) * f.e2 + l(2) * f.n) : l;
+}
+
+const LocalTriangle* FindLocal(const LocalCloth& cloth, int32_t triangle) {
+  for (const LocalTriangle& t : cloth.triangles()) {
+    if (t.triangle == triangle) return &t;
+  }
+  return nullptr;
+}
+
+// The constraint a contact puts on the proxy centre: n . x >= n . point + r (Ruspini 1997 §3: the
+// plane tangent to the configuration-space obstacle, i.e. the cloth grown by the radius).
+ConstraintPlane PlaneOf(const ProxyContact& c, double r) {
+  return ConstraintPlane{c.normal_W, c.normal_W.dot(c.point_W_m) + r, c.triangle};
+}
+
+// One pass of the god-object update: its result before the contacts' local frames are filled.
+struct Pass {
+  Vec3 p = Vec3::Zero();
+  int32_t n = 0;
+  std::array<ProxyContact, kMaxConstraintPlanes> contacts;
+  int32_t iterations = 0;
+  bool converged = true;
+  bool feasible = true;
+};
+
+// Re-evaluates remembered contacts at the proxy's (carried) position on this tick's cloth: a
+// contact stays a constraint while its triangle is gathered and still touches the sphere; its
+// plane becomes the exact tangent plane at the current closest point.
+int32_t SeedContacts(const LocalCloth& cloth, const GodObject& body, double r,
+                     std::array<ProxyContact, kMaxConstraintPlanes>* out) {
+  int32_t n = 0;
+  const double touch = r * (1.0 + 1e-6) + 1e-12;
+  for (int32_t i = 0; i < body.num_contacts; ++i) {
+    const ProxyContact& old = body.contacts[i];
+    const LocalTriangle* t = FindLocal(cloth, old.triangle);
+    if (t == nullptr) continue;
+    const TrianglePoint cp = ClosestPointOnTriangle(body.p_W_m, t->a, t->b, t->c);
+    if (cp.distance_sq > touch * touch) continue;
+    const double dist = std::sqrt(cp.distance_sq);
+    ProxyContact c = old;
+    c.point_W_m = cp.point;
+    c.barycentric = cp.barycentric;
+    // The normal faces the proxy; a centre exactly on the cloth keeps the side it had.
+    c.normal_W = dist > 1e-12 * (1.0 + r) ? Vec3((body.p_W_m - cp.point) / dist) : old.normal_W;
+    (*out)[n++] = c;
+  }
+  return n;
+}
+
+// Ruspini 1997 §3: from `start`, sweep toward the closest point to `goal` on the free side of the
+// active planes; at each first contact add its plane (at most three) and solve again; drop planes
+// the solution leaves (the goal moved to their free side). Bounded by max_iterations.
+Pass RunPass(const LocalCloth& cloth, const Vec3& start, std::span<const ProxyContact> seeds,
+             const Vec3& goal, double r, int32_t max_iterations) {
+  Pass pass;
+  pass.p = start;
+  for (const ProxyContact& s : seeds) pass.contacts[pass.n++] = s;
+  const double tiny = 1e-12 * (1.0 + start.cwiseAbs().maxCoeff() + goal.cwiseAbs().maxCoeff());
+  pass.converged = false;
+  for (int32_t it = 0; it < max_iterations; ++it) {
+    // The closest feasible point to the goal over the active planes.
+    std::array<ConstraintPlane, kMaxConstraintPlanes> planes;
+    for (int32_t i = 0; i < pass.n; ++i) planes[i] = PlaneOf(pass.contacts[i], r);
+    const PlaneSolveResult sol =
+        SolveClosestFeasible(goal, std::span<const ConstraintPlane>(planes.data(), pass.n));
+    if (!sol.feasible) {
+      // Pinched: no point satisfies every plane; the proxy stays where it is (never crosses).
+      pass.feasible = false;
+      pass.converged = true;
+      break;
+    }
+    // Release the planes the solution does not press on.
+    int32_t kept = 0;
+    for (int32_t i = 0; i < pass.n; ++i) {
+      if (sol.active_mask & (1u << i)) pass.contacts[kept++] = pass.contacts[i];
+    }
+    pass.n = kept;
+    const Vec3 target = sol.point;
+    if ((target - pass.p).squaredNorm() <= tiny * tiny) {
+      pass.converged = true;
+      break;
+    }
+    // Sweep toward it: free motion ends the pass; a contact adds its plane and repeats.
+    ++pass.iterations;
+    const SweepHit hit = cloth.Sweep(pass.p, target, r);
+    if (!hit.hit) {
+      pass.p = target;
+      pass.converged = true;
+      break;
+    }
+    pass.p = pass.p + hit.toi * (target - pass.p);
+    ProxyContact c;
+    c.triangle = hit.triangle;
+    c.barycentric = hit.barycentric;
+    c.point_W_m = hit.point_m;
+    c.normal_W = hit.normal;
+    // A triangle already active gets its plane updated; otherwise it is added (three at most:
+    // a fourth plane means the proxy is boxed in, and it stays where the sweep stopped it).
+    int32_t slot = -1;
+    for (int32_t i = 0; i < pass.n; ++i) {
+      if (pass.contacts[i].triangle == c.triangle) slot = i;
+    }
+    if (slot < 0 && pass.n == kMaxConstraintPlanes) {
+      pass.converged = true;
+      break;
+    }
+    if (slot < 0) slot = pass.n++;
+    pass.contacts[slot] = c;
+  }
+  return pass;
+}
+
+// The interpolated vertex normal at a contact (Morgenbesser & Srinivasan 1996: Phong-style normal
+// interpolation), turned to the proxy's side; the contact normal where the cloth has none.
+Vec3 ShadingNormal(const ClothView& view, const ProxyContact& c) {
+  const Triangle& tri = (*view.to->triangles)[c.triangle];
+  Vec3 n = c.barycentric(0) * view.Normal(tri[0]) + c.barycentric(1) * view.Normal(tri[1]) +
+           c.barycentric(2) * view.Normal(tri[2]);
+  const double len = n.norm();
+  if (!(len > 1e-9)) return c.normal_W;
+  n /= len;
+  return n.dot(c.normal_W) < 0.0 ? Vec3(-n) : n;
+}
+
+// Splits the force on the cloth over the contacts by their normals (the planes' multipliers:
+// F = sum f_i n_i, f_i >= 0), the remainder going to the first contact so the total is exact.
+void SplitOverContacts(const GodObject& body, const Vec3& force_on_cloth_W,
+                       std::array<Vec3, kMaxConstraintPlanes>* parts) {
+  const int32_t n = body.num_contacts;
+  for (auto& p : *parts) p.setZero();
+  if (n <= 0) return;
+  if (n == 1) {
+    (*parts)[0] = force_on_cloth_W;
+    return;
+  }
+  Eigen::Matrix3d gram = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (int32_t a = 0; a < n; ++a) {
+    rhs(a) = body.contacts[a].normal_W.dot(force_on_cloth_W);
+    for (int32_t b = 0; b < n; ++b) {
+      gram(a, b) = body.contacts[a].normal_W.dot(body.contacts[b].normal_W);
+    }
+  }
+  Eigen::Vector3d f = Eigen::Vector3d::Zero();
+  const double det = gram.determinant();
+  if (std::abs(det) > 1e-9) f = gram.inverse() * rhs;
+  Vec3 assigned = Vec3::Zero();
+  for (int32_t a = 0; a < n; ++a) {
+    // The cloth is pushed along -n_i: keep only shares of that sign.
+    const double fa = std::min(0.0, f(a));
+    (*parts)[a] = fa * body.contacts[a].normal_W;
+    assigned += (*parts)[a];
+  }
+  (*parts)[0] += force_on_cloth_W - assigned;
+}
+
+// What one body did in a tick.
+struct BodyTick {
+  GodObjectStep step;
+  bool overflow = false;
+  bool caught = false;
+};
+
+// Carry, gather, catch and update one body against one cloth for this tick.
+BodyTick TickBody(const ClothSnapshot& query, double inflation_m, const ClothView& now,
+                  const ClothView* before, const Vec3& goal, const GodObjectOptions& opts,
+                  LocalCloth* local, GodObject* body) {
+  BodyTick out;
+  const double r = opts.radius_m;
+  if (!body->placed) {
+    body->p_W_m = goal;
+    body->num_contacts = 0;
+    body->placed = true;
+  }
+  // Carry a proxy in contact with its contact triangle to this tick's cloth.
+  const Vec3 p_prev = body->p_W_m;
+  if (before != nullptr) CarryGodObject(*before, now, body);
+  const Vec3 p_carried = body->p_W_m;
+  // Gather every triangle the proxy can meet this tick: all of this tick's motion stays within
+  // 3 |p - goal| of the goal (the update only approaches its (sub)goal), the catch within
+  // |goal - p_prev| + |p_carried - p_prev|.
+  const double reach = std::max(3.0 * (p_carried - goal).norm(),
+                                (goal - p_prev).norm() + (p_carried - p_prev).norm());
+  out.overflow =
+      !local->Gather(query, inflation_m, now, before, goal, reach + r * (1.0 + 1e-6) + 1e-9);
+  // Catch: the cloth moving from the previous tick's shape to this one may sweep over the proxy
+  // (which moves with its carry meanwhile); it then rides on the triangle that hit it.
+  if (before != nullptr) {
+    std::array<int32_t, kMaxConstraintPlanes> skip;
+    skip.fill(-1);
+    for (int32_t i = 0; i < body->num_contacts; ++i) skip[i] = body->contacts[i].triangle;
+    const SweepHit hit = local->SweepMoving(p_prev, p_carried, r, skip);
+    if (hit.hit) {
+      const LocalTriangle* t = FindLocal(*local, hit.triangle);
+      const double s = hit.toi;
+      const TriFrame f0 = FrameOf(t->a0 + s * (t->a - t->a0), t->b0 + s * (t->b - t->b0),
+                                  t->c0 + s * (t->c - t->c0));
+      const Vec3 p_toi = p_prev + s * (p_carried - p_prev);
+      const Vec3 local_off = ToLocal(f0, p_toi - hit.point_m);
+      const TriFrame f1 = FrameOf(t->a, t->b, t->c);
+      const Vec3& w = hit.barycentric;
+      const Vec3 point = w(0) * t->a + w(1) * t->b + w(2) * t->c;
+      body->p_W_m = point + FromLocal(f1, local_off);
+      ProxyContact c;
+      c.triangle = hit.triangle;
+      c.barycentric = w;
+      c.point_W_m = point;
+      c.normal_W = f1.ok ? Vec3(f1.n * (local_off(2) >= 0.0 ? 1.0 : -1.0)) : hit.normal;
+      c.local_m = local_off;
+      body->contacts[0] = c;
+      body->num_contacts = 1;
+      out.caught = true;
+    }
+  }
+  out.step = UpdateGodObject(*local, now, goal, opts, body);
+  return out;
+}
+
+// Spring-damper force on the device for a proxy at p (world), device frame, unclamped.
+Vec3 CouplingForceD(const DeviceSpec& d, const Vec3& p_W, const Vec3& goal_W, const Vec3& v_proxy_W,
+                    const Vec3& v_device_D) {
+  const Eigen::Matrix3d& R = d.rotation_WD;
+  const Vec3 spring = d.stiffness_N_per_m * (R.transpose() * (p_W - goal_W)) / d.scale;
+  const Vec3 v_proxy_D = R.transpose() * v_proxy_W / d.scale;
+  return spring + d.damping_N_s_per_m * (v_proxy_D - v_device_D);
+}
+
+}  // namespace
+
+int32_t SideOfTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const TriFrame f = FrameOf(a, b, c);
+  if (!f.ok) return 0;
+  const TrianglePoint cp = ClosestPointOnTriangle(p, a, b, c);
+  const double s = f.n.dot(p - cp.point);
+  return s > 0.0 ? 1 : (s < 0.0 ? -1 : 0);
+}
+
+void CarryGodObject(const ClothView& /*before*/, const ClothView& now, GodObject* body) {
+  if (body->num_contacts <= 0) return;
+  // The first contact anchors the proxy: same barycentric point, same offset in the triangle's
+  // frame (which holds the side and the radius), on the new cloth.
+  const ProxyContact& c = body->contacts[0];
+  Vec3 a, b, cc;
+  now.Corners(c.triangle, &a, &b, &cc);
+  const Vec3 point = c.barycentric(0) * a + c.barycentric(1) * b + c.barycentric(2) * cc;
+  body->p_W_m = point + FromLocal(FrameOf(a, b, cc), c.local_m);
+}
+
+GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, const Vec3& goal_W,
+                              const GodObjectOptions& options, GodObject* body) {
+  GodObjectStep step;
+  const double r = options.radius_m;
+  const Vec3 p_old = body->p_W_m;
+  std::array<ProxyContact, kMaxConstraintPlanes> seeds;
+  const int32_t num_seeds = SeedContacts(cloth, *body, r, &seeds);
+  const std::span<const ProxyContact> seed_span(seeds.data(), num_seeds);
+
+  // Pass 1: the plain god-object update toward the goal.
+  Pass pass = RunPass(cloth, p_old, seed_span, goal_W, r, options.max_iterations);
+  step.iterations += pass.iterations;
+  step.converged = step.converged && pass.converged;
+  step.feasible = step.feasible && pass.feasible;
+  Pass surface = pass;  // the contacts the force comes from
+
+  // Pass 2, force shading (Ruspini 1997 §5 after Morgenbesser & Srinivasan 1996): the goal
+  // projected onto the planes through the proxy with the interpolated normals is the sub-goal of
+  // a second update from the same start.
+  Vec3 goal = goal_W;
+  if (options.force_shading && pass.n > 0) {
+    std::array<ConstraintPlane, kMaxConstraintPlanes> shaded;
+    for (int32_t i = 0; i < pass.n; ++i) {
+      const Vec3 ns = ShadingNormal(view, pass.contacts[i]);
+      shaded[i] = ConstraintPlane{ns, ns.dot(pass.p), pass.contacts[i].triangle};
+    }
+    const PlaneSolveResult sub =
+        SolveClosestFeasible(goal_W, std::span<const ConstraintPlane>(shaded.data(), pass.n));
+    if (sub.feasible) goal = sub.point;
+    pass = RunPass(cloth, p_old, seed_span, goal, r, options.max_iterations);
+    step.iterations += pass.iterations;
+    step.converged = step.converged && pass.converged;
+    step.feasible = step.feasible && pass.feasible;
+    if (pass.n > 0) surface = pass;
+  }
+
+  // Friction (Ruspini 1997 §4; Salisbury et al. 1995's cone): a proxy that was and stays in
+  // contact sticks while the goal is inside the cone around the normal (the static cone when
+  // stuck, the dynamic one while slipping), else it trails the frictionless point at the edge of
+  // the dynamic cone.
+  bool slipping = false;
+  if (options.friction_static > 0.0 && num_seeds > 0 && pass.n > 0) {
+    Vec3 n = Vec3::Zero();
+    for (int32_t i = 0; i < pass.n; ++i) n += pass.contacts[i].normal_W;
+    n.normalize();
+    const Vec3 p_free = pass.p;
+    const double depth = n.dot(p_free - goal_W);
+    Vec3 t = p_old - p_free;
+    t -= n * n.dot(t);
+    const double tl = t.norm();
+    if (depth > 0.0 && tl > 0.0) {
+      const double mu_d = std::min(options.friction_dynamic, options.friction_static);
+      const double mu_hold = body->slipping ? mu_d : options.friction_static;
+      slipping = tl > mu_hold * depth;
+      const Vec3 target = slipping ? Vec3(p_free + t * (mu_d * depth / tl)) : Vec3(p_free + t);
+      pass = RunPass(cloth, p_old, seed_span, target, r, options.max_iterations);
+      step.iterations += pass.iterations;
+      step.converged = step.converged && pass.converged;
+      step.feasible = step.feasible && pass.feasible;
+      if (pass.n > 0) surface = pass;
+    }
+  }
+  body->slipping = slipping;
+
+  // The new proxy, with its contacts' offsets in their triangles' frames (for the carry).
+  body->p_W_m = pass.p;
+  body->num_contacts = surface.n;
+  for (int32_t i = 0; i < surface.n; ++i) {
+    ProxyContact c = surface.contacts[i];
+    const LocalTriangle* t = FindLocal(cloth, c.triangle);
+    const TriFrame f = t != nullptr ? FrameOf(t->a, t->b, t->c) : TriFrame{};
+    c.local_m = ToLocal(f, pass.p - c.point_W_m);
+    body->contacts[i] = c;
+  }
+  return step;
+}
+
+ProxyState MakeProxyState(const ProxySpec& proxy) { return ProxyState(proxy.candidate_capacity); }
+
+ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
+                          const ClothSnapshot& newest, const ClothSnapshot* previous,
+                          double since_newest_s, const DeviceSample& sample, double tick_dt_s,
+                          ProxyState* state) {
+  ProxyTickResult out;
+  ProxyCounters& counters = state->counters;
+  ++counters.ticks;
+  const Vec3 goal = DeviceToWorld(device, sample.p_D_m);
+  out.goal_W_m = goal;
+
+  // Which snapshots this tick has; a previous one of another cloth is ignored.
+  const ClothSnapshot* prev = previous;
+  if (prev != nullptr && (prev == &newest || prev->x.size() != newest.x.size())) prev = nullptr;
+  SnapshotMode mode = proxy.snapshot_mode;
+  if (prev == nullptr) mode = SnapshotMode::kNewest;
+  const bool arrived = !state->have_frame || newest.frame != state->newest_frame;
+  const bool first = !state->have_frame;
+  if (arrived) {
+    if (!first) ++counters.new_snapshots;
+    state->newest_frame = newest.frame;
+    state->have_frame = true;
+    state->pair_displacement_m = prev != nullptr ? MaxDisplacement(*prev, newest) : 0.0;
+  }
+  const double frame_dt = newest.frame_dt_s;
+  const double alpha = frame_dt > 0.0 ? std::clamp(since_newest_s / frame_dt, 0.0, 1.0) : 1.0;
+  const double tau = std::max(0.0, since_newest_s);
+  const double disp = state->pair_displacement_m;
+
+  GodObjectOptions opts;
+  opts.radius_m = device.radius_m;
+  opts.max_iterations = proxy.max_iterations;
+  opts.force_shading = proxy.force_shading;
+  opts.friction_static = proxy.friction_static;
+  opts.friction_dynamic = proxy.friction_dynamic;
+
+  // The cloth of this tick and of the previous tick, by mode.
+  ClothView now = ClothView::Of(newest);
+  ClothView before_view = now;
+  bool moved = arrived && !first && prev != nullptr;
+  double inflation = 0.0;
+  switch (mode) {
+    case SnapshotMode::kNewest:
+    case SnapshotMode::kBlendForces:
+      if (moved) {
+        before_view = ClothView::Of(*prev);
+        inflation = disp;
+      }
+      break;
+    case SnapshotMode::kInterpolate: {
+      // One frame late: the cloth runs from the previous snapshot to the newest over the frame.
+      now = ClothView{prev, &newest, alpha, 0.0};
+      const double alpha_before = arrived ? 0.0 : state->last_alpha;
+      before_view = ClothView{prev, &newest, alpha_before, 0.0};
+      moved = !first && alpha_before != alpha;
+      inflation = (1.0 - std::min(alpha, alpha_before)) * disp;
+      break;
+    }
+    case SnapshotMode::kExtrapolate: {
+      now = ClothView{&newest, &newest, 0.0, tau};
+      double before_extent = state->last_tau_s * newest.max_speed_m_per_s;
+      if (arrived) {
+        before_view = ClothView{prev, prev, 0.0, state->last_tau_s};
+        before_extent = disp + state->last_tau_s * prev->max_speed_m_per_s;
+      } else {
+        before_view = ClothView{&newest, &newest, 0.0, state->last_tau_s};
+      }
+      moved = !first && (arrived || state->last_tau_s != tau);
+      inflation = std::max(tau * newest.max_speed_m_per_s, before_extent);
+      break;
+    }
+  }
+
+  // Mode (b): the proxy on the previous cloth is the one that was on the newest last frame.
+  if (mode == SnapshotMode::kBlendForces && arrived) state->body_prev = state->body;
+  const BodyTick main = TickBody(newest, inflation, now, moved ? &before_view : nullptr, goal, opts,
+                                 &state->local, &state->body);
+  Vec3 proxy_W = state->body.p_W_m;
+  out.iterations = main.step.iterations;
+  out.overflow = main.overflow;
+  out.caught = main.caught;
+  bool converged = main.step.converged;
+  bool feasible = main.step.feasible;
+
+  // Forces: spring-damper on the device, per proxy; mode (b) blends the two by alpha.
+  const double inv_dt = tick_dt_s > 0.0 ? 1.0 / tick_dt_s : 0.0;
+  Vec3 f_main_D =
+      CouplingForceD(device, state->body.p_W_m, goal,
+                     (state->body.p_W_m - state->last_proxy_W_m) * inv_dt, sample.v_D_m_per_s);
+  Vec3 f_prev_D = Vec3::Zero();
+  double w_main = 1.0;
+  double w_prev = 0.0;
+  if (mode == SnapshotMode::kBlendForces) {
+    const ClothView prev_view = ClothView::Of(*prev);
+    const BodyTick other =
+        TickBody(*prev, 0.0, prev_view, nullptr, goal, opts, &state->local, &state->body_prev);
+    out.iterations += other.step.iterations;
+    out.overflow = out.overflow || other.overflow;
+    converged = converged && other.step.converged;
+    feasible = feasible && other.step.feasible;
+    w_main = alpha;
+    w_prev = 1.0 - alpha;
+    proxy_W = w_prev * state->body_prev.p_W_m + w_main * state->body.p_W_m;
+    f_prev_D = CouplingForceD(device, state->body_prev.p_W_m, goal,
+                              (state->body_prev.p_W_m - state->last_proxy_W_m) * inv_dt,
+                              sample.v_D_m_per_s);
+  }
+  Vec3 force_D = w_main * f_main_D + w_prev * f_prev_D;
+
+  // Clamp to the device's maximum, direction kept.
+  double clamp = 1.0;
+  const double mag = force_D.norm();
+  if (mag > device.max_force_N) {
+    clamp = device.max_force_N / mag;
+    out.clamped = true;
+    ++counters.clamped_ticks;
+  }
+  force_D *= clamp;
+  const Eigen::Matrix3d& R = device.rotation_WD;
+  out.force_D_N = force_D;
+  out.force_W_N = R * force_D / device.scale;
+
+  // Two-way coupling: each proxy's share of -F_W goes to the cloth at its contacts.
+  const std::vector<Triangle>& tris = *newest.triangles;
+  auto add_reaction = [&](const GodObject& body, const Vec3& f_D, double weight) {
+    if (body.num_contacts <= 0 || weight <= 0.0) return;
+    const Vec3 on_cloth_W = -(R * (weight * clamp * f_D)) / device.scale;
+    std::array<Vec3, kMaxConstraintPlanes> parts;
+    SplitOverContacts(body, on_cloth_W, &parts);
+    for (int32_t i = 0; i < body.num_contacts; ++i) {
+      const ProxyContact& c = body.contacts[i];
+      state->reaction.AddForce(c.triangle, tris[c.triangle], c.barycentric, parts[i], tick_dt_s);
+    }
+  };
+  add_reaction(state->body, f_main_D, w_main);
+  if (mode == SnapshotMode::kBlendForces) add_reaction(state->body_prev, f_prev_D, w_prev);
+  state->reaction.AddTime(tick_dt_s);
+
+  // Book-keeping for the next tick.
+  out.proxy_W_m = proxy_W;
+  out.num_contacts = state->body.num_contacts;
+  if (out.overflow) ++counters.overflow_ticks;
+  if (out.caught) ++counters.catches;
+  if (!converged) ++counters.unconverged_ticks;
+  if (!feasible) ++counters.infeasible_ticks;
+  state->last_alpha = alpha;
+  state->last_tau_s = tau;
+  state->last_proxy_W_m = mode == SnapshotMode::kBlendForces ? proxy_W : state->body.p_W_m;
+  return out;
+}
+
+}  // namespace felt

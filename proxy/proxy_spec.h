@@ -1,0 +1,71 @@
+#pragma once
+// What a scene declares about a haptic device and its god-object proxy: plain structs with
+// defaults and units in the names (parsed by proxy/proxy_scene.h from [device], [[devices]] and
+// [proxy]), and the device-to-world workspace map.
+//
+// Frames: device (_D) is the haptic device's own frame (metres at the stylus tip); world (_W) is
+// the cloth's frame (sim_loop/cloth_spec.h: metres, y up). p_W = scale * R_WD p_D + offset_W.
+//
+// Forces: the proxy (a sphere of radius radius_m in the world) is tied to the device by a spring
+// that acts in the DEVICE frame, F_D = k (proxy_D - device_D), so stiffness_N_per_m is what the
+// hand feels per metre of device motion (a Touch-class device renders about 1 N/mm at most, so the
+// default 400 N/m is safely inside it). The world-frame force on the proxy is the power-consistent
+// F_W = R_WD F_D / scale (F_W . dp_W = F_D . dp_D), and the cloth gets -F_W (two-way coupling).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+
+#include "sim_loop/collision_structure.h"
+#include "sim_loop/mesh.h"
+
+namespace felt {
+
+/// One haptic device: its coupling to the proxy, its force limit and its workspace map.
+struct DeviceSpec {
+  std::string id = "default";        ///< device id ([[devices]] id; "default" for [device])
+  double stiffness_N_per_m = 400.0;  ///< coupling spring k in the device frame, > 0
+  double damping_N_s_per_m = 0.0;    ///< coupling damper b on (v_proxy - v_device)_D, >= 0
+  double radius_m = 0.004;           ///< proxy sphere radius in the world, > 0
+  double max_force_N = 3.3;          ///< force clamp on the device, > 0 (Touch: 3.3 N peak)
+  double scale = 3.0;                ///< world metres per device metre, > 0
+  Eigen::Matrix3d rotation_WD = Eigen::Matrix3d::Identity();  ///< device axes in the world
+  Vec3 offset_W_m = Vec3::Zero();  ///< world position of the device origin, m
+};
+
+/// Device position [m, device frame] to world [m]: scale * R_WD p_D + offset_W.
+inline Vec3 DeviceToWorld(const DeviceSpec& d, const Vec3& p_D) {
+  return d.scale * (d.rotation_WD * p_D) + d.offset_W_m;
+}
+/// World position [m] to device frame [m]: the inverse of DeviceToWorld.
+inline Vec3 WorldToDevice(const DeviceSpec& d, const Vec3& p_W) {
+  return d.rotation_WD.transpose() * (p_W - d.offset_W_m) / d.scale;
+}
+
+/// Which cloth the proxy is run against each tick (issue 4; 001_0f9f1b7fedff7723.txt §7).
+enum class SnapshotMode : uint8_t {
+  kNewest,       ///< (a) the newest snapshot only: the cloth jumps once per sim frame
+  kBlendForces,  ///< (b) 001 §7: a proxy on each of the two newest cloths, forces blended by
+                 ///<     time since the newest arrived / its frame dt
+  kInterpolate,  ///< (c) positions interpolated between the two newest snapshots (one frame late)
+  kExtrapolate,  ///< (d) positions extrapolated from the newest with its velocities
+};
+
+/// The scene-file name of a mode: "newest", "blend_forces", "interpolate", "extrapolate".
+const char* SnapshotModeName(SnapshotMode mode);
+
+/// How the proxy renders: [proxy] in a scene.
+struct ProxySpec {
+  bool force_shading = true;      ///< Morgenbesser & Srinivasan 1996, Ruspini 1997's two passes
+  double friction_static = 0.0;   ///< static friction coefficient mu_s >= 0 (0: frictionless)
+  double friction_dynamic = 0.0;  ///< dynamic friction coefficient, 0 <= mu_d <= mu_s
+  SnapshotMode snapshot_mode = SnapshotMode::kInterpolate;
+  int32_t max_iterations = 10;  ///< sweep/solve rounds per pass within one tick, >= 1
+  /// Triangles near the proxy gathered per tick (sized once in the proxy state), >= 16. A tick
+  /// that finds more is counted (ProxyCounters::overflow_ticks) and uses the first ones found.
+  int32_t candidate_capacity = 1024;
+  CollisionStructureSpec
+      structure;  ///< what the sim builds into each snapshot (default bvh-sphere-4)
+};
+
+}  // namespace felt

@@ -1,0 +1,73 @@
+#pragma once
+// Two-way coupling (issue 4): every haptic tick puts the opposite of the proxy's force on the
+// cloth at the contact point. The haptic side accumulates those forces per device over a sim
+// frame; the sim applies their time average as its ExternalForce list (sim_loop/cloth.h), so a
+// force held for the whole frame is applied at full strength and no tick's force is lost.
+//
+// Each contact force is split over its triangle's three particles by the barycentric weights and
+// summed per particle, so the accumulator stays small (one entry per touched particle), exact in
+// total force, and exact in where each particle's share lands.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "sim_loop/cloth.h"
+#include "sim_loop/mesh.h"
+
+namespace felt {
+
+/// Per-device accumulator of reaction impulses over one sim frame. Owned by one thread at a time
+/// (the haptic thread adds; whoever drains must own it then, e.g. the haptic thread draining
+/// into an SPSC queue slot the sim thread reads).
+class ReactionAccumulator {
+ public:
+  /// Room for `capacity` >= 1 distinct particles per frame. Allocates (set-up time).
+  explicit ReactionAccumulator(int32_t capacity = 256);
+
+  /// Adds force_W_N [N, world] acting on the cloth for dt_s [s] at the point with barycentric
+  /// weights `barycentric` of triangle `triangle`, whose particles are `corners`. When the
+  /// capacity is full, a new particle's share goes to the first entry (the total is kept; the
+  /// overflow is counted). Real-time safe.
+  void AddForce(int32_t triangle, const Triangle& corners, const Vec3& barycentric,
+                const Vec3& force_W_N, double dt_s);
+
+  /// Adds dt_s [s] of elapsed time (every tick calls it once, in contact or not), the time the
+  /// impulses are averaged over. Real-time safe.
+  void AddTime(double dt_s) { time_s_ += dt_s; }
+
+  /// Writes the time-averaged forces (impulse / accumulated time) as ExternalForces, one per
+  /// touched particle (its triangle with a unit barycentric weight on it), into `out`, then
+  /// clears the accumulator. Returns the number written; entries that do not fit are merged into
+  /// the last written one's force (total kept). Returns 0 when no time has accumulated.
+  /// Real-time safe.
+  int32_t DrainInto(std::span<ExternalForce> out);
+
+  /// DrainInto a new vector. Allocates (for the sim side or tests).
+  std::vector<ExternalForce> Drain();
+
+  /// Sum of the accumulated impulses [N s, world].
+  Vec3 TotalImpulse() const;
+  /// Accumulated time [s].
+  double time_s() const { return time_s_; }
+  /// Distinct particles held now.
+  int32_t size() const { return size_; }
+  /// Particle shares merged into the first entry because the capacity was full (since creation).
+  uint64_t overflows() const { return overflows_; }
+  /// Forgets everything accumulated (counters kept). Real-time safe.
+  void Clear();
+
+ private:
+  struct Entry {
+    int32_t particle = -1;
+    int32_t triangle = -1;
+    int32_t corner = 0;
+    Vec3 impulse_N_s = Vec3::Zero();
+  };
+  std::vector<Entry> entries_;  // [capacity]
+  int32_t size_ = 0;
+  double time_s_ = 0.0;
+  uint64_t overflows_ = 0;
+};
+
+}  // namespace felt
