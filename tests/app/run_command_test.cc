@@ -1,0 +1,153 @@
+// `felt run`: the built binary, run as a user would. A bad scene exits 2 with the parser's
+// message and starts nothing; a good scene prints its frame statistics (and JSON on request).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace {
+
+const std::string kFelt = std::string(FELT_BINARY_DIR) + "/felt";
+const std::string kScenes = std::string(FELT_SOURCE_DIR) + "/scenes";
+
+struct Outcome {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+// Runs `felt <args>` through the shell and collects its exit code and output.
+Outcome RunFelt(const std::string& args) {
+  Outcome outcome;
+  FILE* pipe = popen((kFelt + " " + args + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return outcome;
+  std::array<char, 4096> buffer{};
+  size_t n = 0;
+  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    outcome.output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  if (status != -1 && WIFEXITED(status)) outcome.exit_code = WEXITSTATUS(status);
+  return outcome;
+}
+
+// Writes `text` to a file of this test's own in the test temp directory; returns its path.
+std::string WriteTemp(const std::string& name, const std::string& text) {
+  const std::filesystem::path path = std::filesystem::path(testing::TempDir()) / name;
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream file(path);
+  std::stringstream contents;
+  contents << file.rdbuf();
+  return contents.str();
+}
+
+// A small, cheap scene: 8 x 8 hanging from its top edge.
+constexpr const char* kSmallScene = R"([scene]
+name = "small"
+description = "8 x 8 test cloth"
+duration_s = 0.2
+[cloth]
+width = 8
+height = 8
+spacing_m = 0.02
+[cloth.structural]
+[cloth.shear]
+[[cloth.pins]]
+kind = "edge"
+name = "top"
+)";
+
+TEST(RunCommand, BadSceneExitsTwoWithFileLineFieldAndStartsNothing) {
+  const std::string path =
+      WriteTemp("felt_run_test_bad.toml", "[scene]\nname = \"bad\"\n[cloth]\nwidth = 1\n");
+  const Outcome outcome = RunFelt("run --scene " + path + " --fast");
+  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
+  EXPECT_EQ(outcome.output,
+            "felt: error: " + path + ":4:1: cloth.width: must be in [2, 4096], got 1\n");
+  std::filesystem::remove(path);
+}
+
+TEST(RunCommand, UnknownKeyExitsTwo) {
+  const std::string path =
+      WriteTemp("felt_run_test_typo.toml", "[cloth]\n[cloth.structural]\nstifness_N_per_m = 5\n");
+  const Outcome outcome = RunFelt("run --scene " + path);
+  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
+  EXPECT_EQ(outcome.output, "felt: error: " + path +
+                                ":3:1: cloth.structural.stifness_N_per_m: unknown key "
+                                "'stifness_N_per_m' in [cloth.structural] (did you mean "
+                                "'stiffness_N_per_m'?)\n");
+  std::filesystem::remove(path);
+}
+
+TEST(RunCommand, MissingSceneFileExitsTwo) {
+  const Outcome outcome = RunFelt("run --scene /nonexistent/felt_no_scene.toml");
+  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
+  EXPECT_EQ(outcome.output,
+            "felt: error: /nonexistent/felt_no_scene.toml: cannot read scene file: No such file "
+            "or directory\n");
+}
+
+TEST(RunCommand, BadDurationExitsTwo) {
+  const std::string path = WriteTemp("felt_run_test_duration.toml", kSmallScene);
+  const Outcome outcome = RunFelt("run --scene " + path + " --duration -1 --fast");
+  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
+  EXPECT_EQ(outcome.output, "felt: error: --duration must be in (0, 86400] s, got -1\n");
+  std::filesystem::remove(path);
+}
+
+TEST(RunCommand, GoodScenePrintsStatisticsAndJson) {
+  const std::string path = WriteTemp("felt_run_test_small.toml", kSmallScene);
+  const std::string json =
+      (std::filesystem::path(testing::TempDir()) / "felt_run_test_small.json").string();
+  const Outcome outcome = RunFelt("run --scene " + path + " --duration 0.5 --fast --json " + json);
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  EXPECT_NE(outcome.output.find("felt run: small ("), std::string::npos) << outcome.output;
+  EXPECT_NE(outcome.output.find("frames             30 (0.500 s simulated"), std::string::npos)
+      << outcome.output;
+  EXPECT_NE(outcome.output.find("substeps           "), std::string::npos);
+  EXPECT_NE(outcome.output.find("frame compute ms   p50 "), std::string::npos);
+  EXPECT_NE(outcome.output.find("max stretch        "), std::string::npos);
+  EXPECT_NE(outcome.output.find("energy J           start "), std::string::npos);
+  EXPECT_NE(outcome.output.find("nan events         0\n"), std::string::npos);
+  const std::string written = ReadFile(json);
+  EXPECT_NE(written.find("\"scene\": \"small\""), std::string::npos) << written;
+  EXPECT_NE(written.find("\"frames\": 30,"), std::string::npos) << written;
+  EXPECT_NE(written.find("\"frame_ms\": {\"p50\": "), std::string::npos) << written;
+  EXPECT_NE(written.find("\"nan_events\": 0,"), std::string::npos) << written;
+  EXPECT_NE(written.find("\"realtime\": false"), std::string::npos) << written;
+  std::filesystem::remove(path);
+  std::filesystem::remove(json);
+}
+
+TEST(RunCommand, RealTimeUsesTheScenesDurationAndTakesAboutThatLong) {
+  const std::string path = WriteTemp("felt_run_test_realtime.toml", kSmallScene);
+  const auto start = std::chrono::steady_clock::now();
+  const Outcome outcome = RunFelt("run --scene " + path);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  // duration_s = 0.2 at 60 Hz: 12 frames, paced to absolute deadlines (loose bound: shared CI).
+  EXPECT_NE(outcome.output.find("frames             12 (0.200 s simulated"), std::string::npos)
+      << outcome.output;
+  EXPECT_NE(outcome.output.find("overruns           "), std::string::npos) << outcome.output;
+  EXPECT_GE(wall_s, 0.18);
+  std::filesystem::remove(path);
+}
+
+TEST(RunCommand, DefaultCurtainRuns) {
+  const Outcome outcome =
+      RunFelt("run --scene " + kScenes + "/curtain.toml --duration 0.05 --fast");
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  EXPECT_NE(outcome.output.find("32 x 32 particles"), std::string::npos) << outcome.output;
+  EXPECT_NE(outcome.output.find("nan events         0\n"), std::string::npos) << outcome.output;
+}
+
+}  // namespace
