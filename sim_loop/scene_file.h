@@ -19,8 +19,9 @@
 //
 // Every error is a SceneError whose message reads
 //   scenes/curtain.toml:12:3: cloth.structural.stiffness_N_per_m: must be > 0, got -5
-// i.e. file, line and column (of the value, or of the key for an unknown key, or of the table for
-// a missing key), the dotted field path, then the rule broken. None of this is real-time safe.
+// i.e. file, line and column (of the key; of the element for a bad vector element; of the table's
+// header for a missing key), the dotted field path, then the rule broken. None of this is
+// real-time safe.
 
 #include <toml++/toml.h>
 
@@ -191,8 +192,8 @@ class SceneTable {
   /// substeps = "auto" or 8), checked by the caller, which reports with Fail.
   const toml::node* Node(std::string_view key) const;
 
-  /// Throws SceneError "<file>:<line>:<col>: <path.key>: <rule>" at the value of `key`, or at this
-  /// table when `key` is absent.
+  /// Throws SceneError "<file>:<line>:<col>: <path.key>: <rule>" at `key`, or at this table when
+  /// `key` is absent.
   [[noreturn]] void Fail(std::string_view key, std::string_view rule) const;
 
   /// Throws SceneError "<file>:<line>:<col>: <path>: <rule>" at this table.
