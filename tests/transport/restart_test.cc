@@ -46,17 +46,24 @@ TEST(TransportChildProcess, DISABLED_PublishUntilStopped) {
   clock_gettime(CLOCK_MONOTONIC, &next);
   const int64_t give_up_ns = MonotonicNowNs() + 60'000'000'000;
   bool stopped = false;
+  uint64_t last_force_seq = 0, restarts_seen = 0;
   for (uint64_t seq = 1; !stopped && MonotonicNowNs() < give_up_ns; ++seq) {
     PointerSampleView sample = testing::Sample(seq, 0.1);
     client.PublishPointer(sample);
     ForceCommandView force;
-    while (client.TakeForce(0, &force)) stopped = stopped || force.answers_seq == kStopMarker;
+    while (client.TakeForce(0, &force)) {
+      stopped = stopped || force.answers_seq == kStopMarker;
+      // Each server numbers its forces from 1: a seq going down means forces from both servers.
+      if (force.seq < last_force_seq) ++restarts_seen;
+      last_force_seq = force.seq;
+    }
     next.tv_nsec += 1000000;
     if (next.tv_nsec >= 1000000000) next.tv_nsec -= 1000000000, ++next.tv_sec;
     clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr);
   }
   EXPECT_TRUE(stopped) << "no stop force within 60 s";
-  EXPECT_GE(client.Stats().forces_received, 2u);
+  EXPECT_GE(client.Stats().forces_received, 10u);
+  EXPECT_GE(restarts_seen, 1u) << "forces from only one of the two servers arrived";
   EXPECT_EQ(client.Stats().dds_errors, 0u);
 }
 
@@ -106,14 +113,28 @@ TEST(RestartTest, ANewServerReceivesAClientThatKeptPublishing) {
     return child_done;
   };
 
-  // First server: the child's samples arrive and a force reaches it.
+  // Answers the newest sample of device 0 with a force, about once a millisecond, for `ms`.
+  const auto answer_for = [](ServerTransport& server, int ms, uint64_t answers) {
+    const int64_t end_ns = MonotonicNowNs() + int64_t{ms} * 1000000;
+    WaitUntil(
+        [&] {
+          PointerSampleView sample;
+          ForceCommandView force;
+          force.answers_seq =
+              answers != 0 ? answers : (server.LatestPointer(0, &sample) ? sample.seq : 0);
+          server.PushForce(force);
+          return MonotonicNowNs() >= end_ns;
+        },
+        std::chrono::milliseconds(ms + 1000), std::chrono::milliseconds(1));
+  };
+
+  // First server: the child's samples arrive, its force reader is matched, forces flow for 100 ms.
   auto server = std::make_unique<ServerTransport>(config);
   ASSERT_TRUE(WaitForFreshSample(*server, 0));
+  ASSERT_TRUE(WaitUntil([&] { return server->MatchedForceReaders() >= 1; }, kWait));
   PointerSampleView first;
   ASSERT_TRUE(server->LatestPointer(0, &first));
-  ForceCommandView force;
-  force.answers_seq = first.seq;
-  ASSERT_TRUE(server->PushForce(force));
+  answer_for(*server, 100, 0);
 
   // Restart: the domain goes away with the only server in this process, then comes back.
   server.reset();
@@ -125,17 +146,15 @@ TEST(RestartTest, ANewServerReceivesAClientThatKeptPublishing) {
   EXPECT_GT(later.seq, first.seq) << "the client kept publishing through the restart";
   EXPECT_EQ(server->Stats().rejected_seq, 0u);
 
-  // The new server's forces reach the client: answer a few samples, then stop the child (a
-  // best-effort force can be lost, so the stop marker repeats until the child exits).
-  for (int i = 0; i < 20; ++i) {
-    ASSERT_TRUE(server->LatestPointer(0, &later));
-    force.answers_seq = later.seq;
-    server->PushForce(force);
-  }
-  force.answers_seq = kStopMarker;
+  // The new server's forces reach the client: 100 ms of answers, then the stop marker until the
+  // child exits (a best-effort force can be lost, so it repeats).
+  ASSERT_TRUE(WaitUntil([&] { return server->MatchedForceReaders() >= 1; }, kWait));
+  answer_for(*server, 100, 0);
+  ForceCommandView stop;
+  stop.answers_seq = kStopMarker;
   ASSERT_TRUE(WaitUntil(
       [&] {
-        server->PushForce(force);
+        server->PushForce(stop);
         return reap(false);
       },
       std::chrono::seconds(30)));
