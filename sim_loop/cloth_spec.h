@@ -129,8 +129,11 @@ struct IntegrationSpec {
 struct ProvotSpec {
   bool enabled = true;
   double max_elongation = 0.10;  ///< a spring never ends a substep longer than (1 + this) * rest
-  int32_t iterations = 10;       ///< relaxation sweeps per substep, >= 1
-  bool shear = true;             ///< also constrain shear springs (structural always)
+  /// Relaxation sweeps per substep at most, >= 1; sweeping stops early once no spring exceeds its
+  /// limit by more than 0.1 %. Gauss-Seidel: 10 hold a hanging cloth at the limit, but the
+  /// transient of a freshly released 32 x 32 cloth peaks near 15 %; 40 keep it within 2 %.
+  int32_t iterations = 10;
+  bool shear = true;  ///< also constrain shear springs (structural always)
   /// Also keep every free particle within (1 + max_elongation) times its rest distance of its
   /// nearest pinned particle (long range attachments, Kim, Chentanez & Mueller 2012), projected
   /// before Provot's sweeps. Pins are kinematic, so this only removes energy; it stops the

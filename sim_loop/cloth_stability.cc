@@ -95,9 +95,15 @@ double StableStep(const ClothModel& model, IntegratorKind kind) {
     modes.push_back({w2, std::min(cap, model.drag_rate_per_s + model.damping_time_max_s * w2)});
   }
   modes.push_back({omega_max * omega_max, model.gamma_max_per_s});
+  // Stable: no mode grows faster than kMaxGrowthPerSecond (rho^(1/h) <= e^rate). A tolerance in
+  // time, not per step, so that rounding in the eigenvalues of neutral modes (|rho| = 1 up to
+  // ~1e-10) does not count as growth, while a weakly unstable scheme (explicit Euler without
+  // damping, rho = sqrt(1 + (w h)^2)) needs a step small enough to grow < 0.1 % per second.
+  constexpr double kMaxGrowthPerSecond = 1e-3;
   const auto stable = [&](double h) {
     for (const Mode& m : modes) {
-      if (SpectralRadius(kind, h, m.omega2, m.gamma) > 1.0 + 1e-12) return false;
+      const double rho = SpectralRadius(kind, h, m.omega2, m.gamma);
+      if (!(std::log(rho) <= kMaxGrowthPerSecond * h)) return false;
     }
     return true;
   };
