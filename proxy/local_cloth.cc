@@ -58,6 +58,8 @@ bool LocalCloth::Gather(const ClothSnapshot& query, double inflation_m, const Cl
   const WithinResult within =
       TrianglesWithin(query.structure, query.x, center_W, radius_m + inflation_m, found_);
   size_ = static_cast<size_t>(within.written);
+  query_ = &query;
+  fallback_ = within.overflowed();
   // Place each found triangle at this tick's cloth (and the previous tick's), with a bounding
   // sphere over both for cheap culling in the sweeps.
   for (size_t k = 0; k < size_; ++k) {
@@ -80,7 +82,25 @@ bool LocalCloth::Gather(const ClothSnapshot& query, double inflation_m, const Cl
   return !within.overflowed();
 }
 
+bool LocalCloth::Corners(int32_t triangle, Vec3* a, Vec3* b, Vec3* c) const {
+  for (size_t k = 0; k < size_; ++k) {
+    const LocalTriangle& t = tris_[k];
+    if (t.triangle != triangle) continue;
+    *a = t.a;
+    *b = t.b;
+    *c = t.c;
+    return true;
+  }
+  if (!fallback_ || query_ == nullptr || triangle < 0 || triangle >= query_->num_triangles()) {
+    return false;
+  }
+  ClothView::Of(*query_).Corners(triangle, a, b, c);
+  return true;
+}
+
 SweepHit LocalCloth::Sweep(const Vec3& p0, const Vec3& p1, double r) const {
+  // Overflow: the structure's own exact query on the snapshot it was repaired for.
+  if (fallback_) return SweepSphere(query_->structure, query_->x, p0, p1, r);
   SweepHit best;
   for (size_t k = 0; k < size_; ++k) {
     const LocalTriangle& t = tris_[k];

@@ -62,14 +62,16 @@ class LocalCloth {
   /// `now` (or in `before`, when given), found through `query`'s structure with the radius
   /// enlarged by `inflation_m`, an upper bound on how far any vertex of `now` and `before` lies
   /// from `query`'s positions. Without `before` the previous-tick corners equal the current ones.
-  /// Returns false when more triangles were found than fit (the first ones found are kept).
-  /// Real-time safe.
+  /// Returns false when more triangles were found than fit: the tick then falls back to querying
+  /// `query`'s structure directly (exact for `query`'s own positions, which for the interpolated
+  /// and extrapolated cloths stand in for the tick's cloth; the moving test uses the triangles
+  /// kept). `query` must outlive the queries. Real-time safe.
   bool Gather(const ClothSnapshot& query, double inflation_m, const ClothView& now,
               const ClothView* before, const Vec3& center_W, double radius_m);
 
   /// First contact of a sphere of radius r [m] moving p0 -> p1 [m] against the gathered triangles
-  /// at the tick's cloth (SweepSphereTriangle's convention; ties: lowest triangle index).
-  /// Real-time safe.
+  /// at the tick's cloth (SweepSphereTriangle's convention; ties: lowest triangle index); after an
+  /// overflow, against the query snapshot's structure. Real-time safe.
   SweepHit Sweep(const Vec3& p0, const Vec3& p1, double r) const;
 
   /// First contact of a sphere moving c0 -> c1 while each gathered triangle moves from its
@@ -78,6 +80,13 @@ class LocalCloth {
   /// Real-time safe.
   SweepHit SweepMoving(const Vec3& c0, const Vec3& c1, double r,
                        std::span<const int32_t> skip) const;
+
+  /// Corners [m] of `triangle` at the tick's cloth if gathered, else (after an overflow) at the
+  /// query snapshot; false when neither has it. Real-time safe.
+  bool Corners(int32_t triangle, Vec3* a, Vec3* b, Vec3* c) const;
+
+  /// True when the last Gather overflowed and the queries use the structure directly.
+  bool fallback() const { return fallback_; }
 
   /// The gathered triangles.
   std::span<const LocalTriangle> triangles() const { return {tris_.data(), size_}; }
@@ -88,6 +97,8 @@ class LocalCloth {
   std::vector<PointContact> found_;  // [capacity] query 1's buffer
   std::vector<LocalTriangle> tris_;  // [capacity]
   size_t size_ = 0;
+  const ClothSnapshot* query_ = nullptr;
+  bool fallback_ = false;
 };
 
 }  // namespace felt

@@ -73,9 +73,9 @@ int32_t SeedContacts(const LocalCloth& cloth, const GodObject& body, double r,
   const double touch = r * (1.0 + 1e-6) + 1e-12;
   for (int32_t i = 0; i < body.num_contacts; ++i) {
     const ProxyContact& old = body.contacts[i];
-    const LocalTriangle* t = FindLocal(cloth, old.triangle);
-    if (t == nullptr) continue;
-    const TrianglePoint cp = ClosestPointOnTriangle(body.p_W_m, t->a, t->b, t->c);
+    Vec3 a, b, c3;
+    if (!cloth.Corners(old.triangle, &a, &b, &c3)) continue;
+    const TrianglePoint cp = ClosestPointOnTriangle(body.p_W_m, a, b, c3);
     if (cp.distance_sq > touch * touch) continue;
     const double dist = std::sqrt(cp.distance_sq);
     ProxyContact c = old;
@@ -356,8 +356,8 @@ GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, co
   body->num_contacts = surface.n;
   for (int32_t i = 0; i < surface.n; ++i) {
     ProxyContact c = surface.contacts[i];
-    const LocalTriangle* t = FindLocal(cloth, c.triangle);
-    const TriFrame f = t != nullptr ? FrameOf(t->a, t->b, t->c) : TriFrame{};
+    Vec3 a, b, c3;
+    const TriFrame f = cloth.Corners(c.triangle, &a, &b, &c3) ? FrameOf(a, b, c3) : TriFrame{};
     c.local_m = ToLocal(f, pass.p - c.point_W_m);
     body->contacts[i] = c;
   }
