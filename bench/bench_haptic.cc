@@ -1,0 +1,416 @@
+// `felt bench haptic`: the god-object proxy's snapshot modes compared (issue 4, "Report";
+// 001_0f9f1b7fedff7723.txt §6.4 and §7: force discontinuities when the cloth changes outside the
+// haptic loop, and the remedy of rendering against two cloths).
+//
+// For each pointer trace the cloth of a 64 x 64 curtain is known exactly at every 1 ms tick (the
+// reference: the proxy sees the exact cloth every tick) and is published to the four modes as
+// 60 Hz snapshots, as the server's sim thread would. Every mode runs on the same input; the table
+// gives, per mode, the RMS force error against the reference, the largest force jump between
+// consecutive ticks, the pop-through count and the cost per tick.
+//
+// Cloth sources:
+//  - "sim": the real cloth (sim_loop/cloth.h) stepped at 1 kHz, coupled both ways with the
+//    reference proxy (its reaction applied each millisecond); the modes replay that cloth;
+//  - "swing": a kinematic curtain swinging like a pendulum with a travelling ripple, exact at
+//    any time (positions and velocities analytic), for the swinging-cloth traces.
+#include <spdlog/fmt/fmt.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "app/command.h"
+#include "proxy/proxy.h"
+#include "proxy/proxy_scene.h"
+#include "recordings/generate.h"
+#include "recordings/trace.h"
+#include "sim_loop/cloth.h"
+#include "sim_loop/scene_file.h"
+#include "sim_loop/snapshot.h"
+
+namespace felt::bench {
+namespace {
+
+constexpr double kTickS = 1e-3;
+constexpr double kFrameS = 1.0 / 60.0;
+constexpr SnapshotMode kModes[] = {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
+                                   SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate};
+
+struct Args {
+  std::string json_path;
+  std::string csv_path;
+  std::string md_path;
+  bool quick = false;
+  int grid = 64;
+};
+
+// One mode's metrics over one run.
+struct ModeStats {
+  double err2_sum = 0.0;
+  int64_t ticks = 0;
+  double max_jump_N = 0.0;
+  int64_t pop_through = 0;
+  std::vector<double> tick_us;
+  uint64_t overflow_ticks = 0;
+  uint64_t catches = 0;
+
+  double rms() const { return ticks > 0 ? std::sqrt(err2_sum / ticks) : 0.0; }
+  double median_us() const {
+    if (tick_us.empty()) return 0.0;
+    std::vector<double> v = tick_us;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  }
+  double max_us() const {
+    return tick_us.empty() ? 0.0 : *std::max_element(tick_us.begin(), tick_us.end());
+  }
+};
+
+struct RunResult {
+  std::string trace;
+  std::string source;
+  bool sim_healthy = true;
+  double reference_max_jump_N = 0.0;
+  ModeStats modes[4];
+};
+
+// The curtain scene at grid x grid particles, same size (0.496 m square), from the scene file.
+SimSpec CurtainSpec(int grid) {
+  const SceneDocument doc = LoadSceneDocument("scenes/curtain.toml");
+  SimSpec spec = ParseSimSpec(doc);
+  spec.cloth.width = grid;
+  spec.cloth.height = grid;
+  spec.cloth.spacing_m = 0.496 / (grid - 1);
+  return spec;
+}
+
+// The kinematic swinging curtain: rest place r (top edge at y = 0.25), swung along z.
+void SwingAt(const std::vector<Vec3>& rest, double t, std::vector<Vec3>* x, std::vector<Vec3>* v) {
+  constexpr double kA = 0.06;  // pendulum amplitude at the bottom edge, m
+  constexpr double kF = 1.2;   // Hz
+  constexpr double kRipple = 0.008;
+  constexpr double kL = 0.496;
+  const double w = 2.0 * M_PI * kF;
+  for (size_t i = 0; i < rest.size(); ++i) {
+    const double d = (0.25 - rest[i].y()) / kL;  // 0 at the pinned top, 1 at the bottom
+    const double phase = 2.0 * M_PI * (rest[i].x() / 0.25 - 2.0 * t);
+    (*x)[i] = rest[i];
+    (*x)[i].z() += kA * d * d * std::sin(w * t) + kRipple * d * std::sin(phase);
+    (*v)[i] = Vec3(
+        0.0, 0.0, kA * d * d * w * std::cos(w * t) + kRipple * d * std::cos(phase) * (-4.0 * M_PI));
+  }
+}
+
+// The cloth a mode's main proxy used this tick (as ProxyTick chooses it).
+ClothView ModeView(SnapshotMode mode, const ClothSnapshot& next, const ClothSnapshot& prev,
+                   double since) {
+  switch (mode) {
+    case SnapshotMode::kInterpolate:
+      return ClothView{&prev, &next,
+                       next.frame_dt_s > 0 ? std::clamp(since / next.frame_dt_s, 0.0, 1.0) : 1.0,
+                       0.0};
+    case SnapshotMode::kExtrapolate:
+      return ClothView{&next, &next, 0.0, since};
+    default:
+      return ClothView::Of(next);
+  }
+}
+
+// Pop-through: the proxy's last contact triangle has it on the other side now, while its closest
+// point is inside that triangle (going around the cloth's border is a legitimate release).
+struct SideTracker {
+  int32_t triangle = -1;
+  int32_t side = 0;
+  bool Check(const ClothView& view, const GodObject& body) {
+    bool popped = false;
+    if (triangle >= 0) {
+      Vec3 a, b, c;
+      view.Corners(triangle, &a, &b, &c);
+      const TrianglePoint cp = ClosestPointOnTriangle(body.p_W_m, a, b, c);
+      const int32_t s = SideOfTriangle(body.p_W_m, a, b, c);
+      const bool interior = cp.barycentric.minCoeff() > 1e-6;
+      popped = interior && s != 0 && side != 0 && s != side;
+    }
+    if (body.num_contacts > 0) {
+      triangle = body.contacts[0].triangle;
+      Vec3 a, b, c;
+      view.Corners(triangle, &a, &b, &c);
+      side = SideOfTriangle(body.p_W_m, a, b, c);
+    } else {
+      triangle = -1;
+    }
+    return popped;
+  }
+};
+
+RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& samples,
+                 const std::string& source, const Args& args) {
+  RunResult res;
+  res.trace = trace_name;
+  res.source = source;
+  const SimSpec spec = CurtainSpec(args.grid);
+  const ClothModel model = BuildClothModel(spec);
+  ClothState state = MakeClothState(model);
+  std::vector<Vec3> x = state.x;
+  std::vector<Vec3> v = state.v;
+  std::vector<Vec3> normals = state.normals;
+  const std::vector<Vec3> rest = state.x;
+  const bool swing = source == "swing";
+  auto cloth_at = [&](double t) {
+    if (swing) {
+      SwingAt(rest, t, &x, &v);
+      ComputeVertexNormals(x, model.triangles, normals);
+    } else {
+      x = state.x;
+      v = state.v;
+      normals = state.normals;
+    }
+  };
+  DeviceSpec device;  // the defaults: a Touch-class device, world = 3 x device
+  ProxySpec base;
+  cloth_at(0.0);
+  auto tris = std::make_shared<const std::vector<Triangle>>(model.triangles);
+  ClothSnapshot ref_snap = MakeClothSnapshot(tris, x, base.structure);
+  ClothSnapshot prev = MakeClothSnapshot(tris, x, base.structure);
+  ClothSnapshot next = MakeClothSnapshot(tris, x, base.structure);
+  FillSnapshot(x, v, normals, 0, 0.0, kFrameS, &prev);
+  FillSnapshot(x, v, normals, 1, 0.0, kFrameS, &next);
+  ProxySpec ref_spec = base;
+  ref_spec.snapshot_mode = SnapshotMode::kNewest;
+  ProxyState ref_state = MakeProxyState(ref_spec);
+  std::vector<ProxySpec> specs;
+  std::vector<ProxyState> states;
+  for (SnapshotMode m : kModes) {
+    ProxySpec s = base;
+    s.snapshot_mode = m;
+    specs.push_back(s);
+    states.push_back(MakeProxyState(s));
+  }
+  std::vector<ExternalForce> external(512);
+  std::vector<ExternalForce> discard(512);
+  SideTracker trackers[4];
+  Vec3 last_force[4];
+  Vec3 last_ref = Vec3::Zero();
+  uint64_t frame = 1;
+  double last_publish_t = 0.0;
+  int64_t next_frame_tick = 0;
+  const size_t n = args.quick ? std::min<size_t>(samples.size(), 3000) : samples.size();
+  for (size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) * kTickS;
+    // The exact cloth of this tick (the sim stepped 1 ms with the reference's reaction).
+    if (!swing && i > 0) {
+      const int32_t k = ref_state.reaction.DrainInto(external);
+      StepFrame(model, std::span<const ExternalForce>(external.data(), k), kTickS, &state);
+    }
+    cloth_at(t);
+    FillSnapshot(x, v, normals, i + 1, t, kTickS, &ref_snap);
+    // A 60 Hz frame publishes this cloth to the modes.
+    if (static_cast<int64_t>(i) >= next_frame_tick) {
+      std::swap(prev, next);
+      FillSnapshot(x, v, normals, ++frame, t, t - last_publish_t > 0 ? t - last_publish_t : kFrameS,
+                   &next);
+      last_publish_t = t;
+      next_frame_tick = static_cast<int64_t>(std::llround((frame - 1) * kFrameS / kTickS));
+    }
+    const double since = t - last_publish_t;
+    const DeviceSample sample{samples[i].p_D, samples[i].v_D};
+    const ProxyTickResult ref =
+        ProxyTick(device, ref_spec, ref_snap, nullptr, 0.0, sample, kTickS, &ref_state);
+    if (i > 0)
+      res.reference_max_jump_N =
+          std::max(res.reference_max_jump_N, (ref.force_D_N - last_ref).norm());
+    last_ref = ref.force_D_N;
+    for (int m = 0; m < 4; ++m) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const ProxyTickResult r =
+          ProxyTick(device, specs[m], next, &prev, since, sample, kTickS, &states[m]);
+      const auto t1 = std::chrono::steady_clock::now();
+      states[m].reaction.DrainInto(discard);  // one-way: the modes replay the reference's cloth
+      ModeStats& ms = res.modes[m];
+      ms.tick_us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+      ms.err2_sum += (r.force_D_N - ref.force_D_N).squaredNorm();
+      ++ms.ticks;
+      if (i > 0) ms.max_jump_N = std::max(ms.max_jump_N, (r.force_D_N - last_force[m]).norm());
+      last_force[m] = r.force_D_N;
+      if (trackers[m].Check(ModeView(kModes[m], next, prev, since), states[m].body)) {
+        ++ms.pop_through;
+      }
+    }
+  }
+  for (int m = 0; m < 4; ++m) {
+    res.modes[m].overflow_ticks = states[m].counters.overflow_ticks;
+    res.modes[m].catches = states[m].counters.catches;
+  }
+  res.sim_healthy = swing || state.counters.nan_events == 0;
+  return res;
+}
+
+// The pointer traces: the bundled recordings (or generated ones when a file is missing).
+std::vector<std::pair<std::string, std::vector<TraceSample>>> LoadTraces() {
+  std::vector<std::pair<std::string, std::vector<TraceSample>>> traces;
+  for (const std::string& name : BundledTraceNames()) {
+    const std::string path = "recordings/" + name + ".trace";
+    if (std::filesystem::exists(path)) {
+      traces.emplace_back(name, ReadTrace(path).samples);
+    } else {
+      traces.emplace_back(name + "(generated)", GenerateTrace(name, kDefaultTraceSeed).samples);
+    }
+  }
+  return traces;
+}
+
+std::vector<TraceSample> StillPointer(const Vec3& p_D, double seconds) {
+  std::vector<TraceSample> s;
+  for (int i = 0; i < static_cast<int>(seconds / kTickS); ++i) {
+    s.push_back(TraceSample{i * kTickS, p_D, Vec3::Zero(), 0});
+  }
+  return s;
+}
+
+struct Aggregate {
+  double err2 = 0.0;
+  int64_t ticks = 0;
+  double max_jump = 0.0;
+  int64_t pops = 0;
+  std::vector<double> us;
+  double max_us = 0.0;
+};
+
+int Run(const Args& args) {
+  std::vector<RunResult> runs;
+  // The bundled traces on the real cloth, coupled with the reference.
+  for (const auto& [name, samples] : LoadTraces()) {
+    spdlog::info("bench haptic: {} on the sim curtain", name);
+    runs.push_back(RunOne(name, samples, "sim", args));
+  }
+  // Swinging cloth: the pointer resting against the curtain, and poke-and-hold.
+  const double swing_s = args.quick ? 3.0 : 8.0;
+  runs.push_back(
+      RunOne("rest_swing", StillPointer(Vec3(0.0, -0.02, 0.002), swing_s), "swing", args));
+  runs.push_back(RunOne("poke_hold_swing", GenerateTrace("poke_hold", kDefaultTraceSeed).samples,
+                        "swing", args));
+
+  // Per-mode aggregates: all runs, and the swinging-cloth runs alone.
+  Aggregate all[4];
+  Aggregate swing[4];
+  for (const RunResult& r : runs) {
+    for (int m = 0; m < 4; ++m) {
+      for (Aggregate* a : {&all[m], r.source == "swing" ? &swing[m] : nullptr}) {
+        if (a == nullptr) continue;
+        a->err2 += r.modes[m].err2_sum;
+        a->ticks += r.modes[m].ticks;
+        a->max_jump = std::max(a->max_jump, r.modes[m].max_jump_N);
+        a->pops += r.modes[m].pop_through;
+        a->us.insert(a->us.end(), r.modes[m].tick_us.begin(), r.modes[m].tick_us.end());
+      }
+    }
+  }
+  auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+
+  // Markdown and CSV tables.
+  std::string md = fmt::format(
+      "| trace | cloth | mode | force_rms_error_N | max_force_jump_N | pop_through | "
+      "tick_us_median "
+      "| tick_us_max | overflow_ticks | catches |\n|---|---|---|---|---|---|---|---|---|---|\n");
+  std::string csv =
+      "trace,cloth,mode,force_rms_error_N,max_force_jump_N,pop_through,tick_us_median,tick_us_max,"
+      "overflow_ticks,catches,reference_max_jump_N,sim_healthy\n";
+  for (const RunResult& r : runs) {
+    for (int m = 0; m < 4; ++m) {
+      const ModeStats& s = r.modes[m];
+      const std::string cloth = r.source + (r.sim_healthy ? "" : " (sim went non-finite)");
+      md += fmt::format("| {} | {} | {} | {:.4f} | {:.4f} | {} | {:.2f} | {:.1f} | {} | {} |\n",
+                        r.trace, cloth, SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N,
+                        s.pop_through, s.median_us(), s.max_us(), s.overflow_ticks, s.catches);
+      csv += fmt::format("{},{},{},{:.6f},{:.6f},{},{:.3f},{:.3f},{},{},{:.6f},{}\n", r.trace,
+                         r.source, SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N,
+                         s.pop_through, s.median_us(), s.max_us(), s.overflow_ticks, s.catches,
+                         r.reference_max_jump_N, r.sim_healthy ? 1 : 0);
+    }
+  }
+  md +=
+      "\nPer mode over every trace (and, after the slash, over the swinging-cloth traces):\n\n"
+      "| mode | force_rms_error_N | max_force_jump_N | pop_through | tick_us_median | "
+      "tick_us_max |\n|---|---|---|---|---|---|\n";
+  std::string json = "{\n  \"grid\": " + std::to_string(args.grid) + ",\n  \"modes\": [\n";
+  std::string json_swing = "  \"swing_modes\": [\n";
+  for (int m = 0; m < 4; ++m) {
+    auto obj = [&](const Aggregate& a) {
+      const double max_us = a.us.empty() ? 0.0 : *std::max_element(a.us.begin(), a.us.end());
+      return fmt::format(
+          "    {{\"mode\": \"{}\", \"force_rms_error_N\": {:.6f}, \"max_force_jump_N\": {:.6f}, "
+          "\"pop_through\": {}, \"tick_us_median\": {:.3f}, \"tick_us_max\": {:.3f}}}",
+          SnapshotModeName(kModes[m]), a.ticks > 0 ? std::sqrt(a.err2 / a.ticks) : 0.0, a.max_jump,
+          a.pops, median(a.us), max_us);
+    };
+    json += obj(all[m]) + (m < 3 ? ",\n" : "\n");
+    json_swing += obj(swing[m]) + (m < 3 ? ",\n" : "\n");
+    const double max_us_all =
+        all[m].us.empty() ? 0.0 : *std::max_element(all[m].us.begin(), all[m].us.end());
+    md += fmt::format(
+        "| {} | {:.4f} / {:.4f} | {:.4f} / {:.4f} | {} / {} | {:.2f} | {:.1f} |\n",
+        SnapshotModeName(kModes[m]), all[m].ticks ? std::sqrt(all[m].err2 / all[m].ticks) : 0.0,
+        swing[m].ticks ? std::sqrt(swing[m].err2 / swing[m].ticks) : 0.0, all[m].max_jump,
+        swing[m].max_jump, all[m].pops, swing[m].pops, median(all[m].us), max_us_all);
+  }
+  json += "  ],\n" + json_swing + "  ],\n  \"runs\": [\n";
+  for (size_t k = 0; k < runs.size(); ++k) {
+    const RunResult& r = runs[k];
+    json += fmt::format(
+        "    {{\"trace\": \"{}\", \"cloth\": \"{}\", \"sim_healthy\": {}, "
+        "\"reference_max_jump_N\": {:.6f}, \"modes\": [\n",
+        r.trace, r.source, r.sim_healthy ? "true" : "false", r.reference_max_jump_N);
+    for (int m = 0; m < 4; ++m) {
+      const ModeStats& s = r.modes[m];
+      json += fmt::format(
+          "      {{\"mode\": \"{}\", \"force_rms_error_N\": {:.6f}, \"max_force_jump_N\": {:.6f}, "
+          "\"pop_through\": {}, \"tick_us_median\": {:.3f}, \"tick_us_max\": {:.3f}}}{}\n",
+          SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N, s.pop_through, s.median_us(),
+          s.max_us(), m < 3 ? "," : "");
+    }
+    json += std::string("    ]}") + (k + 1 < runs.size() ? ",\n" : "\n");
+  }
+  json += "  ]\n}\n";
+
+  std::fputs(md.c_str(), stdout);
+  auto write = [](const std::string& path, const std::string& text) {
+    if (path.empty()) return;
+    std::ofstream out(path);
+    out << text;
+    if (!out) throw std::runtime_error("cannot write " + path);
+  };
+  write(args.json_path, json);
+  write(args.csv_path, csv);
+  write(args.md_path, md);
+  return 0;
+}
+
+const bool kRegistered = app::RegisterCommand(app::CommandEntry{
+    "bench", "haptic",
+    "compare the proxy's snapshot modes on pointer traces against a 1 kHz reference cloth",
+    [](CLI::App& cmd) -> app::CommandRun {
+      auto args = std::make_shared<Args>();
+      cmd.add_option("--json", args->json_path, "write per-mode results as JSON to this file");
+      cmd.add_option("--csv", args->csv_path, "write the per-trace table as CSV to this file");
+      cmd.add_option("--md", args->md_path, "write the tables as Markdown to this file");
+      cmd.add_flag("--quick", args->quick, "at most 3 s of each trace");
+      cmd.add_option("--grid", args->grid, "particles per side of the curtain (default 64)")
+          ->check(CLI::Range(8, 256));
+      return [args] { return Run(*args); };
+    }});
+
+}  // namespace
+}  // namespace felt::bench
