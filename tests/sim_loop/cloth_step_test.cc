@@ -230,7 +230,9 @@ TEST(ClothStepTest, FastClothDoesNotPassThroughThinObstacles) {
             << "frame " << f << " particle " << p;
       }
       // After the impact (0.02 s) the middle of the cloth rests on top, not under it.
-      if (f == 10) EXPECT_GT(state.x[GridIndex(16, 8, 8)].y(), c.top_y - 0.01);
+      if (f == 10) {
+        EXPECT_GT(state.x[GridIndex(16, 8, 8)].y(), c.top_y - 0.01);
+      }
     }
   }
 }
