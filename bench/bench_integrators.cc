@@ -51,6 +51,7 @@ struct Args {
   std::string scene = "scenes/curtain.toml";
   std::string gnuplot_script = "bench/plot_integrators.gp";
   bool quick = false;
+  std::vector<int32_t> grids;  // run only the row sets of these grids (empty: all)
 };
 
 // How much each run does (the full run or --quick).
@@ -320,6 +321,9 @@ std::vector<std::string> RowCells(const Row& r) {
 std::string Command(const Args& args) {
   std::string cmd = "felt bench integrators";
   if (args.quick) cmd += " --quick";
+  for (size_t k = 0; k < args.grids.size(); ++k) {
+    cmd += (k == 0 ? " --grids " : ",") + std::to_string(args.grids[k]);
+  }
   if (args.scene != "scenes/curtain.toml") cmd += " --scene " + args.scene;
   if (args.out != "bench/results") cmd += " --out " + args.out;
   if (!args.json.empty()) cmd += " --json " + args.json;
@@ -357,7 +361,13 @@ std::string PlotData(const Settings& s, const std::vector<Row>& rows) {
 }
 
 int Run(const Args& args) {
-  const Settings s = MakeSettings(args.quick);
+  Settings s = MakeSettings(args.quick);
+  if (!args.grids.empty()) {
+    std::erase_if(s.sets, [&](const std::pair<int32_t, bool>& set) {
+      return std::find(args.grids.begin(), args.grids.end(), set.first) == args.grids.end();
+    });
+    if (s.sets.empty()) throw std::invalid_argument("--grids: no row set has these grids");
+  }
   const MachineInfo machine = ReadMachineInfo();
   const std::string cmd = Command(args);
   std::printf("%s\nload average %s\n", cmd.c_str(), machine.load_average.c_str());
@@ -587,6 +597,9 @@ app::CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--scene", args->scene, "the curtain scene to resize")->capture_default_str();
   cmd.add_option("--gnuplot-script", args->gnuplot_script, "the gnuplot script for the plot")
       ->capture_default_str();
+  cmd.add_option("--grids", args->grids,
+                 "only the row sets of these grids (comma-separated; full run: 32 and 64)")
+      ->delimiter(',');
   cmd.add_flag("--quick", args->quick,
                "a 6 x 6 curtain, one fixed count, 12 frames (seconds; for CI): not a result");
   return [args]() { return Run(*args); };

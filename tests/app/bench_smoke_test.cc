@@ -1,0 +1,121 @@
+// The cloth benchmarks run as a user would run them (`felt bench integrators --quick`, `felt bench
+// stability --quick`, `felt bench cloth --grid 10`), each into a temp folder: exit code 0 and the
+// JSON files hold the keys the reports and the issue rely on. No timing is asserted.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+const std::string kFelt = std::string(FELT_BINARY_DIR) + "/felt";
+const std::string kSource = std::string(FELT_SOURCE_DIR);
+
+struct Outcome {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+// Runs `felt <args>` through the shell and collects its exit code and output.
+Outcome RunFelt(const std::string& args) {
+  Outcome outcome;
+  FILE* pipe = popen((kFelt + " " + args + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return outcome;
+  std::array<char, 4096> buffer{};
+  size_t n = 0;
+  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    outcome.output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  if (status != -1 && WIFEXITED(status)) outcome.exit_code = WEXITSTATUS(status);
+  return outcome;
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream file(path);
+  std::stringstream contents;
+  contents << file.rdbuf();
+  return contents.str();
+}
+
+// A fresh folder of this test's own under the test temp directory.
+std::string FreshDir(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / name;
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir.string();
+}
+
+// Expects every `"key":` in `json`.
+void ExpectKeys(const std::string& json, const std::vector<std::string>& keys) {
+  for (const std::string& key : keys) {
+    EXPECT_NE(json.find("\"" + key + "\":"), std::string::npos) << "missing key " << key;
+  }
+}
+
+TEST(BenchSmoke, IntegratorsQuickWritesItsFiles) {
+  const std::string dir = FreshDir("felt_bench_integrators");
+  const std::string json = dir + "/integrators.json";
+  const Outcome outcome =
+      RunFelt("bench integrators --quick --out " + dir + " --json " + json + " --scene " + kSource +
+              "/scenes/curtain.toml --gnuplot-script " + kSource + "/bench/plot_integrators.gp");
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  const std::string text = ReadFile(json);
+  ExpectKeys(text, {"command", "machine", "rows", "stable_steps", "references", "grid", "provot",
+                    "integrator", "substeps", "frame_ms_median", "rms_error_m", "energy_drift",
+                    "max_stretch", "stable", "h_max_s", "stable_dt_s", "ratio_to_stable_dt"});
+  // Every integrator has rows.
+  for (const char* name :
+       {"leapfrog_verlet", "explicit_euler", "symplectic_euler", "explicit_midpoint", "rk4",
+        "basic_verlet", "velocity_verlet", "implicit_euler"}) {
+    EXPECT_NE(text.find(std::string("\"integrator\": \"") + name + "\""), std::string::npos)
+        << name;
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir + "/integrators.md"));
+  EXPECT_TRUE(std::filesystem::exists(dir + "/integrators.csv"));
+  EXPECT_TRUE(std::filesystem::exists(dir + "/integrators_plot.dat"));
+  EXPECT_EQ(ReadFile(dir + "/integrators.md").rfind("# Integrators", 0), 0u);
+}
+
+TEST(BenchSmoke, StabilityQuickWritesItsFiles) {
+  const std::string dir = FreshDir("felt_bench_stability");
+  const std::string json = dir + "/stability.json";
+  const Outcome outcome = RunFelt("bench stability --quick --out " + dir + " --json " + json +
+                                  " --scene " + kSource + "/scenes/curtain.toml");
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  const std::string text = ReadFile(json);
+  ExpectKeys(text, {"command", "machine", "cases", "case", "parameters", "result", "criterion",
+                    "pass", "metrics"});
+  for (const char* name : {"stiff springs, large dt", "pinned-corner super-elasticity",
+                           "fast fall onto a thin obstacle", "zero-length springs",
+                           "degenerate triangles", "NaN injected into one particle",
+                           "500 ms stalled frame", "one hour, default", "one hour, undamped"}) {
+    EXPECT_NE(text.find(std::string("\"case\": \"") + name + "\""), std::string::npos) << name;
+  }
+  EXPECT_NE(outcome.output.find("| case | parameters | result | criterion | pass/fail |"),
+            std::string::npos)
+      << outcome.output;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/stability.md"));
+}
+
+TEST(BenchSmoke, ClothOneGridWritesItsFiles) {
+  const std::string dir = FreshDir("felt_bench_cloth");
+  const std::string json = dir + "/cloth.json";
+  const Outcome outcome = RunFelt("bench cloth --grid 10 --out " + dir + " --json " + json +
+                                  " --scene " + kSource + "/scenes/curtain.toml");
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  const std::string text = ReadFile(json);
+  ExpectKeys(text, {"command", "machine", "grids", "grid", "frame_ms_median", "frame_ms_p99",
+                    "max_stretch", "substeps", "particles", "springs"});
+  EXPECT_NE(text.find("\"grid\": 10,"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"particles\": 100,"), std::string::npos) << text;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/cloth.md"));
+  EXPECT_TRUE(std::filesystem::exists(dir + "/cloth.csv"));
+}
+
+}  // namespace
