@@ -20,7 +20,7 @@ set format y '10^{%T}'
 set xlabel 'ms per 60 Hz frame (median wall time)'
 set ylabel 'RMS position error after 2 s [m]'
 set grid xtics ytics mxtics mytics lc rgb '#dddddd'
-set key bottom left font ',9'
+set key bottom left font ',9' noenhanced
 set datafile missing 'NaN'
 set multiplot layout 1, panels
 do for [p = 0:panels - 1] {
