@@ -1,0 +1,97 @@
+#include "haptic_loop/pointer_source.h"
+
+#include <cmath>
+#include <utility>
+
+namespace felt {
+
+TracePointerSource::TracePointerSource(std::vector<std::vector<TraceSample>> traces) {
+  cursors_.resize(traces.size());
+  for (size_t d = 0; d < traces.size(); ++d) cursors_[d].samples = std::move(traces[d]);
+}
+
+bool TracePointerSource::Latest(uint32_t device_index, int64_t now_ns, PointerInput* out) {
+  if (!started_) {
+    t0_ns_ = now_ns;
+    started_ = true;
+  }
+  if (device_index >= cursors_.size()) return false;
+  Cursor& c = cursors_[device_index];
+  if (c.samples.empty()) return false;
+  // Release every sample whose recorded time (relative to the first) has come.
+  const double t_first_s = c.samples.front().t_s;
+  const double elapsed_s = static_cast<double>(now_ns - t0_ns_) * 1e-9;
+  while (c.next < c.samples.size() && c.samples[c.next].t_s - t_first_s <= elapsed_s) ++c.next;
+  if (c.next == 0) return false;
+  const TraceSample& s = c.samples[c.next - 1];
+  out->seq = c.next;
+  out->device_time_ns = std::llround(s.t_s * 1e9);
+  out->receive_time_ns = t0_ns_ + std::llround((s.t_s - t_first_s) * 1e9);
+  out->p_D_m = s.p_D;
+  out->v_D_m_per_s = s.v_D;
+  out->buttons = s.buttons;
+  return true;
+}
+
+bool TracePointerSource::finished() const {
+  for (const Cursor& c : cursors_) {
+    if (c.next < c.samples.size()) return false;
+  }
+  return true;
+}
+
+LatestPointerSource::LatestPointerSource(uint32_t device_count) {
+  for (uint32_t d = 0; d < device_count; ++d) slots_.push_back(std::make_unique<Slot>());
+}
+
+void LatestPointerSource::Set(uint32_t device_index, const PointerInput& sample) {
+  if (device_index >= slots_.size()) return;
+  Slot& slot = *slots_[device_index];
+  slot.buffer.write_slot() = sample;
+  slot.buffer.Publish();
+  slot.any.store(true, std::memory_order_release);
+}
+
+bool LatestPointerSource::Latest(uint32_t device_index, int64_t /*now_ns*/, PointerInput* out) {
+  if (device_index >= slots_.size()) return false;
+  Slot& slot = *slots_[device_index];
+  if (!slot.any.load(std::memory_order_acquire)) return false;
+  slot.buffer.Acquire();
+  *out = slot.buffer.read_slot();
+  return true;
+}
+
+CapturingForceSink::CapturingForceSink(uint32_t device_count) {
+  for (uint32_t d = 0; d < device_count; ++d) slots_.push_back(std::make_unique<Slot>());
+}
+
+void CapturingForceSink::Push(uint32_t device_index, const ForceOutput& force) {
+  if (device_index >= slots_.size()) return;
+  Slot& slot = *slots_[device_index];
+  slot.buffer.write_slot() = force;
+  slot.buffer.Publish();
+  const double norm = force.force_D_N.norm();
+  if (norm > slot.peak_N.load(std::memory_order_relaxed)) {
+    slot.peak_N.store(norm, std::memory_order_relaxed);
+  }
+  slot.pushed.store(slot.pushed.load(std::memory_order_relaxed) + 1, std::memory_order_release);
+}
+
+uint64_t CapturingForceSink::pushed(uint32_t device_index) const {
+  return device_index < slots_.size() ? slots_[device_index]->pushed.load(std::memory_order_acquire)
+                                      : 0;
+}
+
+double CapturingForceSink::peak_force_N(uint32_t device_index) const {
+  return device_index < slots_.size() ? slots_[device_index]->peak_N.load(std::memory_order_relaxed)
+                                      : 0.0;
+}
+
+bool CapturingForceSink::Newest(uint32_t device_index, ForceOutput* out) {
+  if (device_index >= slots_.size() || pushed(device_index) == 0) return false;
+  slots_[device_index]->buffer.Acquire();
+  *out = slots_[device_index]->buffer.read_slot();
+  return true;
+}
+
+}  // namespace felt

@@ -1,0 +1,260 @@
+// The server's haptic tick and sim frame driven on a test clock (no threads): no allocation in the
+// tick, two devices on one cloth, stale input, NaN input, reconnection, a stalled sim, and a
+// bundled trace replayed in-process.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "haptic_loop/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in alloc_counter_test.cc
+#include "haptic_loop/pointer_source.h"
+#include "haptic_loop/server.h"
+#include "recordings/trace.h"
+#include "tests/haptic_loop/server_test_util.h"
+
+namespace felt {
+namespace {
+
+using testing_server::DeviceAt;
+using testing_server::Driver;
+using testing_server::PressFeed;
+using testing_server::PressUntilForce;
+using testing_server::SmallCurtain;
+
+ServerOptions Quiet() {
+  ServerOptions options;
+  options.apply_realtime = false;
+  options.monitor_log = false;
+  return options;
+}
+
+// The small curtain with a short ramp-in (50 ms), so a press reaches its full force quickly.
+ServerSpec QuickRamp(std::vector<DeviceSpec> devices = {}) {
+  ServerSpec spec = SmallCurtain(std::move(devices));
+  spec.haptic.safety.ramp_in_s = 0.05;
+  return spec;
+}
+
+// The newest force sent to `device`.
+ForceOutput Newest(CapturingForceSink& sink, uint32_t device = 0) {
+  ForceOutput out;
+  EXPECT_TRUE(sink.Newest(device, &out));
+  return out;
+}
+
+TEST(ServerTick, HapticTickNeverAllocates) {
+  // Every snapshot mode: those that keep the previous snapshot copy it each frame.
+  for (SnapshotMode mode : {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
+                            SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate}) {
+    ServerSpec spec =
+        SmallCurtain({DeviceAt("left", Vec3(-0.1, 0, 0)), DeviceAt("right", Vec3(0.1, 0, 0))});
+    spec.proxy.snapshot_mode = mode;
+    LatestPointerSource source(2);
+    CapturingForceSink sink(2);
+    Server server(spec, &source, &sink, Quiet());
+    Driver driver(&server, &source);
+    auto feed = PressFeed();
+    // Warm-up (first snapshot copies, first contacts), then 2000 counted ticks: feeding and the
+    // sim frame outside the guard, the tick inside.
+    for (int i = 0; i < 300; ++i) driver.Tick(2, feed);
+    uint64_t allocations = 0;
+    int64_t now = driver.now_ns();
+    for (int i = 0; i < 2000; ++i) {
+      if (i % 16 == 0) server.SimFrame(1.0 / 60.0, now);
+      PointerInput in;
+      in.seq = 100000 + static_cast<uint64_t>(i);
+      in.receive_time_ns = now;
+      in.p_D_m = testing_server::PressPosition(1000.0);
+      source.Set(0, in);
+      source.Set(1, in);
+      AllocationGuard guard;
+      server.HapticTick(now, 1e-3);
+      allocations += guard.allocations();
+      now += testing_server::kTickNs;
+    }
+    EXPECT_EQ(allocations, 0u) << SnapshotModeName(mode);
+    const std::unique_ptr<ServerReport> report = server.Report();
+    EXPECT_GT(report->contacts, 0u) << SnapshotModeName(mode);
+    EXPECT_GT(report->reaction_batches, 0u) << SnapshotModeName(mode);
+  }
+}
+
+TEST(ServerTick, TwoDevicesPressTheClothAtTwoPlaces) {
+  const Vec3 left_W(-0.12, 0.0, 0.0);
+  const Vec3 right_W(0.12, 0.0, 0.0);
+  LatestPointerSource source(2);
+  CapturingForceSink sink(2);
+  Server server(QuickRamp({DeviceAt("left", left_W), DeviceAt("right", right_W)}), &source, &sink,
+                Quiet());
+  Driver driver(&server, &source);
+  // Both hands feel the cloth at the same time: in contact, pushed back (+z), within the limits.
+  ASSERT_TRUE(PressUntilForce(&driver, &sink, 2, 0.2));
+  const std::unique_ptr<ServerReport> report = server.Report();
+  ASSERT_EQ(report->devices.size(), 2u);
+  for (uint32_t d = 0; d < 2; ++d) {
+    const ForceOutput force = Newest(sink, d);
+    EXPECT_TRUE(force.in_contact) << d;
+    EXPECT_GT(force.force_D_N.z(), 0.2) << d;
+    EXPECT_LE(force.force_D_N.norm(), server.spec().devices[d].max_force_N + 1e-9);
+    EXPECT_GT(report->devices[d].contact_ticks, 0u) << d;
+  }
+  // Two more frames, so the reactions of the last frame reach the cloth.
+  for (int i = 0; i < 40; ++i) driver.Tick(2, PressFeed());
+  const std::unique_ptr<ServerReport> after = server.Report();
+  for (uint32_t d = 0; d < 2; ++d) EXPECT_GT(after->devices[d].reaction_impulse_N_s, 0.0) << d;
+
+  // Both reactions reached the cloth: it is pushed back (-z) under each hand, and the impulse the
+  // sim applied is the impulse the two proxies queued (nothing lost, up to the batch in flight).
+  const ClothState& cloth = server.cloth();
+  auto depth_near = [&](const Vec3& p_W) {
+    double z = 0.0;
+    for (const Vec3& x : cloth.x) {
+      if (std::hypot(x.x() - p_W.x(), x.y() - p_W.y()) < 0.05) z = std::min(z, x.z());
+    }
+    return z;
+  };
+  EXPECT_LT(depth_near(left_W), -0.002);
+  EXPECT_LT(depth_near(right_W), -0.002);
+  EXPECT_GT(server.applied_impulse_N_s(), 0.0);
+  EXPECT_GE(after->reaction_batches_applied + 1, after->reaction_batches);
+}
+
+TEST(ServerTick, StaleInputRampsToZeroWhileZeroForcesKeepFlowing) {
+  LatestPointerSource source(1);
+  CapturingForceSink sink(1);
+  Server server(QuickRamp(), &source, &sink, Quiet());
+  Driver driver(&server, &source);
+  ASSERT_TRUE(PressUntilForce(&driver, &sink, 1, 0.2));
+
+  // The samples stop now: fresh for the 50 ms limit, then ramped out over 50 ms.
+  const uint64_t pushed_before = sink.pushed(0);
+  double previous = Newest(sink).force_D_N.norm();
+  bool flagged = false;
+  for (int i = 0; i < 300; ++i) {
+    driver.Tick(1, [](uint32_t, double, PointerInput*) { return false; });
+    const ForceOutput f = Newest(sink);
+    if (f.flags & kSafetyStaleInput) {
+      flagged = true;
+      EXPECT_LE(f.force_D_N.norm(), previous + 1e-12);
+    }
+    previous = f.force_D_N.norm();
+  }
+  EXPECT_TRUE(flagged);
+  EXPECT_EQ(Newest(sink).force_D_N, Vec3::Zero());
+  EXPECT_TRUE(Newest(sink).flags & kSafetyStaleInput);
+  EXPECT_EQ(sink.pushed(0), pushed_before + 300);  // a force every tick, stale or not
+  EXPECT_GE(server.Report()->devices[0].stale_ticks, 150u);
+  EXPECT_FALSE(server.Report()->devices[0].connected);
+}
+
+TEST(ServerTick, NanInputGivesZeroForceAndIsCounted) {
+  LatestPointerSource source(1);
+  CapturingForceSink sink(1);
+  Server server(QuickRamp(), &source, &sink, Quiet());
+  Driver driver(&server, &source);
+  ASSERT_TRUE(PressUntilForce(&driver, &sink, 1, 0.2));
+
+  driver.Tick(1, [](uint32_t, double, PointerInput* in) {
+    in->p_D_m = Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0);
+    return true;
+  });
+  EXPECT_EQ(Newest(sink).force_D_N, Vec3::Zero());
+  EXPECT_EQ(server.Report()->nan_events, 1u);
+  // Good samples again: the force ramps back in.
+  driver.Tick(1, PressFeed());
+  EXPECT_TRUE(Newest(sink).flags & kSafetyRamping);
+  for (const Vec3& x : server.cloth().x) ASSERT_TRUE(x.allFinite());
+}
+
+TEST(ServerTick, ReconnectionRampsTheForceIn) {
+  LatestPointerSource source(1);
+  CapturingForceSink sink(1);
+  ServerSpec spec = SmallCurtain();
+  spec.haptic.safety.ramp_in_s = 0.5;
+  Server server(spec, &source, &sink, Quiet());
+  Driver driver(&server, &source);
+  // Connected and ramped in: no ramping flag after 0.5 s.
+  for (int i = 0; i < 600; ++i) driver.Tick(1, PressFeed());
+  EXPECT_FALSE(Newest(sink).flags & kSafetyRamping);
+  EXPECT_EQ(server.Report()->devices[0].connects, 1u);
+  // 200 ms of silence (the device unplugged): stale, zero force.
+  for (int i = 0; i < 200; ++i) {
+    driver.Tick(1, [](uint32_t, double, PointerInput*) { return false; });
+  }
+  EXPECT_EQ(Newest(sink).force_D_N, Vec3::Zero());
+  EXPECT_FALSE(server.Report()->devices[0].connected);
+  // Samples again: flagged ramping for 0.5 s, the force at most gain x max force.
+  const double max_N = server.spec().devices[0].max_force_N;
+  for (int i = 1; i <= 499; ++i) {
+    driver.Tick(1, PressFeed());
+    const ForceOutput f = Newest(sink);
+    ASSERT_TRUE(f.flags & kSafetyRamping) << i;
+    ASSERT_LE(f.force_D_N.norm(), max_N * i / 500.0 + 1e-9) << i;
+  }
+  for (int i = 0; i < 5; ++i) driver.Tick(1, PressFeed());
+  EXPECT_FALSE(Newest(sink).flags & kSafetyRamping);
+  EXPECT_EQ(server.Report()->devices[0].connects, 2u);
+  EXPECT_TRUE(server.Report()->devices[0].connected);
+}
+
+TEST(ServerTick, StalledSimIsFlaggedAndTheTickRunsOnTheLastSnapshot) {
+  LatestPointerSource source(1);
+  CapturingForceSink sink(1);
+  Server server(SmallCurtain(), &source, &sink, Quiet());
+  Driver driver(&server, &source);
+  for (int i = 0; i < 600; ++i) driver.Tick(1, PressFeed());
+  ASSERT_FALSE(Newest(sink).flags & kSafetySimStalled);
+  // No SimFrame for 300 ms: ticks go on against the last snapshot, flagged after 100 ms.
+  int64_t now = driver.now_ns();
+  const uint64_t pushed = sink.pushed(0);
+  for (int i = 0; i < 300; ++i) {
+    PointerInput in;
+    in.seq = 1'000'000 + static_cast<uint64_t>(i);
+    in.receive_time_ns = now;
+    in.p_D_m = testing_server::PressPosition(1000.0);
+    source.Set(0, in);
+    server.HapticTick(now, 1e-3);
+    now += testing_server::kTickNs;
+  }
+  EXPECT_EQ(sink.pushed(0), pushed + 300);  // still rendering, on the last cloth
+  const ForceOutput f = Newest(sink);
+  EXPECT_TRUE(f.flags & kSafetySimStalled);
+  EXPECT_FALSE(f.flags & kSafetyStaleInput);
+  const std::unique_ptr<ServerReport> report = server.Report();
+  EXPECT_TRUE(report->sim_stalled);
+  EXPECT_NEAR(static_cast<double>(report->sim_stalled_ticks), 200.0, 20.0);
+  // The sim comes back: the flag clears.
+  server.SimFrame(1.0 / 60.0, now);
+  server.HapticTick(now, 1e-3);
+  EXPECT_FALSE(Newest(sink).flags & kSafetySimStalled);
+}
+
+TEST(ServerTick, BundledTraceTouchesTheCloth) {
+  const Trace trace = ReadTrace(std::string(FELT_SOURCE_DIR) + "/recordings/poke_hold.trace");
+  TracePointerSource source({trace.samples});
+  CapturingForceSink sink(1);
+  Server server(SmallCurtain(), &source, &sink, Quiet());
+  // The trace on the test clock: 3 s covers the approach and the press.
+  int64_t now = 1'000'000'000'000;
+  int64_t next_frame = now;
+  for (int i = 0; i < 3000; ++i) {
+    if (now >= next_frame) {
+      server.SimFrame(1.0 / 60.0, now);
+      next_frame += 16'666'667;
+    }
+    server.HapticTick(now, 1e-3);
+    now += testing_server::kTickNs;
+  }
+  const std::unique_ptr<ServerReport> report = server.Report();
+  EXPECT_GT(report->contacts, 100u);
+  EXPECT_GT(report->peak_force_N, 0.1);
+  EXPECT_LE(report->peak_force_N, server.spec().devices[0].max_force_N + 1e-9);
+  EXPECT_EQ(report->nan_events, 0u);
+  EXPECT_GT(sink.peak_force_N(0), 0.1);
+}
+
+}  // namespace
+}  // namespace felt
