@@ -1,0 +1,209 @@
+// `felt serve --scene FILE [--duration S] [--stats-json FILE] [--trace FILE] [--domain N]
+// [--dds-config FILE] [--no-realtime]`: the real-time server (issue 5, docs/server.md). Devices
+// connect over the DDS transport (issue 6, docs/transport.md) unless --trace replays a pointer
+// trace in-process to every device of the scene. SIGINT/SIGTERM stop it cleanly: a signal-safe
+// flag, the loops stop, the final statistics are printed and spdlog is flushed.
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "app/command.h"
+#include "haptic_loop/periodic_loop.h"
+#include "haptic_loop/pointer_source.h"
+#include "haptic_loop/server.h"
+#include "haptic_loop/server_spec.h"
+#include "haptic_loop/transport_io.h"
+#include "recordings/trace.h"
+#include "sim_loop/scene_file.h"
+#include "transport/server_transport.h"
+
+namespace felt::app {
+namespace {
+
+// Set by the signal handler; lock-free, so async-signal-safe.
+std::atomic<bool> g_stop_requested{false};
+static_assert(std::atomic<bool>::is_always_lock_free);
+
+extern "C" void OnStopSignal(int /*signal*/) { g_stop_requested.store(true); }
+
+void InstallStopHandlers() {
+  struct sigaction action {};
+  action.sa_handler = OnStopSignal;
+  sigemptyset(&action.sa_mask);
+  action.sa_flags = 0;  // no SA_RESTART: let sleeps return early
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+struct ServeArgs {
+  std::string scene;
+  std::optional<double> duration_s;
+  std::string stats_json;
+  std::string trace;
+  uint32_t domain = 0;
+  std::string dds_config;
+  bool no_realtime = false;
+};
+
+// The ServerStatus the monitor publishes once a second (transport fields are the transport's).
+transport::ServerStatusView StatusOf(const ServerReport& r, const std::string& server_id) {
+  transport::ServerStatusView s;
+  auto percentiles = [](const HistogramSnapshot& h, double ns_per_unit) {
+    transport::PercentilesView p;
+    p.p50 = static_cast<double>(h.PercentileNs(0.5)) / ns_per_unit;
+    p.p99 = static_cast<double>(h.PercentileNs(0.99)) / ns_per_unit;
+    p.p999 = static_cast<double>(h.PercentileNs(0.999)) / ns_per_unit;
+    p.max = static_cast<double>(h.max_ns) / ns_per_unit;
+    return p;
+  };
+  s.server_id = server_id;
+  s.realtime = r.realtime;
+  s.haptic_ticks = r.haptic.ticks;
+  s.haptic_overruns = r.haptic.overruns;
+  s.haptic_lateness_us = percentiles(r.haptic.lateness, 1e3);
+  s.haptic_compute_us = percentiles(r.haptic.compute, 1e3);
+  s.sim_frames = r.sim.ticks;
+  s.sim_frame_ms = percentiles(r.sim.compute, 1e6);
+  s.snapshot_age_ms = percentiles(r.haptic.snapshot_age, 1e6);
+  s.sim_stalled = r.sim_stalled;
+  s.nan_events = r.nan_events;
+  s.devices_connected = r.devices_connected;
+  s.passivity_energy_J = r.energy_J;
+  return s;
+}
+
+int Serve(const ServeArgs& args) {
+  // Set-up: the scene (a bad one exits 2 before anything starts).
+  ServerSpec spec;
+  try {
+    spec = ParseServerSpec(LoadSceneDocument(args.scene));
+  } catch (const SceneError& e) {
+    std::fprintf(stderr, "felt serve: %s\n", e.what());
+    return 2;
+  }
+  if (args.no_realtime) {
+    spec.haptic.haptic_realtime = RealtimeSettings{};
+    spec.haptic.sim_realtime = RealtimeSettings{};
+  }
+  const auto device_count = static_cast<uint32_t>(spec.devices.size());
+
+  // Input and output: a trace in-process, or the DDS transport.
+  std::unique_ptr<transport::ServerTransport> dds;
+  std::unique_ptr<PointerSource> source;
+  std::unique_ptr<ForceSink> sink;
+  std::optional<double> duration_s = args.duration_s;
+  if (!args.trace.empty()) {
+    const Trace trace = ReadTrace(args.trace);
+    source = std::make_unique<TracePointerSource>(
+        std::vector<std::vector<TraceSample>>(device_count, trace.samples));
+    sink = std::make_unique<CapturingForceSink>(device_count);
+    const double length_s = trace.samples.back().t_s - trace.samples.front().t_s;
+    if (!duration_s) duration_s = length_s + 0.5;  // the trace, then its ramp-out
+    spdlog::info("serve: trace {} ({} samples, {:.2f} s) to {} device(s)", args.trace,
+                 trace.samples.size(), length_s, device_count);
+  } else {
+    transport::ServerTransportConfig config;
+    config.dds.domain_id = args.domain;
+    config.dds.config_file = args.dds_config;
+    for (const DeviceSpec& d : spec.devices) {
+      transport::DeviceLimits limits;
+      limits.device_id = d.id;
+      config.devices.push_back(limits);
+    }
+    dds = std::make_unique<transport::ServerTransport>(std::move(config));
+    source = std::make_unique<TransportPointerSource>(dds.get());
+    sink = std::make_unique<TransportForceSink>(dds.get());
+    spdlog::info("serve: DDS domain {}, devices:{}", args.domain, [&] {
+      std::string ids;
+      for (const DeviceSpec& d : spec.devices) ids += " " + d.id;
+      return ids;
+    }());
+  }
+  if (duration_s && !(*duration_s > 0.0)) throw std::invalid_argument("--duration must be > 0");
+
+  // The server; the monitor publishes the status through the transport when there is one.
+  ServerOptions options;
+  options.apply_realtime = true;
+  const std::string server_id = "felt-" + std::to_string(getpid());
+  transport::ServerTransport* dds_ptr = dds.get();
+  if (dds_ptr != nullptr) {
+    options.on_report = [dds_ptr, server_id](const ServerReport& r) {
+      dds_ptr->PublishStatus(StatusOf(r, server_id));
+    };
+  }
+  Server server(std::move(spec), source.get(), sink.get(), options);
+  InstallStopHandlers();
+  spdlog::info("serve: scene {} ({} x {} cloth), {} Hz haptic, {} Hz sim{}",
+               server.spec().scene_name, server.model().width, server.model().height,
+               server.spec().haptic.haptic_rate_hz, server.spec().sim.integration.frame_rate_hz,
+               duration_s ? fmt::format(", {:.1f} s", *duration_s) : ", until SIGINT/SIGTERM");
+  server.Start();
+
+  // Wait for the end: the duration or a signal.
+  const int64_t end_ns =
+      duration_s ? MonotonicNowNs() + static_cast<int64_t>(*duration_s * 1e9) : INT64_MAX;
+  while (!g_stop_requested.load() && MonotonicNowNs() < end_ns) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const bool by_signal = g_stop_requested.load();
+  server.Stop();
+
+  // Final statistics: the realtime outcome, the whole run's lines and the JSON.
+  const std::unique_ptr<ServerReport> report = server.Report();
+  if (!report->realtime) {
+    spdlog::warn("serve: the haptic thread ran WITHOUT SCHED_FIFO ({}): stats say realtime false",
+                 report->haptic_realtime_summary);
+  }
+  if (dds_ptr != nullptr) dds_ptr->PublishStatus(StatusOf(*report, server_id));
+  std::printf("felt serve: stopped %s\n", by_signal ? "by signal" : "after the duration");
+  std::printf("final: %s\n",
+              FormatMonitorLine(report->haptic, nullptr, report->sim, nullptr).c_str());
+  std::printf("final: %s\n", Server::FormatCounters(*report).c_str());
+  std::printf("final: realtime %s (haptic: %s; sim: %s)\n", report->realtime ? "true" : "false",
+              report->haptic_realtime_summary.c_str(), report->sim_realtime_summary.c_str());
+  const std::string json = Server::ReportJson(*report);
+  if (!args.stats_json.empty()) {
+    std::ofstream out(args.stats_json);
+    out << json << "\n";
+    if (!out) throw std::runtime_error("cannot write --stats-json file '" + args.stats_json + "'");
+  }
+  std::fflush(stdout);
+  dds.reset();
+  spdlog::default_logger()->flush();
+  return 0;
+}
+
+CommandRun Setup(CLI::App& cmd) {
+  auto args = std::make_shared<ServeArgs>();
+  cmd.add_option("--scene", args->scene, "scene file (TOML)")->required();
+  cmd.add_option("--duration", args->duration_s,
+                 "run this many seconds (default: until SIGINT/SIGTERM; with --trace, the trace)");
+  cmd.add_option("--stats-json", args->stats_json, "write the final statistics as JSON here");
+  cmd.add_option("--trace", args->trace,
+                 "replay this felt-trace in-process to every device instead of DDS input");
+  cmd.add_option("--domain", args->domain, "DDS domain id (default 0)")->check(CLI::Range(0, 230));
+  cmd.add_option("--dds-config", args->dds_config,
+                 "Cyclone DDS configuration file (default: CYCLONEDDS_URI, else loopback)");
+  cmd.add_flag("--no-realtime", args->no_realtime,
+               "normal scheduling: no SCHED_FIFO, spin, pinning or mlockall");
+  return [args]() -> int { return Serve(*args); };
+}
+
+const bool kRegistered = RegisterCommand(
+    {"", "serve", "run the real-time server: 60 Hz cloth, 1 kHz haptic loop, devices over DDS",
+     Setup});
+
+}  // namespace
+}  // namespace felt::app
