@@ -1,7 +1,8 @@
 // `felt bench loops`: the lateness of a 1 kHz loop under each timing setting (issue 5, "Target").
-// The empty loop measures the machine's own floor; the server half (the 64 x 64 curtain with a
-// trace replayed in-process) runs through the same RunLoop() with the server's tick as the body
-// once the server exists, and its table sits next to this one.
+// The empty loop measures the machine's own floor; the server half then runs the real server
+// (haptic_loop/server.h: its 1 kHz haptic thread with the fifo_spin setting, its 60 Hz sim thread)
+// on the 64 x 64 curtain with a bundled trace replayed in-process (looped for the whole run), and
+// both lateness distributions are printed side by side.
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
 #include <sys/utsname.h>
@@ -22,7 +23,12 @@
 #include "haptic_loop/json_writer.h"
 #include "haptic_loop/loop_runner.h"
 #include "haptic_loop/loop_stats.h"
+#include "haptic_loop/pointer_source.h"
 #include "haptic_loop/realtime.h"
+#include "haptic_loop/server.h"
+#include "haptic_loop/server_spec.h"
+#include "recordings/trace.h"
+#include "sim_loop/scene_file.h"
 
 namespace felt::bench {
 namespace {
@@ -45,6 +51,8 @@ struct LoopResult {
 
 struct Args {
   bool empty_only = false;
+  std::string scene = "scenes/curtain.toml";
+  std::string trace = "recordings/poke_hold.trace";
   double minutes = 0.0;
   double seconds = 0.0;
   std::string json_path;
@@ -149,8 +157,9 @@ void WriteSettingJson(JsonWriter& json, std::string_view key, const LoopResult& 
 }
 
 // {"seconds_per_setting", "empty": {<the fifo_spin row as lateness_us, overruns, ticks>,
-// "settings": {normal, fifo, fifo_spin}}}; "server" will sit next to "empty".
-std::string BenchJson(const std::vector<LoopResult>& results, double seconds, const char* dma) {
+// "settings": {normal, fifo, fifo_spin}}, "server": {lateness_us, overruns, ticks, ...}}.
+std::string BenchJson(const std::vector<LoopResult>& results, double seconds, const char* dma,
+                      const ServerReport* server) {
   JsonWriter json;
   json.BeginObject();
   json.Number("seconds_per_setting", seconds);
@@ -168,14 +177,126 @@ std::string BenchJson(const std::vector<LoopResult>& results, double seconds, co
   for (const LoopResult& r : results) WriteSettingJson(json, r.setting.name, r);
   json.EndObject();
   json.EndObject();
+  if (server != nullptr) {
+    json.BeginObject("server");
+    json.String("setting", server_like.setting.name);
+    json.String("cloth", "64 x 64 curtain");
+    json.Bool("realtime", server->realtime);
+    json.Unsigned("ticks", server->haptic.ticks);
+    json.Unsigned("overruns", server->haptic.overruns);
+    json.Unsigned("skipped_periods", server->haptic.skipped_periods);
+    json.Unsigned("late_over_1ms", server->haptic.lateness.CountAtLeastNs(kLateNs));
+    WriteHistogramJson(json, "lateness_us", server->haptic.lateness, 1e3);
+    WriteHistogramJson(json, "compute_us", server->haptic.compute, 1e3);
+    WriteHistogramJson(json, "snapshot_age_us", server->haptic.snapshot_age, 1e3);
+    json.Unsigned("sim_frames", server->sim.ticks);
+    json.Unsigned("sim_overruns", server->sim.overruns);
+    WriteHistogramJson(json, "sim_frame_ms", server->sim.compute, 1e6);
+    json.Unsigned("contacts", server->contacts);
+    json.Number("peak_force_N", server->peak_force_N);
+    json.EndObject();
+  }
   json.EndObject();
   return json.str();
 }
 
+/// What the server half gave.
+struct ServerResult {
+  std::unique_ptr<ServerReport> report;
+  double seconds = 0;
+};
+
+/// The server on the 64 x 64 curtain (the scene's cloth resampled to 64 x 64 particles over the
+/// same 0.496 m) with `args.trace` looped to every device, under `setting`, for `duration_ns`.
+ServerResult RunServer(const Args& args, const TimingSetting& setting, int64_t duration_ns) {
+  ServerSpec spec = ParseServerSpec(LoadSceneDocument(args.scene));
+  const double size_m = spec.sim.cloth.spacing_m * (spec.sim.cloth.width - 1);
+  spec.sim.cloth.width = 64;
+  spec.sim.cloth.height = 64;
+  spec.sim.cloth.spacing_m = size_m / 63.0;
+  spec.haptic.haptic_realtime = setting.realtime;
+  spec.haptic.sim_realtime = setting.realtime;
+  spec.haptic.sim_realtime.fifo_priority = std::max(1, setting.realtime.fifo_priority - 10);
+  spec.haptic.sim_realtime.spin_us = 0;
+  spec.haptic.monitor_period_s = 10.0;
+  // The trace, repeated back to back for the whole run (preloaded: no I/O in the tick).
+  const Trace trace = ReadTrace(args.trace);
+  const double length_s = trace.samples.back().t_s - trace.samples.front().t_s + 1e-3;
+  std::vector<TraceSample> looped;
+  const double run_s = static_cast<double>(duration_ns) * 1e-9 + 1.0;
+  for (int k = 0; static_cast<double>(k) * length_s < run_s; ++k) {
+    for (TraceSample sample : trace.samples) {
+      sample.t_s += static_cast<double>(k) * length_s;
+      looped.push_back(sample);
+    }
+  }
+  const auto devices = static_cast<uint32_t>(spec.devices.size());
+  TracePointerSource source(std::vector<std::vector<TraceSample>>(devices, looped));
+  CapturingForceSink sink(devices);
+  ServerOptions options;
+  Server server(std::move(spec), &source, &sink, options);
+  spdlog::info("bench loops: server, {} x {} curtain, trace {}, setting {}, {:.0f} s",
+               server.model().width, server.model().height, args.trace, setting.name,
+               static_cast<double>(duration_ns) * 1e-9);
+  ServerResult result;
+  const int64_t start = MonotonicNowNs();
+  server.Start();
+  while (MonotonicNowNs() - start < duration_ns) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  server.Stop();
+  result.seconds = static_cast<double>(MonotonicNowNs() - start) * 1e-9;
+  result.report = server.Report();
+  return result;
+}
+
+// The empty loop's fifo_spin row and the server next to each other.
+void PrintSideBySide(const LoopResult& empty, const ServerResult& server) {
+  const HistogramSnapshot& a = empty.stats->lateness;
+  const HistogramSnapshot& b = server.report->haptic.lateness;
+  std::printf("\nhaptic lateness, us: empty loop vs server (64 x 64 curtain, trace), setting %s\n",
+              empty.setting.name.c_str());
+  std::printf("%-10s %12s %12s\n", "", "empty", "server");
+  std::printf("%-10s %12llu %12llu\n", "ticks", static_cast<unsigned long long>(empty.stats->ticks),
+              static_cast<unsigned long long>(server.report->haptic.ticks));
+  std::printf("%-10s %12s %12s\n", "realtime", empty.report.fifo_granted ? "yes" : "no",
+              server.report->realtime ? "yes" : "no");
+  const double qs[] = {0.5, 0.99, 0.999};
+  const char* names[] = {"p50", "p99", "p99.9"};
+  for (int i = 0; i < 3; ++i) {
+    std::printf("%-10s %12s %12s\n", names[i], Us(a.PercentileNs(qs[i])).c_str(),
+                Us(b.PercentileNs(qs[i])).c_str());
+  }
+  std::printf("%-10s %12s %12s\n", "max", Us(a.max_ns).c_str(), Us(b.max_ns).c_str());
+  std::printf("%-10s %12llu %12llu\n", "overruns",
+              static_cast<unsigned long long>(empty.stats->overruns),
+              static_cast<unsigned long long>(server.report->haptic.overruns));
+  std::printf("%-10s %12llu %12llu\n", ">1ms",
+              static_cast<unsigned long long>(a.CountAtLeastNs(kLateNs)),
+              static_cast<unsigned long long>(b.CountAtLeastNs(kLateNs)));
+  const HistogramSnapshot& frame = server.report->sim.compute;
+  std::printf(
+      "server: compute p50 %s us p99 %s us; sim frame p50 %.2f ms p99 %.2f ms max %.2f ms, "
+      "%llu frames, %llu overruns; contacts %llu, peak force %.2f N\n",
+      Us(server.report->haptic.compute.PercentileNs(0.5)).c_str(),
+      Us(server.report->haptic.compute.PercentileNs(0.99)).c_str(),
+      static_cast<double>(frame.PercentileNs(0.5)) / 1e6,
+      static_cast<double>(frame.PercentileNs(0.99)) / 1e6, static_cast<double>(frame.max_ns) / 1e6,
+      static_cast<unsigned long long>(server.report->sim.ticks),
+      static_cast<unsigned long long>(server.report->sim.overruns),
+      static_cast<unsigned long long>(server.report->contacts), server.report->peak_force_N);
+  std::printf("server realtime: haptic %s; sim %s\n",
+              server.report->haptic_realtime_summary.c_str(),
+              server.report->sim_realtime_summary.c_str());
+  std::fflush(stdout);
+}
+
 app::CommandRun Setup(CLI::App& cmd) {
   auto args = std::make_shared<Args>();
-  cmd.add_flag("--empty-only", args->empty_only,
-               "run only the empty loop (the server half needs `felt serve`, issue 5)");
+  cmd.add_flag("--empty-only", args->empty_only, "run only the empty loop");
+  cmd.add_option("--scene", args->scene, "scene of the server half (default scenes/curtain.toml)");
+  cmd.add_option("--trace", args->trace,
+                 "trace replayed (looped) in the server half (default recordings/poke_hold.trace)");
   auto* minutes = cmd.add_option("--minutes", args->minutes, "minutes per setting");
   cmd.add_option("--seconds", args->seconds, "seconds per setting (default 30)")->excludes(minutes);
   cmd.add_option("--json", args->json_path, "write the results as JSON to this file");
@@ -187,11 +308,6 @@ app::CommandRun Setup(CLI::App& cmd) {
   cmd.add_flag("--hold-dma-latency", args->hold_dma_latency,
                "hold /dev/cpu_dma_latency at 0 during the runs");
   return [args]() -> int {
-    if (!args->empty_only) {
-      throw std::invalid_argument(
-          "the server half of `felt bench loops` needs the server (issue 5), which is not in "
-          "this build yet; pass --empty-only for the empty loop");
-    }
     const double seconds = args->minutes > 0.0   ? args->minutes * 60.0
                            : args->seconds > 0.0 ? args->seconds
                                                  : 30.0;
@@ -209,9 +325,14 @@ app::CommandRun Setup(CLI::App& cmd) {
     }
     const char* dma_text = dma == nullptr ? "not requested" : dma->held() ? "yes" : "refused";
     PrintTable(results, seconds, dma_text);
+    ServerResult server;
+    if (!args->empty_only) {
+      server = RunServer(*args, results.back().setting, duration_ns);
+      PrintSideBySide(results.back(), server);
+    }
     if (!args->json_path.empty()) {
       std::ofstream out(args->json_path);
-      out << BenchJson(results, seconds, dma_text);
+      out << BenchJson(results, seconds, dma_text, server.report.get());
       if (!out) throw std::runtime_error("cannot write --json file '" + args->json_path + "'");
     }
     return 0;
