@@ -31,18 +31,19 @@ bool AllFinite(const ClothState& s) {
 }
 
 TEST(ClothStepTest, ProvotHoldsTheStretchLimitAfterEveryFrame) {
-  // Two-corner curtains, released hanging and released horizontal (the harder case). The limit
-  // is checked after every frame of the first half second, which holds the release transient.
+  // Two-corner curtains, released hanging and released horizontal (the harder case), on the
+  // grids of issue 2's hard case. The limit is checked after every frame of the first 12, which
+  // hold the release transient: the stretch peaks at frames 6-8 on every grid, then settles.
   // 40 sweeps: the default 10 let the transient reach about 1.15 (see ProvotSpec::iterations).
-  for (int32_t grid : {10, 20, 32, 64}) {
+  for (int32_t grid : {10, 20, 30, 40, 50, 64}) {
     for (bool horizontal : {false, true}) {
-      if (grid == 64 && horizontal) continue;  // the slowest case adds nothing the others miss
+      if (grid >= 40 && horizontal) continue;  // the slowest cases add nothing the others miss
       SimSpec spec = horizontal ? HorizontalCurtain(grid) : Curtain(grid);
       spec.provot.iterations = 40;
       const ClothModel model = BuildClothModel(spec);
       ClothState state = MakeClothState(model);
       double worst = 0.0;
-      for (int f = 0; f < (grid == 64 ? 20 : 30); ++f) {
+      for (int f = 0; f < 12; ++f) {
         StepFrame(model, {}, kFrame_s, &state);
         worst = std::max(worst, MaxStretch(model, state));
       }
@@ -202,13 +203,18 @@ TEST(ClothStepTest, StiffSpringsAtLargeDtWithAutoSubstepsStayBounded) {
 TEST(ClothStepTest, FastClothDoesNotPassThroughThinObstacles) {
   // A cloth thrown down at 20 m/s onto a 4 mm board and onto a small sphere: at 60 Hz a particle
   // travels 8 substep lengths of the board's thickness per frame.
+  // A particle that tunnels through in one substep ends outside the obstacle, where the distance
+  // check cannot see it; the impact frame's check of the middle particle can: it must be on top.
   struct Case {
     ObstacleSpec obstacle;
-    double top_y;  // no particle may end below this inside the obstacle's footprint
+    double top_y;       // the obstacle's top surface under the middle particle
+    bool cloth_stays;   // the obstacle is wider than the cloth, so the cloth stays on it
   };
   const Case cases[] = {
-      {{BoxSpec{Vec3(-0.4, -0.004, -0.4), Vec3(0.4, 0.0, 0.4)}, 0.3, 0.002}, 0.0},
-      {{SphereSpec{Vec3(0.0, -0.1, 0.0), 0.1}, 0.5, 0.002}, -0.1},
+      {{BoxSpec{Vec3(-0.4, -0.004, -0.4), Vec3(0.4, 0.0, 0.4)}, 0.3, 0.002}, 0.0, true},
+      // The sphere is smaller than the cloth: the edges fall on past it at 20 m/s and drag the
+      // middle off its top (Provot's constraints carry their momentum), so only the impact counts.
+      {{SphereSpec{Vec3(0.0, -0.1, 0.0), 0.1}, 0.5, 0.002}, 0.0, false},
   };
   for (const Case& c : cases) {
     SimSpec spec;
@@ -229,9 +235,10 @@ TEST(ClothStepTest, FastClothDoesNotPassThroughThinObstacles) {
         ASSERT_GE(ObstacleDistance(c.obstacle, state.x[p], &normal), 0.0)
             << "frame " << f << " particle " << p;
       }
-      // After the impact (0.02 s) the middle of the cloth rests on top, not under it.
-      if (f == 10) {
-        EXPECT_GT(state.x[GridIndex(16, 8, 8)].y(), c.top_y - 0.01);
+      // The impact (t = 0.015 s) is in frame 0: the middle of the cloth ends it on top, not under
+      // (a tunnelled particle would be 0.03 m below); on the board it is still there at frame 10.
+      if (f == 0 || (f == 10 && c.cloth_stays)) {
+        EXPECT_GT(state.x[GridIndex(16, 8, 8)].y(), c.top_y - 0.01) << "frame " << f;
       }
     }
   }
