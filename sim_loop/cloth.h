@@ -49,10 +49,23 @@ struct PinAttachment {
 /// A point force the haptic side puts on the cloth for the next frame (two-way coupling): applied
 /// at the point with barycentric weights `barycentric` in triangle `triangle`, split over its three
 /// particles by those weights. World frame, newtons.
+///
+/// With stiffness_N_per_m > 0 it is instead a unilateral contact spring to the user's hand,
+/// evaluated at every force evaluation of the step (every substep and integrator stage) at the
+/// positions being evaluated (virtual coupling, Colgate, Stanley & Brown 1995, on the god-object
+/// contact of Ruspini, Kolarov & Khatib 1997): p = the barycentric point, depth = max(0, (p -
+/// anchor_m) . normal), F = -normal min(max_force_N, k_eff depth), split by the barycentric
+/// weights (pinned particles get nothing); force_N is then not applied. k_eff = min(k, the
+/// largest stiffness the integrator is stable with at its substep; see ClothCounters::
+/// coupling_reduced_frames). At most 16 springs per frame (more are counted and dropped).
 struct ExternalForce {
   int32_t triangle = 0;
   Vec3 barycentric = Vec3(1.0 / 3, 1.0 / 3, 1.0 / 3);  ///< non-negative, sums to 1
-  Vec3 force_N = Vec3::Zero();
+  Vec3 force_N = Vec3::Zero();     ///< applied force; for a spring: the haptic side's average, info
+  double stiffness_N_per_m = 0.0;  ///< contact spring k, world; 0: a plain force
+  Vec3 anchor_m = Vec3::Zero();    ///< spring: the user's hand (device goal), world, m
+  Vec3 normal = Vec3::UnitZ();     ///< spring: unit, from the cloth toward the proxy's side
+  double max_force_N = 0.0;        ///< spring: force clamp (the device's, mapped to world), N
 };
 
 /// The validated, immutable cloth: shared read-only by every thread.
@@ -94,6 +107,9 @@ struct ClothCounters {
   uint64_t clamped_frames = 0;    ///< frames whose dt was clamped to max_frame_dt_s
   uint64_t cg_not_converged = 0;  ///< implicit Euler solves that hit the iteration cap
   uint64_t invalid_external_forces = 0;  ///< ExternalForce entries ignored (bad triangle/values)
+  uint64_t coupling_reduced_frames = 0;  ///< frames where a contact spring's k was lowered to the
+                                         ///< integrator's stable bound (k_eff < k)
+  uint64_t coupling_overflows = 0;       ///< contact springs dropped: more than 16 in a frame
 };
 
 /// Everything that changes while stepping, sized once by MakeClothState.

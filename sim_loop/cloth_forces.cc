@@ -65,6 +65,8 @@ void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std:
   // External forces and viscous drag F = -c v (001 §6.1).
   for (int32_t p = 0; p < n; ++p) force[p] = ext[p] - drag * v[p];
   AddSpringForces(model, x, v, scratch->force_N);
+  // Haptic contact springs at these positions (sim_loop/cloth_coupling.h).
+  AddCouplingForces(scratch->coupling, x, 1.0, force->data());
   // a = g + F / m for free particles; pinned particles (inv_mass 0) do not accelerate.
   const Vec3 g = model.spec.cloth.gravity_m_per_s2;
   const double* inv_mass = model.inv_mass_per_kg.data();

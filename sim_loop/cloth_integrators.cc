@@ -197,6 +197,8 @@ bool ImplicitEuler(const ClothModel& model, double h, ClothState* st) {
     const Vec3 f = free ? Vec3(s.external_N[p] + m * g - drag * st->v[p]) : Vec3(Vec3::Zero());
     s.b.segment<3>(3 * p) = h * f;
   }
+  // Haptic contact springs, explicit (bounded by MaxCouplingStiffness; no pinned share).
+  AddCouplingForces(s.coupling, st->x, h, s.b.data());
   // Springs: forces into b, Jacobian blocks into A, h^2 df/dx v into b.
   const Eigen::Matrix3d eye = Eigen::Matrix3d::Identity();
   for (size_t k = 0; k < model.springs.size(); ++k) {

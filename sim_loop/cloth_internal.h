@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "sim_loop/cloth.h"
+#include "sim_loop/cloth_coupling.h"
 
 namespace felt {
 
@@ -24,6 +25,7 @@ struct ClothState::Scratch {
   std::vector<Vec3> kx_sum;      ///< RK4: weighted sum of position slopes
   std::vector<Vec3> kv_sum;      ///< RK4: weighted sum of velocity slopes
   std::vector<Vec3> x_start;     ///< positions at the start of the substep (obstacle sweeps)
+  CouplingSprings coupling;      ///< contact springs of this frame (fixed capacity)
 
   // Integrator history (leapfrog, basic Verlet), [n] each.
   bool history_valid = false;  ///< false: restart from x, v at the next substep

@@ -16,11 +16,17 @@ void GatherExternalForces(const ClothModel& model, std::span<const ExternalForce
                           ClothState* state) {
   std::vector<Vec3>& out = state->scratch->external_N;
   std::fill(out.begin(), out.end(), Vec3::Zero());
+  BeginCouplingFrame(&state->scratch->coupling);
   const int32_t num_triangles = static_cast<int32_t>(model.triangles.size());
   for (const ExternalForce& e : external) {
     if (e.triangle < 0 || e.triangle >= num_triangles || !e.force_N.allFinite() ||
         !e.barycentric.allFinite()) {
       ++state->counters.invalid_external_forces;
+      continue;
+    }
+    // Contact springs are evaluated at every force evaluation (sim_loop/cloth_coupling.h).
+    if (e.stiffness_N_per_m > 0.0) {
+      AddCouplingSpring(model, e, state);
       continue;
     }
     const Triangle& t = model.triangles[e.triangle];

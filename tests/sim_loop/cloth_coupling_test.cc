@@ -1,0 +1,184 @@
+// Contact springs of the haptic coupling inside StepFrame (sim_loop/cloth_coupling.h; virtual
+// coupling after Colgate, Stanley & Brown 1995): force balance at rest, the stability bound,
+// release past the anchor, no allocation.
+#include "sim_loop/cloth_coupling.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "haptic_loop/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in collision_alloc_test.cc
+#include "sim_loop/cloth.h"
+#include "tests/sim_loop/cloth_test_util.h"
+
+namespace felt {
+namespace {
+
+constexpr double kFrame_s = 1.0 / 60.0;
+constexpr IntegratorKind kIntegrators[] = {IntegratorKind::kLeapfrogVerlet,
+                                           IntegratorKind::kSymplecticEuler,
+                                           IntegratorKind::kRk4,
+                                           IntegratorKind::kBasicVerlet,
+                                           IntegratorKind::kVelocityVerlet,
+                                           IntegratorKind::kImplicitEuler};
+
+PinSpec Edge(const char* name) {
+  PinSpec pin;
+  pin.kind = PinKind::kEdge;
+  pin.name = name;
+  return pin;
+}
+
+// An 11 x 11 sheet 0.5 m wide lying in the x-z plane (normal +y), all four edges pinned, no
+// gravity, with drag damping every mode at about 2 / s (a flat membrane is soft out of plane:
+// heavier drag only slows its creep to equilibrium).
+ClothModel FlatSheet(IntegratorKind kind) {
+  SimSpec spec = cloth_test::HorizontalCurtain(11);
+  spec.cloth.pins = {Edge("top"), Edge("bottom"), Edge("left"), Edge("right")};
+  spec.cloth.gravity_m_per_s2 = Vec3::Zero();
+  spec.provot.enabled = false;  // forces only: the equilibrium is one of forces
+  spec.integration.integrator = kind;
+  const double mass = BuildClothModel(spec).particle_mass_kg;
+  spec.cloth.drag_N_s_per_m = 2.0 * mass;
+  return BuildClothModel(spec);
+}
+
+// The triangle whose first corner is the sheet's centre particle.
+int32_t CentreTriangle(const ClothModel& model) {
+  const int32_t centre = GridIndex(model.width, model.width / 2, model.height / 2);
+  for (size_t t = 0; t < model.triangles.size(); ++t) {
+    if (model.triangles[t][0] == centre) return static_cast<int32_t>(t);
+  }
+  return -1;
+}
+
+// A contact spring pressing down (-y) on the centroid of `triangle`, its anchor `depth_m` below
+// the cloth's rest place.
+ExternalForce Press(const ClothModel& model, int32_t triangle, double depth_m, double k) {
+  ExternalForce e;
+  e.triangle = triangle;
+  const Triangle& t = model.triangles[triangle];
+  const Vec3 p =
+      (model.rest_position_m[t[0]] + model.rest_position_m[t[1]] + model.rest_position_m[t[2]]) /
+      3.0;
+  e.normal = Vec3::UnitY();
+  e.anchor_m = p - depth_m * Vec3::UnitY();
+  e.stiffness_N_per_m = k;
+  e.max_force_N = 10.0;
+  return e;
+}
+
+Vec3 Centroid(const ClothModel& model, const ClothState& state, int32_t triangle) {
+  const Triangle& t = model.triangles[triangle];
+  return (state.x[t[0]] + state.x[t[1]] + state.x[t[2]]) / 3.0;
+}
+
+TEST(ClothCouplingTest, SpringPushesTheSheetToWhereItsForceBalancesTheCloth) {
+  for (IntegratorKind kind : kIntegrators) {
+    const ClothModel model = FlatSheet(kind);
+    ClothState state = MakeClothState(model);
+    const int32_t tri = CentreTriangle(model);
+    ASSERT_GE(tri, 0);
+    const double k = 5.0;
+    const ExternalForce press[1] = {Press(model, tri, 0.02, k)};
+    for (int f = 0; f < 1800; ++f) StepFrame(model, press, kFrame_s, &state);
+    EXPECT_EQ(state.counters.nan_events, 0u);
+    EXPECT_EQ(state.counters.coupling_reduced_frames, 0u) << "k = 5 N/m is far below the bound";
+    // Between rest and the anchor: the spring is compressed and the cloth pushes back.
+    const double depth = (Centroid(model, state, tri) - press[0].anchor_m).dot(Vec3::UnitY());
+    EXPECT_GT(depth, 1e-6);
+    EXPECT_LT(depth, 0.02);
+    // At rest the cloth's spring forces on the free particles balance the contact force k depth.
+    std::vector<Vec3> f(state.x.size(), Vec3::Zero());
+    std::vector<Vec3> zero_v(state.x.size(), Vec3::Zero());
+    AddSpringForces(model, state.x, zero_v, f);
+    Vec3 cloth = Vec3::Zero();
+    double speed = 0.0;
+    for (size_t p = 0; p < f.size(); ++p) {
+      if (model.inv_mass_per_kg[p] == 0.0) continue;
+      cloth += f[p];
+      speed = std::max(speed, state.v[p].norm());
+    }
+    const Vec3 contact = -k * depth * Vec3::UnitY();
+    EXPECT_LT((cloth + contact).norm(), 1e-2 * contact.norm()) << static_cast<int>(kind);
+    EXPECT_LT(speed, 1e-5) << static_cast<int>(kind);
+  }
+}
+
+TEST(ClothCouplingTest, LargeStiffnessIsBoundedCountedAndStable) {
+  for (IntegratorKind kind : kIntegrators) {
+    const ClothModel model = FlatSheet(kind);
+    ClothState state = MakeClothState(model);
+    const int32_t tri = CentreTriangle(model);
+    const double k_max = MaxCouplingStiffness(model, 1.0 / 3.0);
+    ASSERT_TRUE(std::isfinite(k_max) && k_max > 0.0);
+    ExternalForce press[1] = {Press(model, tri, 0.02, 1e4 * k_max)};
+    ExternalForce bound[1] = {Press(model, tri, 0.02, k_max)};
+    press[0].max_force_N = bound[0].max_force_N = 0.05;  // a hand's force on 3 light particles
+    ClothState at_bound = MakeClothState(model);
+    for (int f = 0; f < 900; ++f) {
+      StepFrame(model, press, kFrame_s, &state);
+      StepFrame(model, bound, kFrame_s, &at_bound);
+    }
+    double speed = 0.0;
+    for (const Vec3& v : state.v) speed = std::max(speed, v.norm());
+    EXPECT_EQ(state.counters.nan_events, 0u) << static_cast<int>(kind);
+    EXPECT_EQ(state.counters.coupling_reduced_frames, 900u) << static_cast<int>(kind);
+    EXPECT_EQ(at_bound.counters.coupling_reduced_frames, 0u) << static_cast<int>(kind);
+    // k was replaced by the bound: the very same motion as a spring of k_max.
+    EXPECT_EQ(std::memcmp(state.x.data(), at_bound.x.data(), state.x.size() * sizeof(Vec3)), 0)
+        << static_cast<int>(kind);
+    // Bounded, no blow-up: near the anchor, slow. (At the bound, with this light drag, the
+    // unilateral contact keeps ringing at a few cm/s: it is stable, not yet at rest.)
+    const double depth = (Centroid(model, state, tri) - press[0].anchor_m).dot(Vec3::UnitY());
+    EXPECT_LT(std::abs(depth), 0.01) << static_cast<int>(kind);
+    EXPECT_LT(speed, 0.1) << static_cast<int>(kind);
+  }
+}
+
+TEST(ClothCouplingTest, ReleasesOnceTheClothIsPastTheAnchor) {
+  for (IntegratorKind kind : kIntegrators) {
+    const ClothModel model = FlatSheet(kind);
+    const int32_t tri = CentreTriangle(model);
+    // The hand is above the cloth (anchor on the proxy's side): no force, and force_N (the
+    // haptic side's average, information only) is not applied either.
+    ExternalForce lifted = Press(model, tri, -0.1, 50.0);
+    lifted.force_N = Vec3(0.0, -1.0, 0.0);
+    const ExternalForce springs[1] = {lifted};
+    ClothState touched = MakeClothState(model);
+    ClothState untouched = MakeClothState(model);
+    // Start both moving so the cloth swings through its rest place (never up to the hand).
+    for (size_t p = 0; p < touched.v.size(); ++p) {
+      if (model.inv_mass_per_kg[p] > 0.0) touched.v[p] = untouched.v[p] = Vec3(0.0, -0.05, 0.0);
+    }
+    for (int f = 0; f < 60; ++f) {
+      StepFrame(model, springs, kFrame_s, &touched);
+      StepFrame(model, {}, kFrame_s, &untouched);
+    }
+    EXPECT_EQ(std::memcmp(touched.x.data(), untouched.x.data(), touched.x.size() * sizeof(Vec3)), 0)
+        << static_cast<int>(kind);
+  }
+}
+
+TEST(ClothCouplingTest, StepFrameWithSpringsDoesNotAllocateAndCountsOverflow) {
+  for (IntegratorKind kind : kIntegrators) {
+    const ClothModel model = FlatSheet(kind);
+    ClothState state = MakeClothState(model);
+    std::vector<ExternalForce> springs;
+    for (int32_t i = 0; i < kMaxCouplingSprings + 4; ++i) {
+      springs.push_back(Press(model, 2 * (i + 20), 0.005, 10.0));
+    }
+    StepFrame(model, springs, kFrame_s, &state);  // warm-up outside the guard
+    AllocationGuard guard;
+    for (int f = 0; f < 20; ++f) StepFrame(model, springs, kFrame_s * (f % 3 + 1), &state);
+    EXPECT_EQ(guard.allocations(), 0u) << static_cast<int>(kind);
+    EXPECT_EQ(state.counters.coupling_overflows, 21u * 4u) << static_cast<int>(kind);
+    EXPECT_EQ(state.counters.nan_events, 0u) << static_cast<int>(kind);
+  }
+}
+
+}  // namespace
+}  // namespace felt
