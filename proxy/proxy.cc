@@ -502,6 +502,20 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   add_reaction(state->body, f_main_D, w_main);
   if (mode == SnapshotMode::kBlendForces) add_reaction(state->body_prev, f_prev_D, w_prev);
   state->reaction.AddTime(tick_dt_s);
+  // The contact of this tick as a spring the sim evaluates at its substep rate (virtual coupling,
+  // Colgate, Stanley & Brown 1995). The device spring F_D = k (proxy_D - device_D) is, in the
+  // world, F_W = (k / scale^2) (proxy_W - goal_W) (proxy_spec.h); the anchor sits one proxy radius
+  // below the goal along the normal, so the spring's depth (p - anchor) . n is the proxy's
+  // (proxy - goal) . n when the proxy touches the cloth point p: at rest the cloth gets -F_W.
+  if (state->body.num_contacts > 0) {
+    const ProxyContact& c = state->body.contacts[0];
+    state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
+                                     goal - opts.radius_m * c.normal_W,
+                                     device.stiffness_N_per_m / (device.scale * device.scale),
+                                     device.max_force_N / device.scale);
+  } else {
+    state->reaction.ClearContactSpring();
+  }
 
   // Book-keeping for the next tick.
   out.proxy_W_m = proxy_W;

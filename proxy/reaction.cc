@@ -36,9 +36,26 @@ void ReactionAccumulator::AddForce(int32_t triangle, const Triangle& corners,
   }
 }
 
+void ReactionAccumulator::SetContactSpring(int32_t triangle, const Vec3& barycentric,
+                                           const Vec3& normal_W, const Vec3& anchor_W_m,
+                                           double stiffness_N_per_m, double max_force_N) {
+  spring_.triangle = triangle;
+  spring_.barycentric = barycentric;
+  spring_.normal = normal_W;
+  spring_.anchor_m = anchor_W_m;
+  spring_.stiffness_N_per_m = stiffness_N_per_m;
+  spring_.max_force_N = max_force_N;
+  has_spring_ = true;
+}
+
 int32_t ReactionAccumulator::DrainInto(std::span<ExternalForce> out) {
   int32_t written = 0;
-  if (time_s_ > 0.0 && !out.empty()) {
+  if (has_spring_ && time_s_ > 0.0 && !out.empty()) {
+    // Held contact: the sim evaluates the spring at its substep rate (Colgate et al. 1995).
+    out[0] = spring_;
+    out[0].force_N = TotalImpulse() / time_s_;
+    written = 1;
+  } else if (time_s_ > 0.0 && !out.empty()) {
     // Impulse / time: the time average over the ticks of the frame.
     const double inv_t = 1.0 / time_s_;
     for (int32_t e = 0; e < size_; ++e) {
@@ -74,6 +91,7 @@ Vec3 ReactionAccumulator::TotalImpulse() const {
 void ReactionAccumulator::Clear() {
   size_ = 0;
   time_s_ = 0.0;
+  has_spring_ = false;
 }
 
 }  // namespace felt

@@ -7,6 +7,14 @@
 // Each contact force is split over its triangle's three particles by the barycentric weights and
 // summed per particle, so the accumulator stays small (one entry per touched particle), exact in
 // total force, and exact in where each particle's share lands.
+//
+// A force sampled once per frame and held is unstable for a held contact: the contact stiffness
+// (device k / scale^2) on the light particles has omega dt ~ 6 at 60 Hz, far past the zero-order
+// hold's limit. So while the proxy is in contact at the frame's last tick, the drain emits the
+// contact itself instead: a unilateral spring from the contact point to the user's hand that the
+// sim evaluates at its substep rate (virtual coupling, Colgate, Stanley & Brown 1995, on the
+// god-object contact of Ruspini, Kolarov & Khatib 1997; ExternalForce::stiffness_N_per_m). Brief
+// contacts that end within the frame (swipes) still get the time-averaged impulse.
 
 #include <cstdint>
 #include <span>
@@ -32,15 +40,30 @@ class ReactionAccumulator {
   void AddForce(int32_t triangle, const Triangle& corners, const Vec3& barycentric,
                 const Vec3& force_W_N, double dt_s);
 
+  /// Records the proxy's contact at this tick as the frame's contact spring (replacing the one of
+  /// an earlier tick): triangle, barycentric point, unit normal from the cloth toward the proxy
+  /// [world], anchor [m, world: where the contact point sits when the proxy is at the user's
+  /// hand], stiffness [N/m, world] and force clamp [N, world]. Real-time safe.
+  void SetContactSpring(int32_t triangle, const Vec3& barycentric, const Vec3& normal_W,
+                        const Vec3& anchor_W_m, double stiffness_N_per_m, double max_force_N);
+
+  /// No contact at this tick: the drain falls back to the averaged impulses. Real-time safe.
+  void ClearContactSpring() { has_spring_ = false; }
+
+  /// True if the last tick recorded a contact spring.
+  bool has_contact_spring() const { return has_spring_; }
+
   /// Adds dt_s [s] of elapsed time (every tick calls it once, in contact or not), the time the
   /// impulses are averaged over. Real-time safe.
   void AddTime(double dt_s) { time_s_ += dt_s; }
 
-  /// Writes the time-averaged forces (impulse / accumulated time) as ExternalForces, one per
-  /// touched particle (its triangle with a unit barycentric weight on it), into `out`, then
-  /// clears the accumulator. Returns the number written; entries that do not fit are merged into
-  /// the last written one's force (total kept). Returns 0 when no time has accumulated.
-  /// Real-time safe.
+  /// Writes the frame's reaction into `out`, then clears the accumulator (the contact spring
+  /// included). With a contact spring (the last tick was in contact): one ExternalForce carrying
+  /// the spring (stiffness_N_per_m > 0), whose force_N holds the frame's time-averaged total
+  /// reaction for information. Otherwise the time-averaged forces (impulse / accumulated time),
+  /// one per touched particle (its triangle with a unit barycentric weight on it); entries that
+  /// do not fit are merged into the last written one's force (total kept). Returns the number
+  /// written; 0 when no time has accumulated. Real-time safe.
   int32_t DrainInto(std::span<ExternalForce> out);
 
   /// DrainInto a new vector. Allocates (for the sim side or tests).
@@ -65,6 +88,8 @@ class ReactionAccumulator {
     Vec3 impulse_N_s = Vec3::Zero();
   };
   std::vector<Entry> entries_;  // [capacity]
+  ExternalForce spring_;        // the contact spring of the last tick in contact
+  bool has_spring_ = false;
   int32_t size_ = 0;
   double time_s_ = 0.0;
   uint64_t overflows_ = 0;

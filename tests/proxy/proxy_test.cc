@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -343,17 +344,64 @@ TEST(ProxyTest, ReactionOnTheClothIsEqualAndOppositeOverAFrame) {
 }
 
 TEST(ProxyTest, ForceHeldForAWholeFrameIsAppliedAtFullStrength) {
+  // A contact held to the frame's end is drained as the contact spring the sim evaluates at its
+  // substep rate (virtual coupling, Colgate, Stanley & Brown 1995): action = reaction now holds
+  // in the spring's force at the cloth the proxy touches, k_W (p - anchor) . n = -F_W (the sim
+  // applies it as long as its stability bound leaves k_eff == k), and force_N still carries the
+  // frame's time average of -F_W.
+  const ClothSnapshot s = Snap(FlatSheet());
+  DeviceSpec d = UnitDevice(0.004);
+  d.scale = 2.0;  // the spring is in world units: k / scale^2, clamp / scale
+  d.max_force_N = 3.0;
+  ProxyState st = MakeProxyState(Spec());
+  for (double z = 0.04; z >= -0.012; z -= 0.002) TickAt(d, Spec(), s, Vec3(0.0, 0.0, z), &st);
+  st.reaction.Clear();
+  ProxyTickResult r;
+  for (int k = 0; k < 17; ++k) r = TickAt(d, Spec(), s, Vec3(0.0, 0.0, -0.012), &st);
+  ASSERT_GT(r.num_contacts, 0);
+  const std::vector<ExternalForce> forces = st.reaction.Drain();
+  ASSERT_EQ(forces.size(), 1u);
+  const ExternalForce& e = forces[0];
+  EXPECT_NEAR((e.force_N + r.force_W_N).norm(), 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(e.stiffness_N_per_m, d.stiffness_N_per_m / 4.0);
+  EXPECT_DOUBLE_EQ(e.max_force_N, d.max_force_N / 2.0);
+  EXPECT_NEAR((e.normal - Vec3::UnitZ()).norm(), 0.0, 1e-12);
+  // The spring at the touched point of the (unmoved) cloth equals the reaction.
+  const Triangle& t = (*s.triangles)[e.triangle];
+  const TestMesh mesh = FlatSheet();
+  const Vec3 p = e.barycentric[0] * mesh.x[t[0]] + e.barycentric[1] * mesh.x[t[1]] +
+                 e.barycentric[2] * mesh.x[t[2]];
+  const double depth = std::max(0.0, (p - e.anchor_m).dot(e.normal));
+  const Vec3 spring = -e.normal * std::min(e.max_force_N, e.stiffness_N_per_m * depth);
+  EXPECT_GT(spring.norm(), 0.1);
+  EXPECT_NEAR((spring + r.force_W_N).norm(), 0.0, 1e-9);
+}
+
+TEST(ProxyTest, ContactEndedWithinTheFrameDrainsTheAveragedImpulse) {
+  // A swipe that leaves the cloth before the frame ends: no spring, the time average as before.
   const ClothSnapshot s = Snap(FlatSheet());
   const DeviceSpec d = UnitDevice(0.004);
   ProxyState st = MakeProxyState(Spec());
-  for (double z = 0.02; z >= -0.006; z -= 0.001) TickAt(d, Spec(), s, Vec3(0.0, 0.0, z), &st);
+  TickAt(d, Spec(), s, Vec3(0.0, 0.0, 0.02), &st);
   st.reaction.Clear();
-  ProxyTickResult r;
-  for (int k = 0; k < 17; ++k) r = TickAt(d, Spec(), s, Vec3(0.0, 0.0, -0.006), &st);
+  Vec3 sum_W = Vec3::Zero();
+  int ticks = 0;
+  for (double z = 0.0; z >= -0.006; z -= 0.001, ++ticks) {
+    sum_W += TickAt(d, Spec(), s, Vec3(0.0, 0.0, z), &st).force_W_N;
+  }
+  for (double z = -0.006; z <= 0.02; z += 0.002, ++ticks) {
+    sum_W += TickAt(d, Spec(), s, Vec3(0.0, 0.0, z), &st).force_W_N;
+  }
+  EXPECT_FALSE(st.reaction.has_contact_spring());
   const std::vector<ExternalForce> forces = st.reaction.Drain();
+  ASSERT_FALSE(forces.empty());
   Vec3 applied = Vec3::Zero();
-  for (const ExternalForce& f : forces) applied += f.force_N;
-  EXPECT_NEAR((applied + r.force_W_N).norm(), 0.0, 1e-12);
+  for (const ExternalForce& f : forces) {
+    EXPECT_EQ(f.stiffness_N_per_m, 0.0);
+    applied += f.force_N;
+  }
+  EXPECT_GT(sum_W.norm(), 0.1);
+  EXPECT_NEAR((applied + sum_W / ticks).norm(), 0.0, 1e-12);
 }
 
 // A scripted run over moving cloth in `mode` (snapshots prebuilt), returning every force.
