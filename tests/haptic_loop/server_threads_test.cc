@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdlib>
 #include <memory>
 #include <string>
 #include <thread>
@@ -76,9 +77,18 @@ TEST(ServerThreads, RatesStatsAndHandoffsOverOneSecond) {
 
   const std::unique_ptr<ServerReport> r = server.Report();
   const double seconds = static_cast<double>(MonotonicNowNs() - start) * 1e-9;
-  // Rates within loose bounds (the loops start one period after Start()).
-  EXPECT_NEAR(static_cast<double>(r->haptic.ticks), 1000.0 * seconds, 150.0 * seconds);
-  EXPECT_NEAR(static_cast<double>(r->sim.ticks), 60.0 * seconds, 9.0 * seconds);
+  // Rates within loose bounds (the loops start one period after Start()). Never more than the
+  // nominal rate (missed periods are skipped, not bunched); under a sanitizer (make test-asan /
+  // test-tsan set FELT_SANITIZER) a tick or frame can outlast its period, so fewer are allowed.
+  const bool sanitized = std::getenv("FELT_SANITIZER") != nullptr;
+  const double haptic_min = sanitized ? 0.5 : 0.85;
+  const double sim_min = sanitized ? 0.25 : 0.85;
+  const double haptic_ticks = static_cast<double>(r->haptic.ticks);
+  const double sim_frames = static_cast<double>(r->sim.ticks);
+  EXPECT_GE(haptic_ticks, haptic_min * 1000.0 * seconds);
+  EXPECT_LE(haptic_ticks, 1.15 * 1000.0 * seconds);
+  EXPECT_GE(sim_frames, sim_min * 60.0 * seconds);
+  EXPECT_LE(sim_frames, 1.15 * 60.0 * seconds);
   // Stats correctness: the loop recorded exactly the ticks the body ran; every tick of a device
   // with input pushed one force; the sim published the frames it counted.
   EXPECT_EQ(r->body_ticks, r->haptic.ticks);
