@@ -66,7 +66,7 @@ test-tsan: deps
 	cmake -S . -B $(BUILD)-tsan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=thread \
 	  "-DFELT_TEST_MODULES=haptic_loop;transport" $(CMAKE_FLAGS)
 	cmake --build $(BUILD)-tsan -j $(JOBS) --target felt_haptic_loop_tests felt_transport_tests
-	cd $(BUILD)-tsan && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1" \
+	cd $(BUILD)-tsan && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$(CURDIR)/tests/transport/tsan.supp" \
 	  FELT_SANITIZER=thread ctest --output-on-failure -j $(JOBS)
 
 clean:
