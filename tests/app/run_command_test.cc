@@ -11,29 +11,14 @@
 #include <sstream>
 #include <string>
 
+#include "tests/app/felt_process.h"
+
 namespace {
 
-const std::string kFelt = std::string(FELT_BINARY_DIR) + "/felt";
+using felt::test::kFelt;
+using felt::test::Outcome;
+using felt::test::RunFelt;
 const std::string kScenes = std::string(FELT_SOURCE_DIR) + "/scenes";
-
-struct Outcome {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-// Runs `felt <args>` through the shell and collects its exit code and output.
-Outcome RunFelt(const std::string& args) {
-  Outcome outcome;
-  FILE* pipe = popen((kFelt + " " + args + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return outcome;
-  std::array<char, 4096> buffer{};
-  size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-    outcome.output.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  if (status != -1 && WIFEXITED(status)) outcome.exit_code = WEXITSTATUS(status);
-  return outcome;
-}
 
 // Writes `text` to a file of this test's own in the test temp directory; returns its path.
 std::string WriteTemp(const std::string& name, const std::string& text) {

@@ -1,0 +1,36 @@
+#pragma once
+// Runs the built `felt` binary as a child process, for the tests of its commands.
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <string>
+
+namespace felt::test {
+
+/// The felt binary of this build.
+inline const std::string kFelt = std::string(FELT_BINARY_DIR) + "/felt";
+
+/// What a `felt` run returned.
+struct Outcome {
+  int exit_code = -1;
+  std::string output;  ///< stdout and stderr together
+};
+
+/// Runs `felt <args>` through the shell and collects its exit code and output.
+inline Outcome RunFelt(const std::string& args) {
+  Outcome outcome;
+  FILE* pipe = popen((kFelt + " " + args + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return outcome;
+  std::array<char, 4096> buffer{};
+  size_t n = 0;
+  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) {
+    outcome.output.append(buffer.data(), n);
+  }
+  const int status = pclose(pipe);
+  if (status != -1 && WIFEXITED(status)) outcome.exit_code = WEXITSTATUS(status);
+  return outcome;
+}
+
+}  // namespace felt::test
