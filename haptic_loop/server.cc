@@ -84,16 +84,20 @@ void Server::Start() {
   if (running_) return;
   // The first snapshot (the rest state) is published before the threads start, so the haptic
   // thread always has a cloth.
-  PublishedSnapshot& first = snapshots_->write_slot();
-  FillSnapshot(model_, cloth_, 0, 0.0, &first.snapshot);
-  first.publish_ns = MonotonicNowNs();
-  snapshots_->Publish();
+  PublishInitialSnapshot(MonotonicNowNs());
 
   stop_.store(false);
   running_ = true;
   sim_thread_ = std::thread([this] { SimThread(); });
   haptic_thread_ = std::thread([this] { HapticThread(); });
   monitor_thread_ = std::thread([this] { MonitorThread(); });
+}
+
+void Server::PublishInitialSnapshot(int64_t publish_ns) {
+  PublishedSnapshot& first = snapshots_->write_slot();
+  FillSnapshot(model_, cloth_, 0, 0.0, &first.snapshot);
+  first.publish_ns = publish_ns;
+  snapshots_->Publish();
 }
 
 void Server::Stop() {

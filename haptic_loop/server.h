@@ -168,6 +168,12 @@ class Server {
   /// at a time). Real-time safe (StepFrame's one-time NaN log and the stall hook aside).
   void SimFrame(double frame_dt_s, int64_t publish_ns);
 
+  /// Publishes the rest state (frame 0) stamped as published at `publish_ns` [ns, the caller's
+  /// clock]: what Start() does with CLOCK_MONOTONIC before launching the threads, public so a
+  /// caller driving HapticTick and SimFrame on a clock of its own (haptic_loop/lockstep.h) starts
+  /// the same way. Only while the threads are not running.
+  void PublishInitialSnapshot(int64_t publish_ns);
+
   /// Test hook: the sim thread's next frame first blocks for `duration_ns` (a stalled sim).
   void InjectSimStall(int64_t duration_ns) { stall_request_ns_.store(duration_ns); }
 
