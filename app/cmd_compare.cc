@@ -1,0 +1,175 @@
+// `felt compare --trace FILE --scene FILE --variants LIST [--json FILE] [--md FILE]
+// [--duration S]`: variants of a scene on the same recorded pointer motion, offline (issue 7;
+// docs/compare.md). The trace drives the real server code (haptic_loop/lockstep.h) in lock-step
+// virtual time, one variant after the other, on this thread, without DDS; the first variant is
+// the reference. Prints a Markdown table (costs per tick and per frame, force error against the
+// reference, force jumps, contacts) and writes the same per-variant fields as JSON.
+#include <spdlog/fmt/fmt.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "app/command.h"
+#include "bench/bench_util.h"
+#include "haptic_loop/lockstep.h"
+#include "recordings/trace.h"
+#include "sim_loop/scene_file.h"
+
+namespace felt::app {
+namespace {
+
+struct CompareArgs {
+  std::string trace;
+  std::string scene;
+  std::string variants;
+  std::string json;
+  std::string md;
+  double duration_s = 0.0;
+};
+
+// The command as it can be typed again (for report headers).
+std::string CommandLine(const CompareArgs& a) {
+  std::string line = "felt compare --trace " + a.trace + " --scene " + a.scene + " --variants '" +
+                     a.variants + "'";
+  if (a.duration_s > 0.0) line += " --duration " + FormatSceneNumber(a.duration_s);
+  if (!a.json.empty()) line += " --json " + a.json;
+  if (!a.md.empty()) line += " --md " + a.md;
+  return line;
+}
+
+// The table of docs/compare.md, one row per variant.
+std::string Table(const std::vector<VariantSummary>& summaries) {
+  using bench::Fixed;
+  using bench::Sig;
+  std::vector<std::vector<std::string>> rows;
+  for (const VariantSummary& s : summaries) {
+    rows.push_back({s.name, s.overrides.empty() ? "(scene)" : s.overrides,
+                    Fixed(s.tick_us_median, 1), Fixed(s.tick_us_p99, 1),
+                    Fixed(s.frame_ms_median, 3), Fixed(s.frame_ms_p99, 3), Sig(s.force_rms_error_N),
+                    Sig(s.force_max_error_N), Sig(s.max_jump_N), Sig(s.max_jump_vs_ref_N),
+                    Sig(s.peak_force_N), std::to_string(s.contacts),
+                    std::to_string(s.contact_mismatches), std::to_string(s.clamped_ticks),
+                    std::to_string(s.stalled_ticks), std::to_string(s.nan_events)});
+  }
+  return bench::MarkdownTable(
+      {"variant", "overrides", "tick_us_p50", "tick_us_p99", "frame_ms_p50", "frame_ms_p99",
+       "force_rms_error_N", "force_max_error_N", "max_jump_N", "max_jump_vs_ref_N", "peak_force_N",
+       "contacts", "contact_mismatches", "clamped", "stalled", "nan"},
+      {false, false, true, true, true, true, true, true, true, true, true, true, true, true, true,
+       true},
+      rows);
+}
+
+std::string Json(const CompareArgs& args, const bench::MachineInfo& machine,
+                 const std::string& load_end, const CompareResult& result) {
+  std::vector<std::string> items;
+  for (const VariantSummary& s : result.summaries) {
+    bench::JsonRecord r;
+    r.String("name", s.name)
+        .String("overrides", s.overrides)
+        .Integer("ticks", s.ticks)
+        .Integer("frames", s.frames)
+        .Number("tick_us_median", s.tick_us_median)
+        .Number("tick_us_p99", s.tick_us_p99)
+        .Number("frame_ms_median", s.frame_ms_median)
+        .Number("frame_ms_p99", s.frame_ms_p99)
+        .Number("force_rms_error_N", s.force_rms_error_N)
+        .Number("force_max_error_N", s.force_max_error_N)
+        .Number("max_jump_N", s.max_jump_N)
+        .Number("max_jump_vs_ref_N", s.max_jump_vs_ref_N)
+        .Number("peak_force_N", s.peak_force_N)
+        .Integer("contacts", static_cast<int64_t>(s.contacts))
+        .Integer("contact_mismatches", static_cast<int64_t>(s.contact_mismatches))
+        .Integer("clamped_ticks", static_cast<int64_t>(s.clamped_ticks))
+        .Integer("stalled_ticks", static_cast<int64_t>(s.stalled_ticks))
+        .Integer("nan_events", static_cast<int64_t>(s.nan_events));
+    items.push_back(r.str());
+  }
+  bench::JsonRecord top;
+  top.String("command", CommandLine(args))
+      .String("trace", args.trace)
+      .String("scene", args.scene)
+      .String("reference", result.summaries.front().name)
+      .Integer("devices", result.runs.front().devices)
+      .Number("tick_dt_s", result.runs.front().tick_dt_s)
+      .Raw("machine", bench::MachineJson(machine))
+      .String("load_average_end", load_end);
+  // The variants array on its own lines, after the one-line header members.
+  std::string text = top.str();
+  text.pop_back();  // the closing brace
+  text += ", \"variants\": " + bench::JsonArray(items, 2) + "}\n";
+  return text;
+}
+
+int Compare(const CompareArgs& args) {
+  // Set-up: every input is checked before anything runs (errors exit 2 through main).
+  const bench::MachineInfo machine = bench::ReadMachineInfo();
+  const Trace trace = ReadTrace(args.trace);
+  const SceneDocument scene = LoadSceneDocument(args.scene);
+  ParseServerSpec(scene);  // the scene as written must be valid (errors with line and column)
+  const std::vector<LockstepVariant> variants = ParseVariantList(args.variants);
+  LockstepOptions options;
+  options.max_duration_s = args.duration_s;
+
+  const CompareResult result = CompareVariants(scene, trace.samples, variants, options);
+  const std::string load_end = bench::LoadAverage();
+
+  // Stdout: what ran, then the table.
+  const LockstepRun& ref = result.runs.front();
+  const std::string table = Table(result.summaries);
+  std::printf(
+      "felt compare: %s on %s, %lld ticks (%.3f s virtual), %lld frames, %u device(s); "
+      "reference '%s'; load %s -> %s\n\n%s",
+      args.trace.c_str(), args.scene.c_str(), static_cast<long long>(ref.ticks),
+      static_cast<double>(ref.ticks) * ref.tick_dt_s, static_cast<long long>(ref.frames),
+      ref.devices, ref.name.c_str(), machine.load_average.c_str(), load_end.c_str(), table.c_str());
+  std::fflush(stdout);
+  if (!args.json.empty()) bench::WriteTextFile(args.json, Json(args, machine, load_end, result));
+  if (!args.md.empty()) {
+    const std::string header =
+        bench::ReportHeader("felt compare: " + args.trace, CommandLine(args), machine, load_end);
+    const std::string what = fmt::format(
+        "Trace `{}` on scene `{}`: {} haptic ticks ({:.3f} s of virtual time), {} sim frames, {} "
+        "device(s), in lock-step virtual time (docs/compare.md). Reference: `{}`. Costs are "
+        "thread CPU time and vary from run to run; forces are bit-identical run to run.\n\n",
+        args.trace, args.scene, ref.ticks, static_cast<double>(ref.ticks) * ref.tick_dt_s,
+        ref.frames, ref.devices, ref.name);
+    bench::WriteTextFile(args.md, header + "\n" + what + table);
+  }
+  return 0;
+}
+
+CommandRun Setup(CLI::App& cmd) {
+  auto args = std::make_shared<CompareArgs>();
+  std::string shorthands;
+  for (const auto& [key, scene_key] : VariantShorthands()) {
+    shorthands += "\n  " + key + " -> " + scene_key;
+  }
+  cmd.add_option("--trace", args->trace, "pointer trace (felt-trace v1), fed to every device")
+      ->required();
+  cmd.add_option("--scene", args->scene, "scene file (TOML) the variants start from")->required();
+  cmd.add_option("--variants", args->variants,
+                 "variants separated by ';', each [NAME:] key=value[,key=value...]; the first is "
+                 "the reference; keys are scene paths (proxy.max_iterations) or shorthands:" +
+                     shorthands +
+                     "\n  e.g. 'newest: snapshot=newest; blend: snapshot=blend_forces'")
+      ->required();
+  cmd.add_option("--json", args->json, "write the per-variant figures as JSON here");
+  cmd.add_option("--md", args->md, "write the table with the command and machine header here");
+  cmd.add_option("--duration", args->duration_s,
+                 "replay at most this many seconds of the trace (default: all of it)")
+      ->check(CLI::NonNegativeNumber);
+  return [args]() -> int { return Compare(*args); };
+}
+
+const bool kRegistered = RegisterCommand(
+    {"", "compare",
+     "replay a trace through variants of a scene in lock-step virtual time and compare forces "
+     "and costs",
+     Setup});
+
+}  // namespace
+}  // namespace felt::app

@@ -1,0 +1,128 @@
+// `felt compare` as a user runs it: the table on stdout, the JSON file with every per-variant
+// field, the reference at zero error, the same forces in two processes, and bad input exiting 2
+// with a message naming the variant and key.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "tests/app/felt_process.h"
+
+namespace felt {
+namespace {
+
+using test::RunFelt;
+
+const std::string kSource = FELT_SOURCE_DIR;
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// A temporary file name unique to this process and `tag`.
+std::string TempPath(const std::string& tag) {
+  return testing::TempDir() + "felt_compare_" + std::to_string(getpid()) + "_" + tag;
+}
+
+// `felt compare` on the first `duration` of a bundled trace with two snapshot modes on the
+// default curtain, writing JSON to `json`.
+test::Outcome ShortCompare(const std::string& trace, const std::string& duration,
+                           const std::string& json) {
+  return RunFelt("compare --trace " + kSource + "/recordings/" + trace + ".trace --scene " +
+                 kSource + "/scenes/curtain.toml --duration " + duration +
+                 " --variants 'ref: snapshot=newest; blend: snapshot=blend_forces, "
+                 "structure=bvh-aabb-4' --json " +
+                 json);
+}
+
+// The text of the JSON member `key` in the variant object that starts with `"name": "NAME"`.
+std::string VariantMember(const std::string& json, const std::string& name,
+                          const std::string& key) {
+  const size_t at = json.find("{\"name\": \"" + name + "\"");
+  if (at == std::string::npos) return "";
+  const size_t end = json.find('}', at);
+  const size_t k = json.find("\"" + key + "\": ", at);
+  if (k == std::string::npos || k > end) return "";
+  const size_t v = k + key.size() + 4;
+  return json.substr(v, json.find_first_of(",}", v) - v);
+}
+
+TEST(CompareCommand, PrintsTheTableAndWritesEveryJsonField) {
+  const std::string json_path = TempPath("a.json");
+  const test::Outcome out = ShortCompare("poke_hold", "0.3", json_path);
+  ASSERT_EQ(out.exit_code, 0) << out.output;
+  EXPECT_NE(out.output.find("301 ticks"), std::string::npos) << out.output;
+  EXPECT_NE(out.output.find("| variant | overrides | tick_us_p50 |"), std::string::npos)
+      << out.output;
+  EXPECT_NE(out.output.find("| ref | snapshot=newest |"), std::string::npos) << out.output;
+  EXPECT_NE(out.output.find("| blend | snapshot=blend_forces,structure=bvh-aabb-4 |"),
+            std::string::npos)
+      << out.output;
+  const std::string json = ReadFile(json_path);
+  for (const char* key :
+       {"ticks", "frames", "tick_us_median", "tick_us_p99", "frame_ms_median", "frame_ms_p99",
+        "force_rms_error_N", "force_max_error_N", "max_jump_N", "max_jump_vs_ref_N", "peak_force_N",
+        "contacts", "contact_mismatches", "clamped_ticks", "stalled_ticks", "nan_events"}) {
+    EXPECT_NE(VariantMember(json, "ref", key), "") << key << "\n" << json;
+    EXPECT_NE(VariantMember(json, "blend", key), "") << key << "\n" << json;
+  }
+  EXPECT_NE(json.find("\"reference\": \"ref\""), std::string::npos) << json;
+  EXPECT_EQ(VariantMember(json, "ref", "ticks"), "301");
+  EXPECT_EQ(VariantMember(json, "ref", "frames"), "18");
+  EXPECT_EQ(VariantMember(json, "ref", "force_rms_error_N"), "0");
+  EXPECT_EQ(VariantMember(json, "ref", "force_max_error_N"), "0");
+  EXPECT_EQ(VariantMember(json, "ref", "stalled_ticks"), "0");
+  std::remove(json_path.c_str());
+}
+
+TEST(CompareCommand, TwoProcessesGiveTheSameForces) {
+  // Force figures are printed in shortest round-trip form: equal text means equal bits. 1.2 s of
+  // the fast swipe: the tip crosses the cloth's plane from 1.1 s on, so the forces are not zero.
+  const std::string a_path = TempPath("b1.json");
+  const std::string b_path = TempPath("b2.json");
+  ASSERT_EQ(ShortCompare("fast_swipe", "1.2", a_path).exit_code, 0);
+  ASSERT_EQ(ShortCompare("fast_swipe", "1.2", b_path).exit_code, 0);
+  const std::string a = ReadFile(a_path);
+  const std::string b = ReadFile(b_path);
+  EXPECT_NE(VariantMember(a, "ref", "contacts"), "0") << a;
+  EXPECT_NE(VariantMember(a, "ref", "peak_force_N"), "0") << a;
+  for (const char* key :
+       {"force_rms_error_N", "force_max_error_N", "max_jump_N", "peak_force_N", "contacts"}) {
+    for (const char* variant : {"ref", "blend"}) {
+      EXPECT_EQ(VariantMember(a, variant, key), VariantMember(b, variant, key))
+          << variant << " " << key;
+      EXPECT_NE(VariantMember(a, variant, key), "") << variant << " " << key;
+    }
+  }
+  std::remove(a_path.c_str());
+  std::remove(b_path.c_str());
+}
+
+TEST(CompareCommand, BadVariantsExit2NamingTheVariantAndKey) {
+  const std::string base = "compare --trace " + kSource + "/recordings/poke_hold.trace --scene " +
+                           kSource + "/scenes/curtain.toml --duration 0.1 --variants ";
+  const test::Outcome value = RunFelt(base + "'ref: ; bad: snapshot=sideways'");
+  EXPECT_EQ(value.exit_code, 2) << value.output;
+  EXPECT_NE(value.output.find("variant 2 'bad': snapshot=sideways: "), std::string::npos)
+      << value.output;
+  EXPECT_NE(value.output.find("proxy.snapshot_mode: unknown value 'sideways'"), std::string::npos)
+      << value.output;
+  EXPECT_EQ(value.output.find("| variant |"), std::string::npos) << "nothing ran";
+
+  const std::string key = RunFelt(base + "'ref: snap=newest'").output;
+  EXPECT_NE(key.find("variant 1 'ref': unknown key 'snap'"), std::string::npos) << key;
+
+  const test::Outcome trace = RunFelt("compare --trace /nonexistent.trace --scene " + kSource +
+                                      "/scenes/curtain.toml --variants scene");
+  EXPECT_EQ(trace.exit_code, 2) << trace.output;
+  EXPECT_NE(trace.output.find("/nonexistent.trace"), std::string::npos) << trace.output;
+}
+
+}  // namespace
+}  // namespace felt
