@@ -1,5 +1,6 @@
 #include "transport/client_transport.h"
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstring>
@@ -33,6 +34,10 @@ class ClientTransport::Impl {
     bool has_seq = false;
     uint64_t last_seq = 0;
   };
+  // Index of device id `id` in devices_, or devices_.size() when it is not this client's.
+  size_t FindDevice(const char* id) const;
+  // Bumps the gap counter for `seq` on device `d` and makes it the last seen.
+  void NoteSeq(Device& d, uint64_t seq);
 
   ClientTransportConfig config_;
   std::vector<Device> devices_;
@@ -75,8 +80,14 @@ ClientTransport::Impl::Impl(ClientTransportConfig config)
   const Qos stream_qos = StreamQos();
   pointer_writer_ =
       CreateWriter(participant_, pointer_topic_, stream_qos.get(), config_.topics.pointer);
+  if (config_.force_history < 1) {
+    throw std::invalid_argument("ClientTransportConfig.force_history: must be at least 1");
+  }
+  const Qos force_qos = StreamQos();
+  dds_qset_history(force_qos.get(), DDS_HISTORY_KEEP_LAST,
+                   static_cast<int32_t>(std::min<uint32_t>(config_.force_history, 1u << 20)));
   force_reader_ =
-      CreateReader(participant_, force_topic_, stream_qos.get(), nullptr, config_.topics.force);
+      CreateReader(participant_, force_topic_, force_qos.get(), nullptr, config_.topics.force);
   if (config_.subscribe_status) {
     status_topic_ = CreateTopic(participant_, &felt_msgs_ServerStatus_desc, config_.topics.status);
     const Qos status_qos = StatusQos();
@@ -87,6 +98,23 @@ ClientTransport::Impl::Impl(ClientTransportConfig config)
   force_condition_ = Entity(CheckDds(dds_create_readcondition(force_reader_.get(), DDS_ANY_STATE),
                                      "dds_create_readcondition"));
   CheckDds(dds_waitset_attach(waitset_.get(), force_condition_.get(), 0), "dds_waitset_attach");
+}
+
+size_t ClientTransport::Impl::FindDevice(const char* id) const {
+  size_t index = 0;
+  while (index < devices_.size() &&
+         std::strncmp(devices_[index].id, id, sizeof(devices_[index].id)) != 0) {
+    ++index;
+  }
+  return index;
+}
+
+void ClientTransport::Impl::NoteSeq(Device& d, uint64_t seq) {
+  if (d.has_seq && seq > d.last_seq + 1) {
+    gaps_.fetch_add(seq - d.last_seq - 1, std::memory_order_relaxed);
+  }
+  d.has_seq = true;
+  d.last_seq = seq;
 }
 
 void ClientTransport::Impl::PollForces() {
@@ -102,21 +130,13 @@ void ClientTransport::Impl::PollForces() {
     for (dds_return_t i = 0; i < n; ++i) {
       if (!force_infos_[i].valid_data) continue;
       const felt_msgs_ForceCommand& m = force_buffer_[i];
-      size_t index = 0;
-      while (index < devices_.size() &&
-             std::strncmp(devices_[index].id, m.device_id, sizeof(m.device_id)) != 0) {
-        ++index;
-      }
+      const size_t index = FindDevice(m.device_id);
       if (index == devices_.size()) {
         Bump(other_);
         continue;
       }
       Device& d = devices_[index];
-      if (d.has_seq && m.seq > d.last_seq + 1) {
-        gaps_.fetch_add(m.seq - d.last_seq - 1, std::memory_order_relaxed);
-      }
-      d.has_seq = true;
-      d.last_seq = m.seq;
+      NoteSeq(d, m.seq);
       ForceCommandView& v = d.latest;
       v.device_index = static_cast<uint32_t>(index);
       v.seq = m.seq;
@@ -188,6 +208,57 @@ bool ClientTransport::WaitForce(uint32_t device_index, std::chrono::nanoseconds 
       return false;
     }
   }
+}
+
+size_t ClientTransport::TakeForces(ForceCommandView* out, size_t capacity) {
+  Impl& impl = *impl_;
+  size_t count = 0;
+  while (count < capacity) {
+    // Take at most what still fits in `out`, so nothing taken is dropped.
+    const auto batch = static_cast<uint32_t>(std::min<size_t>(kForceBatch, capacity - count));
+    const dds_return_t n = dds_take(impl.force_reader_.get(), impl.force_ptrs_.data(),
+                                    impl.force_infos_.data(), batch, batch);
+    if (n < 0) {
+      Bump(impl.errors_);
+      break;
+    }
+    const int64_t now_ns = MonotonicNowNs();
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!impl.force_infos_[i].valid_data) continue;
+      const felt_msgs_ForceCommand& m = impl.force_buffer_[i];
+      const size_t index = impl.FindDevice(m.device_id);
+      if (index == impl.devices_.size()) {
+        Bump(impl.other_);
+        continue;
+      }
+      impl.NoteSeq(impl.devices_[index], m.seq);
+      ForceCommandView& v = out[count++];
+      v.device_index = static_cast<uint32_t>(index);
+      v.seq = m.seq;
+      v.answers_seq = m.answers_seq;
+      v.answers_device_time_ns = m.answers_device_time_ns;
+      for (int k = 0; k < 3; ++k) {
+        v.force_N_D[k] = m.force_N[k];
+        v.proxy_position_m_D[k] = m.proxy_position_m[k];
+      }
+      v.in_contact = m.in_contact;
+      v.flags = m.flags;
+      v.receive_time_ns = now_ns;
+      Bump(impl.received_);
+    }
+    if (n < static_cast<dds_return_t>(batch)) break;
+  }
+  return count;
+}
+
+bool ClientTransport::WaitForForces(std::chrono::nanoseconds timeout) {
+  // Relative timeout: dds_waitset_wait_until would want a wall-clock deadline.
+  const dds_return_t n = dds_waitset_wait(impl_->waitset_.get(), nullptr, 0, timeout.count());
+  if (n < 0) {
+    Bump(impl_->errors_);
+    return false;
+  }
+  return n > 0;
 }
 
 bool ClientTransport::LatestStatus(ServerStatusView* out) {

@@ -23,6 +23,11 @@ struct ClientTransportConfig {
   TopicNames topics;                    ///< must match the server's
   std::vector<std::string> device_ids;  ///< this client's devices; device_index = position here
   bool subscribe_status = true;         ///< create a felt/status reader (LatestStatus)
+  /// ForceCommands the force reader keeps per device until taken (KEEP_LAST depth). 1 (the
+  /// default) keeps only the newest, as a driver wants; a tool that must see every force
+  /// (replay, record) asks for more, e.g. 1024, and takes them with TakeForces. History depth is
+  /// not a request-offered QoS, so any depth matches the server's keep-last-1 writer.
+  uint32_t force_history = 1;
 };
 
 /// Counters of a client since construction.
@@ -59,6 +64,17 @@ class ClientTransport {
 
   /// As TakeForce, but waits up to `timeout` for a force to arrive.
   bool WaitForce(uint32_t device_index, std::chrono::nanoseconds timeout, ForceCommandView* out);
+
+  /// Every ForceCommand for this client's devices received since the last call, oldest first,
+  /// up to `capacity` of them, into `out[0..n)`; returns n (0 when none). Counts received forces
+  /// and seq gaps as TakeForce does. Does not allocate. Use it or TakeForce/WaitForce, not both:
+  /// each consumes what the other would return. `out[i].receive_time_ns` is CLOCK_MONOTONIC at
+  /// the take.
+  size_t TakeForces(ForceCommandView* out, size_t capacity);
+
+  /// Waits up to `timeout` until the force reader holds data (for TakeForces); true when it does,
+  /// false on timeout or error (counted). Does not take anything.
+  bool WaitForForces(std::chrono::nanoseconds timeout);
 
   /// The newest ServerStatus seen (the latest of any server, by wall_time_ns); false when none
   /// has arrived or subscribe_status is false.
