@@ -81,8 +81,9 @@ TEST(ServerThreads, RatesStatsAndHandoffsOverOneSecond) {
   // nominal rate (missed periods are skipped, not bunched); under a sanitizer (make test-asan /
   // test-tsan set FELT_SANITIZER) a tick or frame can outlast its period, so fewer are allowed.
   const bool sanitized = std::getenv("FELT_SANITIZER") != nullptr;
-  const double haptic_min = sanitized ? 0.5 : 0.85;
-  const double sim_min = sanitized ? 0.25 : 0.85;
+  // The lower bounds are loose on purpose: CI is a shared 2-core VM running two tests at once.
+  const double haptic_min = sanitized ? 0.4 : 0.6;
+  const double sim_min = sanitized ? 0.2 : 0.5;
   const double haptic_ticks = static_cast<double>(r->haptic.ticks);
   const double sim_frames = static_cast<double>(r->sim.ticks);
   EXPECT_GE(haptic_ticks, haptic_min * 1000.0 * seconds);
