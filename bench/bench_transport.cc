@@ -1,12 +1,19 @@
 // `felt bench transport`: the DDS transport's latency on loopback (docs/transport.md, issue 6).
-// Now: --raw-only, the raw Cyclone round trip (an echo process answering each 1 kHz ping, with
-// Felt's configuration, types and QoS) for both receive modes, plus the cost of each transport hop
-// measured through ServerTransport/ClientTransport in this process. The end-to-end half (pointer
-// sample -> force answering it, through the 1 kHz haptic loop) needs the server (issue 5); its
-// JSON keys (e2e_us, sample_age_us) are reserved and written as null until then.
+//  1. The raw Cyclone round trip (an echo process answering each 1 kHz ping, with Felt's
+//     configuration, types and QoS) for both receive modes: the floor.
+//  2. The cost of each transport hop, through ServerTransport/ClientTransport in this process.
+//  3. End to end (skipped with --raw-only): the real server (haptic_loop/server.h, the scene's
+//     cloth and proxy, SCHED_FIFO where permitted) in this process behind the DDS transport, and a
+//     device client in a second process (this program re-executed with --e2e-client) publishing a
+//     trace at 1 kHz on absolute deadlines. Per pointer sample: e2e = reception of the first force
+//     answering it (ForceCommand.answers_device_time_ns) - its publication, on the client; and
+//     its age at the first haptic tick that reads it (tick time - transport receive time), on the
+//     server. Most of e2e is that wait for the next 1 kHz tick.
 
 #include <fcntl.h>
 #include <sched.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -15,7 +22,10 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <memory>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -23,6 +33,12 @@
 #include <vector>
 
 #include "app/command.h"
+#include "haptic_loop/pointer_source.h"
+#include "haptic_loop/server.h"
+#include "haptic_loop/server_spec.h"
+#include "haptic_loop/transport_io.h"
+#include "recordings/trace.h"
+#include "sim_loop/scene_file.h"
 #include "transport/client_transport.h"
 #include "transport/raw_roundtrip.h"
 #include "transport/server_transport.h"
@@ -164,8 +180,258 @@ HopResult MeasureHops(const transport::DdsSettings& dds, ReceiveMode mode, doubl
   return result;
 }
 
+
+// ---- End to end -------------------------------------------------------------------------------
+
+// Wraps the server's PointerSource and records, for every new sample (a new seq), its age at the
+// first haptic tick that reads it: tick time - transport receive time. Haptic thread only; the
+// vector is reserved up front and never grows past its capacity (extra samples are counted).
+class AgeRecordingSource final : public PointerSource {
+ public:
+  AgeRecordingSource(PointerSource* inner, size_t capacity) : inner_(inner) {
+    age_us_.reserve(capacity);
+  }
+  bool Latest(uint32_t device_index, int64_t now_ns, PointerInput* out) override {
+    if (!inner_->Latest(device_index, now_ns, out)) return false;
+    if (out->seq != last_seq_) {
+      last_seq_ = out->seq;
+      if (recording_.load(std::memory_order_relaxed)) {
+        if (age_us_.size() < age_us_.capacity()) {
+          age_us_.push_back(static_cast<double>(now_ns - out->receive_time_ns) / 1e3);
+        } else {
+          ++overflow_;
+        }
+      }
+    }
+    return true;
+  }
+  /// Starts or stops recording (any thread).
+  void SetRecording(bool on) { recording_.store(on, std::memory_order_relaxed); }
+  /// The ages, us. Only after the server stopped.
+  std::vector<double>* ages() { return &age_us_; }
+
+ private:
+  PointerSource* inner_;
+  uint64_t last_seq_ = 0;
+  std::atomic<bool> recording_{false};
+  std::vector<double> age_us_;
+  uint64_t overflow_ = 0;
+};
+
+// What the e2e client process reports back (a small text file).
+struct E2eClientResult {
+  uint64_t samples_sent = 0;     // pointer samples published while measuring
+  uint64_t forces_received = 0;  // forces taken while measuring (all, including repeats)
+  uint64_t answered = 0;         // samples answered by at least one force
+  std::vector<double> e2e_us;    // per answered sample, us
+};
+
+struct E2eClientArgs {
+  std::string out;           // result file
+  std::string topic_suffix;  // appended to the topic names
+  std::string device_id;     // the scene's device
+  std::string trace;         // positions to publish (device frame), looped
+};
+
+// The device side, run in its own process: publishes the trace at 1 kHz on absolute deadlines and
+// times each sample's first answer. Writes E2eClientResult to args.out.
+int RunE2eClient(const transport::DdsSettings& dds, const E2eClientArgs& args, double seconds) {
+  const Trace trace = ReadTrace(args.trace);
+  transport::ClientTransportConfig config;
+  config.dds = dds;
+  config.topics = transport::TopicNames::WithAffixes("", args.topic_suffix);
+  config.device_ids = {args.device_id};
+  config.subscribe_status = false;
+  transport::ClientTransport client(config);
+  if (!transport::WaitUntil(
+          [&] { return client.MatchedPointerReaders() > 0 && client.MatchedForceWriters() > 0; },
+          std::chrono::seconds(20))) {
+    std::fprintf(stderr, "bench transport e2e client: the server was not discovered in 20 s\n");
+    return 3;
+  }
+  // Sample i is published at start + i * kClientPeriodNs; its publication time is its
+  // device_time_ns. The period is 100 ppm short of 1 ms, as a device's own crystal would differ
+  // from the server's clock: the phase between the two 1 kHz loops then sweeps a whole period every
+  // 10 s, instead of staying wherever the two processes happened to start (which alone would
+  // decide the wait for the next tick, anywhere from 0 to 1 ms, for the whole run).
+  constexpr int64_t kClientPeriodNs = 999900;
+  const auto warmup = static_cast<uint64_t>(500);
+  const auto measured = static_cast<uint64_t>(seconds * 1000.0);
+  const uint64_t total = warmup + measured;
+  std::vector<int64_t> published_ns(total + 1, 0);
+  std::vector<double> first_answer_us(total + 1, -1.0);
+  std::atomic<bool> done{false};
+  std::atomic<uint64_t> forces_measured{0};
+  // The force reader: the first force answering each measured sample gives its e2e latency.
+  std::thread reader([&] {
+    transport::ForceCommandView force;
+    while (!done.load()) {
+      if (!client.WaitForce(0, std::chrono::milliseconds(5), &force)) continue;
+      const uint64_t seq = force.answers_seq;
+      if (seq <= warmup || seq > total) continue;
+      forces_measured.fetch_add(1);
+      if (first_answer_us[seq] < 0.0) {
+        first_answer_us[seq] =
+            static_cast<double>(force.receive_time_ns - force.answers_device_time_ns) / 1e3;
+      }
+    }
+  });
+  int64_t next_ns = NowNs() + kClientPeriodNs;
+  for (uint64_t seq = 1; seq <= total; ++seq) {
+    SleepUntil(next_ns);
+    const TraceSample& s = trace.samples[(seq - 1) % trace.samples.size()];
+    transport::PointerSampleView sample;
+    sample.seq = seq;
+    sample.position_m_D = {s.p_D.x(), s.p_D.y(), s.p_D.z()};
+    sample.velocity_m_per_s_D = {s.v_D.x(), s.v_D.y(), s.v_D.z()};
+    sample.buttons = s.buttons;
+    sample.device_time_ns = NowNs();
+    published_ns[seq] = sample.device_time_ns;
+    client.PublishPointer(sample);
+    next_ns += kClientPeriodNs;
+  }
+  // Let the last answers arrive (a few ticks), then stop the reader.
+  SleepUntil(NowNs() + 50000000);
+  done.store(true);
+  reader.join();
+  E2eClientResult result;
+  result.samples_sent = measured;
+  result.forces_received = forces_measured.load();
+  for (uint64_t seq = warmup + 1; seq <= total; ++seq) {
+    if (first_answer_us[seq] >= 0.0) result.e2e_us.push_back(first_answer_us[seq]);
+  }
+  result.answered = result.e2e_us.size();
+  std::ofstream out(args.out);
+  out << result.samples_sent << " " << result.forces_received << " " << result.answered << "\n";
+  out.precision(9);
+  for (double v : result.e2e_us) out << v << "\n";
+  if (!out) {
+    std::fprintf(stderr, "bench transport e2e client: cannot write %s\n", args.out.c_str());
+    return 3;
+  }
+  return 0;
+}
+
+E2eClientResult ReadE2eClientResult(const std::string& path) {
+  std::ifstream in(path);
+  E2eClientResult r;
+  if (!(in >> r.samples_sent >> r.forces_received >> r.answered)) {
+    throw std::runtime_error("bench transport: the e2e client's result " + path +
+                             " is missing or malformed");
+  }
+  r.e2e_us.reserve(r.answered);
+  double v = 0;
+  while (in >> v) r.e2e_us.push_back(v);
+  if (r.e2e_us.size() != r.answered) {
+    throw std::runtime_error("bench transport: the e2e client's result " + path + " holds " +
+                             std::to_string(r.e2e_us.size()) + " latencies, not " +
+                             std::to_string(r.answered));
+  }
+  return r;
+}
+
+struct E2eResult {
+  Percentiles e2e_us, sample_age_us;
+  uint64_t samples_sent = 0, forces_received = 0, answered = 0;
+  bool realtime = false;
+  std::string scene_name;
+  int32_t cloth_w = 0, cloth_h = 0;
+};
+
+// The server in this process, the client in a child process (this program re-executed: fork+exec
+// is safe although Cyclone's threads already run here).
+E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& scene,
+                          const std::string& trace, double seconds, bool fifo) {
+  ServerSpec spec = ParseServerSpec(LoadSceneDocument(scene));
+  if (spec.devices.empty()) throw std::runtime_error("bench transport: " + scene + " has no device");
+  spec.devices.resize(1);
+  const std::string suffix = "/bench_e2e_" + std::to_string(getpid());
+  transport::ServerTransportConfig config;
+  config.dds = dds;
+  config.topics = transport::TopicNames::WithAffixes("", suffix);
+  config.devices.resize(1);
+  config.devices[0].device_id = spec.devices[0].id;
+  transport::ServerTransport server_transport(config);
+  TransportPointerSource dds_source(&server_transport);
+  AgeRecordingSource source(&dds_source, static_cast<size_t>(seconds * 1000.0) + 5000);
+  TransportForceSink sink(&server_transport);
+  ServerOptions server_options;
+  server_options.apply_realtime = true;
+  server_options.monitor_log = false;
+  E2eResult result;
+  result.scene_name = spec.scene_name;
+  Server server(std::move(spec), &source, &sink, server_options);
+  result.cloth_w = server.model().width;
+  result.cloth_h = server.model().height;
+  server.Start();
+
+  // The client process.
+  const std::string out = (std::filesystem::temp_directory_path() /
+                           ("felt_bench_e2e_" + std::to_string(getpid()) + ".txt"))
+                              .string();
+  std::vector<std::string> argv_s = {"felt",
+                                     "bench",
+                                     "transport",
+                                     "--e2e-client",
+                                     out,
+                                     "--e2e-suffix",
+                                     suffix,
+                                     "--e2e-device",
+                                     config.devices[0].device_id,
+                                     "--trace",
+                                     trace,
+                                     "--seconds",
+                                     std::to_string(seconds),
+                                     "--domain",
+                                     std::to_string(dds.domain_id)};
+  if (!dds.config_file.empty()) {
+    argv_s.push_back("--dds-config");
+    argv_s.push_back(dds.config_file);
+  }
+  if (fifo) argv_s.push_back("--fifo");
+  std::vector<char*> argv;
+  for (std::string& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, "/proc/self/exe", nullptr, nullptr, argv.data(), environ) != 0) {
+    throw std::runtime_error("bench transport: cannot start the e2e client process");
+  }
+  // Record sample ages while the client measures (it warms up for 0.5 s after discovery).
+  source.SetRecording(true);
+  int status = 0;
+  const int64_t deadline = NowNs() + static_cast<int64_t>((seconds + 60.0) * 1e9);
+  pid_t waited = 0;
+  while ((waited = waitpid(pid, &status, WNOHANG)) == 0 && NowNs() < deadline) {
+    SleepUntil(NowNs() + 10000000);
+  }
+  source.SetRecording(false);
+  server.Stop();
+  if (waited == 0) {
+    kill(pid, SIGKILL);
+    waitpid(pid, &status, 0);
+    throw std::runtime_error("bench transport: the e2e client did not finish in time");
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    throw std::runtime_error("bench transport: the e2e client failed (status " +
+                             std::to_string(status) + ")");
+  }
+  E2eClientResult client = ReadE2eClientResult(out);
+  std::filesystem::remove(out);
+  const std::unique_ptr<ServerReport> report = server.Report();
+  result.realtime = report->realtime;
+  result.samples_sent = client.samples_sent;
+  result.forces_received = client.forces_received;
+  result.answered = client.answered;
+  result.e2e_us = Summarise(&client.e2e_us);
+  result.sample_age_us = Summarise(source.ages());
+  return result;
+}
+
 struct Options {
   bool raw_only = false;
+  std::string scene = "scenes/curtain.toml";
+  std::string trace = "recordings/poke_hold.trace";
+  E2eClientArgs client;  // --e2e-client: run as the e2e device process
   double seconds = 10.0;
   std::string json;
   transport::DdsSettings dds;
@@ -174,9 +440,19 @@ struct Options {
 };
 
 int Run(const Options& options) {
+  if (!options.client.out.empty()) {
+    if (options.fifo) {
+      const sched_param param{10};
+      sched_setscheduler(0, SCHED_FIFO, &param);  // as the parent; refused: normal scheduling
+    }
+    return RunE2eClient(options.dds, options.client, options.seconds);
+  }
+  // Check the inputs of the e2e half before spending time on the raw half.
   if (!options.raw_only) {
-    throw std::invalid_argument(
-        "bench transport: only --raw-only exists so far (the end-to-end half needs `felt serve`)");
+    if (!std::filesystem::exists(options.scene)) {
+      throw std::invalid_argument("--scene " + options.scene + ": no such file");
+    }
+    ReadTrace(options.trace);  // throws naming the file and line
   }
   // Optionally keep the CPUs out of deep idle states while measuring (notes: halves the p99).
   int dma_fd = -1;
@@ -213,16 +489,25 @@ int Run(const Options& options) {
   // The transport's own hops, in this process, for both receive modes.
   HopResult hops[2];
   for (int m = 0; m < 2; ++m) hops[m] = MeasureHops(options.dds, modes[m], options.seconds);
+  // End to end through the server.
+  E2eResult e2e;
+  if (!options.raw_only) {
+    e2e = MeasureEndToEnd(options.dds, options.scene, options.trace, options.seconds, options.fifo);
+  }
   if (dma_fd >= 0) close(dma_fd);
 
   // The table.
-  std::printf("felt bench transport --raw-only: %.0f s at 1 kHz, loopback, domain %u%s%s\n\n",
-              options.seconds, options.dds.domain_id,
+  std::printf("felt bench transport%s: %.0f s at 1 kHz, loopback, domain %u%s%s\n\n",
+              options.raw_only ? " --raw-only" : "", options.seconds, options.dds.domain_id,
               options.dma_latency ? ", /dev/cpu_dma_latency held at 0" : "",
               options.fifo ? ", SCHED_FIFO 10" : "");
   std::printf("| %-44s | %8s | %8s | %8s | %8s | %7s |\n", "us", "p50", "p99", "p99.9", "max", "n");
   std::printf("|%s|---------:|---------:|---------:|---------:|--------:|\n",
               std::string(46, '-').c_str());
+  if (!options.raw_only) {
+    Row("end to end: publish -> force received", e2e.e2e_us);
+    Row("sample age at the haptic tick (server)", e2e.sample_age_us);
+  }
   Row("raw round trip, echo by listener", raw[0]);
   Row("raw round trip, echo by waitset thread", raw[1]);
   for (int m = 0; m < 2; ++m) {
@@ -237,6 +522,15 @@ int Run(const Options& options) {
       "\nraw pings sent/answered: listener %llu/%llu, waitset %llu/%llu\n",
       static_cast<unsigned long long>(sent[0]), static_cast<unsigned long long>(received[0]),
       static_cast<unsigned long long>(sent[1]), static_cast<unsigned long long>(received[1]));
+  if (!options.raw_only) {
+    std::printf(
+        "end to end: scene %s (%d x %d cloth), trace %s, server SCHED_FIFO %s; samples sent %llu, "
+        "answered %llu, forces received %llu\n",
+        e2e.scene_name.c_str(), e2e.cloth_w, e2e.cloth_h, options.trace.c_str(),
+        e2e.realtime ? "granted" : "refused", static_cast<unsigned long long>(e2e.samples_sent),
+        static_cast<unsigned long long>(e2e.answered),
+        static_cast<unsigned long long>(e2e.forces_received));
+  }
 
   if (!options.json.empty()) {
     std::ofstream out(options.json);
@@ -250,8 +544,17 @@ int Run(const Options& options) {
         << ",\n    \"push_force\": " << Json(hops[0].push_us)
         << ",\n    \"queue_to_dds_write\": " << Json(hops[0].stats.write_hop)
         << "\n  },\n  \"transport_sample_age_us\": " << Json(hops[0].sample_age_us)
-        << ",\n  \"e2e_us\": null,\n  \"sample_age_us\": null,\n  \"samples_sent\": null,\n"
-        << "  \"forces_received\": null,\n  \"seconds\": " << options.seconds
+        << ",\n  \"e2e_us\": " << (options.raw_only ? "null" : Json(e2e.e2e_us))
+        << ",\n  \"sample_age_us\": " << (options.raw_only ? "null" : Json(e2e.sample_age_us))
+        << ",\n  \"samples_sent\": "
+        << (options.raw_only ? "null" : std::to_string(e2e.samples_sent))
+        << ",\n  \"samples_answered\": "
+        << (options.raw_only ? "null" : std::to_string(e2e.answered))
+        << ",\n  \"forces_received\": "
+        << (options.raw_only ? "null" : std::to_string(e2e.forces_received))
+        << ",\n  \"server_realtime\": "
+        << (options.raw_only ? "null" : (e2e.realtime ? "true" : "false"))
+        << ",\n  \"seconds\": " << options.seconds
         << ",\n  \"cpu_dma_latency_zero\": " << (options.dma_latency ? "true" : "false")
         << ",\n  \"sched_fifo\": " << (options.fifo ? "true" : "false") << "\n}\n";
   }
@@ -261,11 +564,19 @@ int Run(const Options& options) {
 const bool kRegistered = app::RegisterCommand({
     "bench",
     "transport",
-    "DDS transport latency on loopback: raw Cyclone round trip and the transport's hops",
+    "DDS transport latency on loopback: end to end through the server, raw round trip, hops",
     [](CLI::App& cmd) -> app::CommandRun {
       auto options = std::make_shared<Options>();
       cmd.add_flag("--raw-only", options->raw_only,
-                   "only the raw round trip and the hops (required until the server exists)");
+                   "only the raw round trip and the hops, not the end-to-end run");
+      cmd.add_option("--scene", options->scene,
+                     "scene of the end-to-end server (default scenes/curtain.toml)");
+      cmd.add_option("--trace", options->trace,
+                     "trace the e2e client publishes (default recordings/poke_hold.trace)");
+      // The e2e client process's role (internal: MeasureEndToEnd starts it).
+      cmd.add_option("--e2e-client", options->client.out)->group("");
+      cmd.add_option("--e2e-suffix", options->client.topic_suffix)->group("");
+      cmd.add_option("--e2e-device", options->client.device_id)->group("");
       cmd.add_option("--seconds", options->seconds, "measured seconds per run (default 10)")
           ->check(CLI::PositiveNumber);
       cmd.add_option("--json", options->json, "write the results to this JSON file");
@@ -278,7 +589,10 @@ const bool kRegistered = app::RegisterCommand({
                    "hold /dev/cpu_dma_latency at 0 while measuring (root)");
       cmd.add_flag("--fifo", options->fifo,
                    "run the bench, its echo process and Cyclone's threads under SCHED_FIFO 10");
-      return [options] { return Run(*options); };
+      return [options] {
+        options->client.trace = options->trace;
+        return Run(*options);
+      };
     },
 });
 
