@@ -1,0 +1,74 @@
+// `felt bench transport` runs as a user would run it, briefly (1 s per part, its own DDS domain):
+// exit code 0, and the JSON holds every key issue 6 names with sane values. No timing is asserted
+// beyond "the latencies are positive and finite".
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+
+#include "tests/app/felt_process.h"
+
+namespace {
+
+using felt::test::Outcome;
+using felt::test::RunFelt;
+const std::string kSource = std::string(FELT_SOURCE_DIR);
+
+std::string Slurp(const std::string& path) {
+  std::ifstream file(path);
+  std::stringstream contents;
+  contents << file.rdbuf();
+  return contents.str();
+}
+
+// The number after `"key": ` at the first occurrence of the key inside the object `object`.
+double NumberIn(const std::string& json, const std::string& object, const std::string& key) {
+  const size_t at = json.find("\"" + object + "\":");
+  if (at == std::string::npos) return NAN;
+  const std::regex pattern("\"" + key + "\": *(-?[0-9.eE+-]+)");
+  std::smatch match;
+  const std::string rest = json.substr(at);
+  if (!std::regex_search(rest, match, pattern)) return NAN;
+  return std::stod(match[1]);
+}
+
+TEST(BenchTransport, EndToEndRunWritesEveryKey) {
+  const std::string json =
+      (std::filesystem::path(testing::TempDir()) / "felt_bench_transport.json").string();
+  std::filesystem::remove(json);
+  const Outcome outcome = RunFelt("bench transport --seconds 1 --domain 43 --json " + json +
+                                  " --scene " + kSource + "/scenes/curtain.toml --trace " +
+                                  kSource + "/recordings/poke_hold.trace");
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  EXPECT_NE(outcome.output.find("end to end: publish -> force received"), std::string::npos)
+      << outcome.output;
+  const std::string text = Slurp(json);
+  for (const char* object : {"e2e_us", "sample_age_us", "raw_roundtrip_us"}) {
+    for (const char* key : {"p50", "p99", "p999", "max"}) {
+      const double v = NumberIn(text, object, key);
+      EXPECT_TRUE(std::isfinite(v) && v > 0.0) << object << "." << key << " = " << v << "\n"
+                                               << text;
+    }
+  }
+  const std::regex sent("\"samples_sent\": ([0-9]+)");
+  const std::regex received("\"forces_received\": ([0-9]+)");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(text, m, sent)) << text;
+  EXPECT_EQ(std::stoull(m[1]), 1000u);  // 1 s at 1 kHz after the warm-up
+  ASSERT_TRUE(std::regex_search(text, m, received)) << text;
+  EXPECT_GT(std::stoull(m[1]), 100u);  // loose: a loaded CI machine still answers most samples
+}
+
+TEST(BenchTransport, BadTraceIsRefusedBeforeMeasuring) {
+  const Outcome outcome =
+      RunFelt("bench transport --seconds 1 --domain 43 --trace /nonexistent/x.trace --scene " +
+              kSource + "/scenes/curtain.toml");
+  EXPECT_NE(outcome.exit_code, 0);
+  EXPECT_NE(outcome.output.find("/nonexistent/x.trace"), std::string::npos) << outcome.output;
+}
+
+}  // namespace
