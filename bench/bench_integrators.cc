@@ -488,8 +488,8 @@ int Run(const Args& args) {
       "Bisection on the substep count between the sweep's largest unstable and smallest "
       "stable count, each probe a 2 s run judged by the stability rule above. h_max = 1/60 s "
       "/ (smallest stable count); 'first unstable h' is the step of one substep fewer. Theory "
-      "bound: the model's stable_dt_s (the integrator's stability limit on the Gershgorin "
-      "bound of the stiffest spring/mass pair, damping included); auto substeps use 0.5 of "
+      "bound: the model's stable_dt_s (the integrator's stability limit on the grid-symbol "
+      "bound of the highest natural frequency, damping included); auto substeps use 0.5 of "
       "it.\n\n";
   md +=
       MarkdownTable({"grid", "integrator", "min stable substeps", "h_max ms", "first unstable h ms",

@@ -27,6 +27,19 @@ struct Spring {
   SpringType type = SpringType::kStructural;
 };
 
+/// All springs of one type and one grid direction: end i at (col, row), end j at (col + dc, row +
+/// dr), for every (col, row) where both are on the grid. A rectangular grid with uniform spacing
+/// gives every spring of a family the same rest length and constants, so the force kernel runs over
+/// whole rows of particles (a stencil) with no per-spring index or constant loads.
+struct SpringFamily {
+  int32_t dc = 0;  ///< column offset of end j from end i, in particles
+  int32_t dr = 0;  ///< row offset of end j from end i, >= 0
+  double rest_length_m = 0.0;
+  double stiffness_N_per_m = 0.0;
+  double damping_N_s_per_m = 0.0;
+  SpringType type = SpringType::kStructural;
+};
+
 /// One Provot deformation constraint (000_25210a744b053ca5.txt slide 9): particles i and j may be
 /// at most max_length_m apart; a violation is removed by moving i by share_i and j by share_j of
 /// it (share_i + share_j = 1; 0 for a pinned end).
@@ -36,6 +49,14 @@ struct ProvotConstraint {
   double max_length_m = 0.0;  ///< (1 + max_elongation) * rest length
   double share_i = 0.5;
   double share_j = 0.5;
+};
+
+/// ClothModel::provot packed for the sweeps: particles i and j at most max_length_m apart; j is
+/// the pinned end for the first ClothModel::provot_pinned_pairs entries.
+struct ProvotPair {
+  int32_t i = 0;
+  int32_t j = 0;
+  double max_length_m = 0.0;
 };
 
 /// A long range attachment (ProvotSpec::long_range_attachments): free particle `particle` may be
@@ -80,7 +101,7 @@ struct ClothModel {
   std::vector<Spring> springs;          ///< only the spring types the spec declares
   std::vector<Triangle> triangles;      ///< 2 (W-1)(H-1), see MakeGridTriangles
   int32_t substeps = 1;      ///< per nominal frame, resolved from spec ("auto" -> number)
-  double stable_dt_s = 0.0;  ///< the integrator's stability limit for the stiffest pair
+  double stable_dt_s = 0.0;  ///< the integrator's stability limit, s (StableStep)
 
   // Derived constants (filled by BuildClothModel; read by the kernels and the benchmarks).
   double particle_mass_kg = 0.0;         ///< mass of every particle (pinned ones included)
@@ -88,14 +109,22 @@ struct ClothModel {
   std::vector<ProvotConstraint> provot;  ///< structural (+ shear) springs Provot constrains, in
                                          ///< sweep order: nearest the pins first
   std::vector<PinAttachment> attachments;  ///< each free particle to its nearest pin (if any)
-  /// Bound on the highest natural frequency of the linearised spring system, rad/s: the
-  /// Gershgorin bound omega_max^2 <= max_i sum_s k_s (1/m_i + 1/sqrt(m_i m_j)) over free particles
-  /// (000_25210a744b053ca5.txt slide 8: the critical stiffness depends on the natural period).
+  std::vector<ProvotPair> provot_pairs;    ///< `provot` in the same order, 16 bytes each
+  int32_t provot_pinned_pairs = 0;         ///< the leading provot_pairs with a pinned end j
+  std::vector<SpringFamily> spring_families;  ///< `springs` grouped by type and direction
+  /// Bound on the highest natural frequency of the linearised spring system, rad/s, for every
+  /// configuration: omega_max^2 = max over wave vectors of the grid Laplacian's symbol / m (see
+  /// ComputeFrequencyBounds in cloth_build.cc; 000_25210a744b053ca5.txt slide 8: the critical
+  /// stiffness depends on the natural period).
   double omega_max_rad_per_s = 0.0;
+  /// Bound on the frequency, rad/s, of the modes that only drag damps (motion across a stretched
+  /// spring: its dashpot acts along it only): omega_max sqrt(1 - 1 / r) for springs at most r times
+  /// their rest length (r from Provot's limit; omega_max without Provot).
+  double omega_transverse_rad_per_s = 0.0;
   double drag_rate_per_s = 0.0;     ///< drag / particle mass: damping rate of every mode, 1/s
   double damping_time_min_s = 0.0;  ///< smallest c/k over the declared spring types, s
   double damping_time_max_s = 0.0;  ///< largest c/k over the declared spring types, s
-  double gamma_max_per_s = 0.0;     ///< Gershgorin bound on the highest modal damping rate, 1/s
+  double gamma_max_per_s = 0.0;     ///< bound on the highest modal damping rate (same symbol), 1/s
 
   int32_t num_particles() const { return width * height; }
 };
@@ -164,9 +193,10 @@ double TotalEnergy(const ClothModel& model, const ClothState& state);
 void AddSpringForces(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
                      std::span<Vec3> f);
 
-/// The largest stable step [s] of `kind` for the model's stiffest spring/mass pair (its
-/// omega_max, damping included), without safety factor: the largest h at which no mode of the
-/// scalar test oscillator grows faster than 0.1 % per second. +infinity for implicit Euler; tiny
+/// The largest stable step [s] of `kind` for the model's frequency bounds (omega_max with the
+/// range of spring damping, and the drag-only modes up to omega_transverse), without safety
+/// factor: the largest h at which no mode of the scalar test oscillator grows faster than 0.1 %
+/// per second. +infinity for implicit Euler; tiny
 /// for explicit Euler or midpoint with neither damping nor drag (they have no stable step).
 double StableStep(const ClothModel& model, IntegratorKind kind);
 

@@ -107,9 +107,14 @@ double ObstacleDistance(const ObstacleSpec& o, const Vec3& p, Vec3* normal) {
 
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   const double inv_h = 1.0 / h_s;
-  // Flat loops over raw coordinates (a Vec3 is three packed doubles), no Eigen temporaries.
+  const size_t n3 = 3 * static_cast<size_t>(model.num_particles());
+  // Flat loops over raw coordinates (a Vec3 is three packed doubles), no Eigen temporaries. Only
+  // positions move inside the loops; velocities follow once at the end (v += (x - x_before) / h,
+  // the sum of every move / h), which halves the memory each projection touches.
   double* __restrict x = state->x.data()->data();
   double* __restrict v = state->v.data()->data();
+  double* __restrict x_before = state->scratch->provot_x_before.data();
+  std::copy(x, x + n3, x_before);
   // Long range attachments first: each free particle back into the ball around its pin (Kim,
   // Chentanez & Mueller 2012); the pin is kinematic, so only the particle moves.
   for (const PinAttachment& a : model.attachments) {
@@ -119,16 +124,15 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
     if (len2 <= a.max_length_m * a.max_length_m) continue;
     const double len = std::sqrt(len2);
     const double scale = (len - a.max_length_m) / len;
-    const double sx = scale * dx, sy = scale * dy, sz = scale * dz;
-    x[p] -= sx;
-    x[p + 1] -= sy;
-    x[p + 2] -= sz;
-    v[p] -= inv_h * sx;
-    v[p + 1] -= inv_h * sy;
-    v[p + 2] -= inv_h * sz;
+    x[p] -= scale * dx;
+    x[p + 1] -= scale * dy;
+    x[p + 2] -= scale * dz;
   }
-  const ProvotConstraint* __restrict constraints = model.provot.data();
-  const size_t count = model.provot.size();
+  // The constraints in sweep order: first those with a pinned end j (the free end i takes the
+  // whole correction), then those with two free ends (halves); 16 bytes each.
+  const ProvotPair* __restrict pairs = model.provot_pairs.data();
+  const size_t pinned_count = static_cast<size_t>(model.provot_pinned_pairs);
+  const size_t count = model.provot_pairs.size();
   constexpr double kLoose2 = (1.0 + kProvotConverged) * (1.0 + kProvotConverged);
   for (int32_t sweep = 0; sweep < model.spec.provot.iterations; ++sweep) {
     // Converged when no spring of this sweep was over its limit by more than kProvotConverged.
@@ -136,7 +140,7 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
     for (size_t k = 0; k < count; ++k) {
       // Provot 1995 (000_25210a744b053ca5.txt slides 9-10): a spring longer than its limit
       // (1 + tau_c) L is shortened back to it by moving its ends by their shares.
-      const ProvotConstraint& c = constraints[k];
+      const ProvotPair& c = pairs[k];
       const size_t i = 3 * static_cast<size_t>(c.i), j = 3 * static_cast<size_t>(c.j);
       const double dx = x[j] - x[i], dy = x[j + 1] - x[i + 1], dz = x[j + 2] - x[i + 2];
       const double len2 = dx * dx + dy * dy + dz * dz;
@@ -145,24 +149,21 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
       loose = loose || len2 > kLoose2 * max2;
       const double len = std::sqrt(len2);
       const double scale = kProvotOverRelaxation * (len - c.max_length_m) / len;
-      const double sx = scale * dx, sy = scale * dy, sz = scale * dz;
-      // Velocities follow the positions, v += dx / h, so (x, v) stay consistent.
-      const double a = c.share_i, b = c.share_j, av = a * inv_h, bv = b * inv_h;
-      x[i] += a * sx;
-      x[i + 1] += a * sy;
-      x[i + 2] += a * sz;
-      x[j] -= b * sx;
-      x[j + 1] -= b * sy;
-      x[j + 2] -= b * sz;
-      v[i] += av * sx;
-      v[i + 1] += av * sy;
-      v[i + 2] += av * sz;
-      v[j] -= bv * sx;
-      v[j + 1] -= bv * sy;
-      v[j + 2] -= bv * sz;
+      // A pinned end j stays and the free end takes the whole correction; else halves.
+      const bool pinned_j = k < pinned_count;
+      const double a = pinned_j ? scale : 0.5 * scale;
+      x[i] += a * dx;
+      x[i + 1] += a * dy;
+      x[i + 2] += a * dz;
+      if (pinned_j) continue;
+      x[j] -= a * dx;
+      x[j + 1] -= a * dy;
+      x[j + 2] -= a * dz;
     }
     if (!loose) break;
   }
+  // Velocities follow the positions, v += dx / h, so (x, v) stay consistent.
+  for (size_t k = 0; k < n3; ++k) v[k] += inv_h * (x[k] - x_before[k]);
 }
 
 void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state) {

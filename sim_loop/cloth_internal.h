@@ -26,6 +26,10 @@ struct ClothState::Scratch {
   std::vector<Vec3> kv_sum;      ///< RK4: weighted sum of velocity slopes
   std::vector<Vec3> x_start;     ///< positions at the start of the substep (obstacle sweeps)
   CouplingSprings coupling;      ///< contact springs of this frame (fixed capacity)
+  /// [12 n] structure-of-arrays work space of the force kernel: x, y, z, vx, vy, vz, then the
+  /// force fx, fy, fz, then one spring family's forces (cloth_forces.cc).
+  std::vector<double> soa;
+  std::vector<double> provot_x_before;  ///< [3 n] positions before ApplyProvot moved them
 
   // Integrator history (leapfrog, basic Verlet), [n] each.
   bool history_valid = false;  ///< false: restart from x, v at the next substep
@@ -48,7 +52,8 @@ struct ClothState::Scratch {
 };
 
 /// Accelerations [m/s^2] at positions x and velocities v: gravity, drag, springs, and the frame's
-/// external forces (scratch.external_N); zero for pinned particles. Uses scratch.force_N.
+/// external forces (scratch.external_N); zero for pinned particles. Works in scratch.soa (spring
+/// families as grid stencils, AVX2 where the CPU has it).
 void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
                           ClothState::Scratch* scratch, std::span<Vec3> a);
 

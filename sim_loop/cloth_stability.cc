@@ -79,8 +79,8 @@ double StableStep(const ClothModel& model, IntegratorKind kind) {
   if (!(omega_max > 0.0)) return std::numeric_limits<double>::infinity();
 
   // The modes to check: frequencies up to omega_max, each with the least and the most damping a
-  // mode of that frequency can have (drag plus c/k of the softest- or hardest-damped spring type
-  // times omega^2), plus the Gershgorin damping bound at omega_max.
+  // mode of that frequency can have along the springs (drag plus c/k of the softest- or
+  // hardest-damped spring type times omega^2), plus the damping bound at omega_max.
   struct Mode {
     double omega2, gamma;
   };
@@ -89,12 +89,19 @@ double StableStep(const ClothModel& model, IntegratorKind kind) {
   for (int i = 0; i < kSamples; ++i) {
     const double omega = omega_max * std::pow(1e-3, static_cast<double>(i) / (kSamples - 1));
     const double w2 = omega * omega;
-    // No mode is damped faster than the Gershgorin bound on M^-1 D.
+    // No mode is damped faster than the bound on M^-1 D (gamma_max_per_s).
     const double cap = model.gamma_max_per_s;
     modes.push_back({w2, std::min(cap, model.drag_rate_per_s + model.damping_time_min_s * w2)});
     modes.push_back({w2, std::min(cap, model.drag_rate_per_s + model.damping_time_max_s * w2)});
   }
   modes.push_back({omega_max * omega_max, model.gamma_max_per_s});
+  // Motion across stretched springs: no dashpot acts on it, only drag (ClothModel::
+  // omega_transverse_rad_per_s). Without this, explicit Euler's auto step grew those modes.
+  const double omega_t = std::min(model.omega_transverse_rad_per_s, omega_max);
+  for (int i = 0; i < kSamples && omega_t > 0.0; ++i) {
+    const double omega = omega_t * std::pow(1e-3, static_cast<double>(i) / (kSamples - 1));
+    modes.push_back({omega * omega, model.drag_rate_per_s});
+  }
   // Stable: no mode grows faster than kMaxGrowthPerSecond (rho^(1/h) <= e^rate). A tolerance in
   // time, not per step, so that rounding in the eigenvalues of neutral modes (|rho| = 1 up to
   // ~1e-10) does not count as growth, while a weakly unstable scheme (explicit Euler without

@@ -182,8 +182,10 @@ TEST(ClothStepTest, ExternalForceIsSplitByBarycentricWeights) {
 
 TEST(ClothStepTest, StiffSpringsAtLargeDtWithAutoSubstepsStayBounded) {
   // Springs 1000 times the default, a 100 ms frame (clamped to the 33 ms maximum), auto substeps.
+  // Explicit Euler has no usable auto step here (its drag-damped modes need h < 1e-7 s): auto
+  // refuses it (tests/sim_loop/cloth_bounds_test.cc), and it runs stiff scenes with drag there.
   for (IntegratorKind kind : {IntegratorKind::kLeapfrogVerlet, IntegratorKind::kRk4,
-                              IntegratorKind::kSymplecticEuler, IntegratorKind::kExplicitEuler}) {
+                              IntegratorKind::kSymplecticEuler}) {
     SimSpec spec = HorizontalCurtain(8);
     for (auto* s : {&spec.cloth.structural, &spec.cloth.shear, &spec.cloth.bend}) {
       (*s)->stiffness_N_per_m *= 1000;
