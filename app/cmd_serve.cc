@@ -28,6 +28,7 @@
 #include "recordings/trace.h"
 #include "sim_loop/scene_file.h"
 #include "transport/server_transport.h"
+#include "transport/transport_scene.h"
 
 namespace felt::app {
 namespace {
@@ -52,8 +53,8 @@ struct ServeArgs {
   std::optional<double> duration_s;
   std::string stats_json;
   std::string trace;
-  uint32_t domain = 0;
-  std::string dds_config;
+  std::optional<uint32_t> domain;  // overrides [transport] domain
+  std::string dds_config;          // overrides [transport] dds_config when not empty
   bool no_realtime = false;
 };
 
@@ -87,8 +88,11 @@ transport::ServerStatusView StatusOf(const ServerReport& r, const std::string& s
 int Serve(const ServeArgs& args) {
   // Set-up: the scene (a bad one exits 2 before anything starts).
   ServerSpec spec;
+  transport::ServerTransportConfig config;
   try {
-    spec = ParseServerSpec(LoadSceneDocument(args.scene));
+    const SceneDocument doc = LoadSceneDocument(args.scene);
+    spec = ParseServerSpec(doc);
+    config = transport::ParseTransportConfig(doc, spec.devices);
   } catch (const SceneError& e) {
     std::fprintf(stderr, "felt serve: %s\n", e.what());
     return 2;
@@ -114,18 +118,13 @@ int Serve(const ServeArgs& args) {
     spdlog::info("serve: trace {} ({} samples, {:.2f} s) to {} device(s)", args.trace,
                  trace.samples.size(), length_s, device_count);
   } else {
-    transport::ServerTransportConfig config;
-    config.dds.domain_id = args.domain;
-    config.dds.config_file = args.dds_config;
-    for (const DeviceSpec& d : spec.devices) {
-      transport::DeviceLimits limits;
-      limits.device_id = d.id;
-      config.devices.push_back(limits);
-    }
+    if (args.domain) config.dds.domain_id = *args.domain;
+    if (!args.dds_config.empty()) config.dds.config_file = args.dds_config;
+    const uint32_t domain = config.dds.domain_id;
     dds = std::make_unique<transport::ServerTransport>(std::move(config));
     source = std::make_unique<TransportPointerSource>(dds.get());
     sink = std::make_unique<TransportForceSink>(dds.get());
-    spdlog::info("serve: DDS domain {}, devices:{}", args.domain, [&] {
+    spdlog::info("serve: DDS domain {}, devices:{}", domain, [&] {
       std::string ids;
       for (const DeviceSpec& d : spec.devices) ids += " " + d.id;
       return ids;
@@ -193,9 +192,11 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--stats-json", args->stats_json, "write the final statistics as JSON here");
   cmd.add_option("--trace", args->trace,
                  "replay this felt-trace in-process to every device instead of DDS input");
-  cmd.add_option("--domain", args->domain, "DDS domain id (default 0)")->check(CLI::Range(0, 230));
+  cmd.add_option("--domain", args->domain, "DDS domain id (default: [transport] domain, else 0)")
+      ->check(CLI::Range(0, 230));
   cmd.add_option("--dds-config", args->dds_config,
-                 "Cyclone DDS configuration file (default: CYCLONEDDS_URI, else loopback)");
+                 "Cyclone DDS configuration file (default: [transport] dds_config, else "
+                 "CYCLONEDDS_URI, else loopback)");
   cmd.add_flag("--no-realtime", args->no_realtime,
                "normal scheduling: no SCHED_FIFO, spin, pinning or mlockall");
   return [args]() -> int { return Serve(*args); };

@@ -28,7 +28,7 @@ constexpr std::array<SceneSectionInfo, 10> kSceneSections = {{
     {"devices", SectionShape::kArrayOfTables, "the haptic loop and transport (haptic_loop/)"},
     {"proxy", SectionShape::kTable, "the god-object proxy (proxy/)"},
     {"haptic", SectionShape::kTable, "the 1 kHz haptic loop (haptic_loop/)"},
-    {"transport", SectionShape::kTable, "the DDS transport (transport/)"},
+    {"transport", SectionShape::kTable, "ParseTransportConfig (transport/transport_scene.h)"},
 }};
 
 // Levenshtein distance, for "did you mean" hints on short names.

@@ -1,0 +1,119 @@
+// The [transport] scene section: defaults, every key, and each error naming file, line and field.
+#include "transport/transport_scene.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+namespace felt::transport {
+namespace {
+
+std::vector<DeviceSpec> Devices(std::initializer_list<const char*> ids) {
+  std::vector<DeviceSpec> devices;
+  for (const char* id : ids) {
+    DeviceSpec d;
+    d.id = id;
+    devices.push_back(d);
+  }
+  return devices;
+}
+
+ServerTransportConfig Parse(const std::string& text, const std::vector<DeviceSpec>& devices) {
+  return ParseTransportConfig(ParseSceneText(text, "t.toml"), devices);
+}
+
+// The SceneError message of parsing `text`, or "" when it parses.
+std::string ErrorOf(const std::string& text, const std::vector<DeviceSpec>& devices) {
+  try {
+    Parse(text, devices);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(TransportSceneTest, AbsentSectionGivesTheDefaultsForEveryDevice) {
+  const ServerTransportConfig c = Parse("", Devices({"left", "right"}));
+  EXPECT_EQ(c.dds.domain_id, 0u);
+  EXPECT_EQ(c.dds.config_file, "");
+  EXPECT_EQ(c.receive_mode, ReceiveMode::kListener);
+  EXPECT_EQ(c.force_queue_capacity, 256u);
+  ASSERT_EQ(c.devices.size(), 2u);
+  EXPECT_EQ(c.devices[0].device_id, "left");
+  EXPECT_EQ(c.devices[1].device_id, "right");
+  const DeviceLimits defaults;
+  EXPECT_EQ(c.devices[1].workspace_min_m_D, defaults.workspace_min_m_D);
+  EXPECT_EQ(c.devices[1].workspace_max_m_D, defaults.workspace_max_m_D);
+  EXPECT_EQ(c.devices[1].max_rate_hz, defaults.max_rate_hz);
+  EXPECT_EQ(c.devices[1].burst_samples, defaults.burst_samples);
+}
+
+TEST(TransportSceneTest, EveryKeyIsRead) {
+  const ServerTransportConfig c = Parse(R"(
+[transport]
+domain = 7
+dds_config = "net.xml"
+receive_mode = "waitset"
+force_queue_capacity = 64
+workspace_min_m = [-0.1, -0.2, -0.3]
+workspace_max_m = [0.1, 0.2, 0.3]
+max_rate_hz = 1500.0
+burst_samples = 20.0
+[[transport.devices]]
+id = "right"
+workspace_min_m = [0.0, -0.2, -0.3]
+max_rate_hz = 1100.0
+)",
+                                        Devices({"left", "right"}));
+  EXPECT_EQ(c.dds.domain_id, 7u);
+  EXPECT_EQ(c.dds.config_file, "net.xml");
+  EXPECT_EQ(c.receive_mode, ReceiveMode::kWaitset);
+  EXPECT_EQ(c.force_queue_capacity, 64u);
+  const std::array<double, 3> min{-0.1, -0.2, -0.3}, max{0.1, 0.2, 0.3};
+  EXPECT_EQ(c.devices[0].device_id, "left");
+  EXPECT_EQ(c.devices[0].workspace_min_m_D, min);
+  EXPECT_EQ(c.devices[0].workspace_max_m_D, max);
+  EXPECT_EQ(c.devices[0].max_rate_hz, 1500.0);
+  EXPECT_EQ(c.devices[0].burst_samples, 20.0);
+  // The per-device entry overrides only what it names; the rest is the section's defaults.
+  const std::array<double, 3> right_min{0.0, -0.2, -0.3};
+  EXPECT_EQ(c.devices[1].device_id, "right");
+  EXPECT_EQ(c.devices[1].workspace_min_m_D, right_min);
+  EXPECT_EQ(c.devices[1].workspace_max_m_D, max);
+  EXPECT_EQ(c.devices[1].max_rate_hz, 1100.0);
+  EXPECT_EQ(c.devices[1].burst_samples, 20.0);
+}
+
+TEST(TransportSceneTest, ErrorsNameFileLineAndField) {
+  const auto two = Devices({"left", "right"});
+  struct Case {
+    const char* text;
+    const char* expect;
+  };
+  const Case cases[] = {
+      {"[transport]\ndomian = 3\n", "t.toml:2:1: transport.domian"},
+      {"[transport]\ndomain = 231\n", "t.toml:2:1: transport.domain"},
+      {"[transport]\nreceive_mode = \"poll\"\n", "transport.receive_mode"},
+      {"[transport]\nforce_queue_capacity = 0\n", "transport.force_queue_capacity"},
+      {"[transport]\nworkspace_min_m = [0.1, 0, 0]\nworkspace_max_m = [0.1, 1, 1]\n",
+       "t.toml:3:1: transport.workspace_max_m: the workspace box is empty"},
+      {"[transport]\nmax_rate_hz = 0\n", "transport.max_rate_hz"},
+      {"[transport]\n[[transport.devices]]\nid = \"middle\"\n",
+       "transport.devices[0].id: 'middle' is not a device of this scene (devices: left, right)"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\n[[transport.devices]]\nid = \"left\"\n",
+       "transport.devices[1].id: device 'left' is listed twice"},
+      {"[transport]\n[[transport.devices]]\nworkspace_min_m = [0, 0, 0]\n",
+       "transport.devices[0].id"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nburst = 3\n",
+       "transport.devices[0].burst"},
+  };
+  for (const Case& c : cases) {
+    const std::string error = ErrorOf(c.text, two);
+    EXPECT_NE(error.find(c.expect), std::string::npos)
+        << "scene:\n" << c.text << "error: '" << error << "'\nexpected: " << c.expect;
+  }
+}
+
+}  // namespace
+}  // namespace felt::transport

@@ -1,0 +1,83 @@
+#include "transport/transport_scene.h"
+
+#include <array>
+#include <optional>
+#include <set>
+#include <span>
+#include <string>
+
+namespace felt::transport {
+namespace {
+
+std::array<double, 3> ToArray(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+Vec3 ToVec(const std::array<double, 3>& a) { return Vec3(a[0], a[1], a[2]); }
+
+// The device limits keys of `table` over `limits` (the defaults).
+DeviceLimits ReadLimits(const SceneTable& table, DeviceLimits limits) {
+  limits.workspace_min_m_D =
+      ToArray(table.Vector("workspace_min_m", ToVec(limits.workspace_min_m_D)));
+  limits.workspace_max_m_D =
+      ToArray(table.Vector("workspace_max_m", ToVec(limits.workspace_max_m_D)));
+  for (int axis = 0; axis < 3; ++axis) {
+    if (!(limits.workspace_min_m_D[axis] < limits.workspace_max_m_D[axis])) {
+      table.Fail(table.Has("workspace_max_m") ? "workspace_max_m" : "workspace_min_m",
+                 "the workspace box is empty: min must be below max on every axis");
+    }
+  }
+  limits.max_rate_hz = table.Number("max_rate_hz", limits.max_rate_hz, InRange(1.0, 1e6));
+  limits.burst_samples = table.Number("burst_samples", limits.burst_samples, InRange(1.0, 1e6));
+  return limits;
+}
+
+}  // namespace
+
+ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
+                                           const std::vector<DeviceSpec>& devices) {
+  ServerTransportConfig config;
+  DeviceLimits defaults;
+  const std::optional<SceneTable> table = SceneTable::Section(doc, "transport");
+  std::vector<DeviceLimits> limits(devices.size());
+  if (table) {
+    table->ExpectKeys({"domain", "dds_config", "receive_mode", "force_queue_capacity",
+                       "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples",
+                       "devices"});
+    config.dds.domain_id =
+        static_cast<uint32_t>(table->Integer("domain", 0, InRange(0, 230)));
+    config.dds.config_file = table->String("dds_config", std::string());
+    static constexpr NamedValue<ReceiveMode> kModes[] = {{"listener", ReceiveMode::kListener},
+                                                         {"waitset", ReceiveMode::kWaitset}};
+    config.receive_mode = table->Choice<ReceiveMode>(
+        "receive_mode", ReceiveMode::kListener, std::span<const NamedValue<ReceiveMode>>(kModes));
+    config.force_queue_capacity = static_cast<size_t>(
+        table->Integer("force_queue_capacity", 256, InRange(1, 65536)));
+    defaults = ReadLimits(*table, defaults);
+  }
+  for (size_t i = 0; i < devices.size(); ++i) {
+    limits[i] = defaults;
+    limits[i].device_id = devices[i].id;
+  }
+  if (table) {
+    std::set<std::string> seen;
+    for (const SceneTable& entry : table->ArrayOfTables("devices")) {
+      entry.ExpectKeys({"id", "workspace_min_m", "workspace_max_m", "max_rate_hz",
+                        "burst_samples"});
+      const std::string id = entry.String("id", kRequired, /*non_empty=*/true);
+      if (!seen.insert(id).second) entry.Fail("id", "device '" + id + "' is listed twice");
+      size_t index = devices.size();
+      for (size_t i = 0; i < devices.size(); ++i) {
+        if (devices[i].id == id) index = i;
+      }
+      if (index == devices.size()) {
+        std::string known;
+        for (const DeviceSpec& d : devices) known += (known.empty() ? "" : ", ") + d.id;
+        entry.Fail("id", "'" + id + "' is not a device of this scene (devices: " + known + ")");
+      }
+      limits[index] = ReadLimits(entry, defaults);
+      limits[index].device_id = id;
+    }
+  }
+  config.devices = std::move(limits);
+  return config;
+}
+
+}  // namespace felt::transport

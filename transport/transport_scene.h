@@ -1,0 +1,35 @@
+#pragma once
+// The [transport] section of a scene (docs/transport.md, "Scene section"): the DDS domain and
+// configuration, the receive mode, and what the server accepts from each device (workspace box,
+// flood limit). `felt serve` reads it; --domain and --dds-config override the scene's values.
+//
+//   [transport]
+//   domain = 0                          # DDS domain id, 0..230
+//   dds_config = ""                     # Cyclone XML file ("" = CYCLONEDDS_URI, else loopback)
+//   receive_mode = "listener"           # or "waitset"
+//   force_queue_capacity = 256          # forces between the haptic thread and the writer
+//   workspace_min_m = [-0.2, -0.2, -0.2]  # default workspace box of every device, device frame
+//   workspace_max_m = [0.2, 0.2, 0.2]
+//   max_rate_hz = 2000.0                # default flood limit: sustained samples per second
+//   burst_samples = 50.0                # default flood limit: samples back to back
+//   [[transport.devices]]               # optional per-device overrides
+//   id = "left"                         # one of the scene's device ids
+//   workspace_min_m = [-0.1, -0.2, -0.2]
+
+#include <vector>
+
+#include "proxy/proxy_spec.h"
+#include "sim_loop/scene_file.h"
+#include "transport/server_transport.h"
+
+namespace felt::transport {
+
+/// Reads [transport] (absent: the defaults of ServerTransportConfig and DeviceLimits) into the
+/// server transport's configuration for `devices` (the scene's devices, in order: device_index =
+/// position). Throws SceneError naming file, line and field: a bad value, an empty box (min not
+/// below max on every axis), an id in [[transport.devices]] that is not a scene device or is
+/// listed twice.
+ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
+                                           const std::vector<DeviceSpec>& devices);
+
+}  // namespace felt::transport
