@@ -38,8 +38,11 @@ $(BUILD)/build.ninja: CMakeLists.txt | deps
 build: deps $(BUILD)/build.ninja
 	cmake --build $(BUILD) -j $(JOBS)
 
+# The demo: the server and a replay of a bundled trace over loopback DDS for about ten seconds,
+# then a short summary (docs/replay.md). Thresholds are reported, not enforced (--report-only).
 run: build
-	./$(BUILD)/felt run --scene $(SCENE)
+	./$(BUILD)/felt soak --minutes 0.17 --scene $(SCENE) --trace recordings/poke_hold.trace \
+	  --report-only
 
 # Every test: the release build, then ASan+UBSan on everything, then TSan on threaded code.
 test: deps test-release test-asan test-tsan

@@ -243,8 +243,7 @@ StreamTapConfig TapConfigOf(const RecorderConfig& config) {
 }
 }  // namespace
 
-Recorder::Recorder(RecorderConfig config)
-    : config_(std::move(config)), tap_(TapConfigOf(config_)) {
+Recorder::Recorder(RecorderConfig config) : config_(std::move(config)), tap_(TapConfigOf(config_)) {
   stats_.device_id = config_.device_id;
 }
 
@@ -252,8 +251,7 @@ Recorder::~Recorder() = default;
 
 void Recorder::Poll(std::chrono::nanoseconds timeout) {
   tap_.Poll(
-      timeout,
-      [this](std::string_view id, const PointerSampleView& s) { OnPointer(id, s); },
+      timeout, [this](std::string_view id, const PointerSampleView& s) { OnPointer(id, s); },
       [this](std::string_view id, const ForceCommandView& f) { OnForce(id, f); });
 }
 
@@ -297,10 +295,10 @@ void Recorder::OnPointer(std::string_view device_id, const PointerSampleView& sa
     header.Set("first_seq", std::to_string(sample.seq));
     trace_ = std::make_unique<TraceWriter>(config_.out_path, header);
     if (!config_.forces_path.empty()) {
-      forces_ = std::make_unique<ForceLogWriter>(
-          config_.forces_path, stats_.device_id,
-          "felt record: " + config_.topics.force + ", t_s on the receiving clock, origin = "
-          "receipt of the trace's first sample");
+      forces_ = std::make_unique<ForceLogWriter>(config_.forces_path, stats_.device_id,
+                                                 "felt record: " + config_.topics.force +
+                                                     ", t_s on the receiving clock, origin = "
+                                                     "receipt of the trace's first sample");
     }
   }
 

@@ -22,10 +22,10 @@ namespace felt::transport {
 
 /// What a StreamTap reads.
 struct StreamTapConfig {
-  DdsSettings dds;               ///< domain and Cyclone configuration
-  TopicNames topics;             ///< must match the server's and the drivers'
-  bool pointers = true;          ///< read felt/pointer
-  bool forces = true;            ///< read felt/force
+  DdsSettings dds;                ///< domain and Cyclone configuration
+  TopicNames topics;              ///< must match the server's and the drivers'
+  bool pointers = true;           ///< read felt/pointer
+  bool forces = true;             ///< read felt/force
   uint32_t history_depth = 4096;  ///< samples kept per device until taken (KEEP_LAST depth), >= 1
 };
 
@@ -108,29 +108,29 @@ class ForceLogWriter {
 
 /// What a Recorder records.
 struct RecorderConfig {
-  DdsSettings dds;          ///< domain and Cyclone configuration
-  TopicNames topics;        ///< must match the server's and the drivers'
-  std::string out_path;     ///< the felt-trace v1 file written (required)
-  std::string forces_path;  ///< the companion felt-forces v1 file; "" = no force file
-  std::string device_id;    ///< the device recorded; "" = the first device heard from
-  double rate_hz = 1000.0;  ///< the nominal rate written into the trace header [Hz], > 0
+  DdsSettings dds;                ///< domain and Cyclone configuration
+  TopicNames topics;              ///< must match the server's and the drivers'
+  std::string out_path;           ///< the felt-trace v1 file written (required)
+  std::string forces_path;        ///< the companion felt-forces v1 file; "" = no force file
+  std::string device_id;          ///< the device recorded; "" = the first device heard from
+  double rate_hz = 1000.0;        ///< the nominal rate written into the trace header [Hz], > 0
   uint32_t history_depth = 4096;  ///< StreamTapConfig::history_depth
 };
 
 /// Counters of a Recorder. Pointer gaps are by the driver's seq, force gaps by the server's.
 struct RecorderStats {
-  std::string device_id;             ///< the device recorded ("" until the first sample)
-  uint64_t pointers_received = 0;    ///< pointer samples of the recorded device taken
-  uint64_t pointers_written = 0;     ///< trace lines written
-  uint64_t pointer_seq_gaps = 0;     ///< samples missing between received ones (seq jumps)
-  uint64_t pointers_out_of_order = 0;  ///< seq not above the last one: not written
+  std::string device_id;                      ///< the device recorded ("" until the first sample)
+  uint64_t pointers_received = 0;             ///< pointer samples of the recorded device taken
+  uint64_t pointers_written = 0;              ///< trace lines written
+  uint64_t pointer_seq_gaps = 0;              ///< samples missing between received ones (seq jumps)
+  uint64_t pointers_out_of_order = 0;         ///< seq not above the last one: not written
   uint64_t pointers_time_not_increasing = 0;  ///< device_time_ns not above the last: not written
-  uint64_t pointers_other_device = 0;  ///< samples of other devices (ignored)
-  uint64_t forces_received = 0;        ///< forces for the recorded device taken
-  uint64_t forces_written = 0;         ///< force lines written
-  uint64_t force_seq_gaps = 0;         ///< forces missing between received ones (seq jumps)
-  uint64_t forces_other_device = 0;    ///< forces for other devices (ignored)
-  uint64_t dds_errors = 0;             ///< failed DDS calls of the tap
+  uint64_t pointers_other_device = 0;         ///< samples of other devices (ignored)
+  uint64_t forces_received = 0;               ///< forces for the recorded device taken
+  uint64_t forces_written = 0;                ///< force lines written
+  uint64_t force_seq_gaps = 0;                ///< forces missing between received ones (seq jumps)
+  uint64_t forces_other_device = 0;           ///< forces for other devices (ignored)
+  uint64_t dds_errors = 0;                    ///< failed DDS calls of the tap
 };
 
 /// Records one device's pointer samples into a trace and its forces into a forces file.

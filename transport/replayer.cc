@@ -22,10 +22,10 @@
 namespace felt::transport {
 namespace {
 
-constexpr size_t kForceBatch = 256;         // forces per TakeForces call
-constexpr uint32_t kForceHistory = 4096;    // forces the reader holds before overwriting
-constexpr int64_t kStartLeadNs = 5000000;   // first deadline: 5 ms after Run begins
-constexpr int64_t kMaxSleepNs = 50000000;   // sleep at most 50 ms at a time (to see the stop flag)
+constexpr size_t kForceBatch = 256;        // forces per TakeForces call
+constexpr uint32_t kForceHistory = 4096;   // forces the reader holds before overwriting
+constexpr int64_t kStartLeadNs = 5000000;  // first deadline: 5 ms after Run begins
+constexpr int64_t kMaxSleepNs = 50000000;  // sleep at most 50 ms at a time (to see the stop flag)
 
 // Nearest-rank percentile of sorted values (ns), in us.
 double RankUs(const std::vector<int64_t>& sorted, double q) {
@@ -65,8 +65,8 @@ bool SleepUntil(int64_t deadline_ns, const std::atomic<bool>* stop) {
 
 // Pointer samples a server rejected, every reason (docs/transport.md).
 uint64_t StatusRejected(const ServerStatusView& s) {
-  return s.rejected_nonfinite + s.rejected_workspace + s.rejected_seq +
-         s.rejected_unknown_device + s.rejected_flood;
+  return s.rejected_nonfinite + s.rejected_workspace + s.rejected_seq + s.rejected_unknown_device +
+         s.rejected_flood;
 }
 
 // Pointer samples a server took in: accepted or rejected.
@@ -161,9 +161,9 @@ void Replayer::Impl::OnForce(const ForceCommandView& force) {
   // Every force: counts, contact, peak, the file.
   ++forces_received_;
   if (force.in_contact) ++contact_forces_;
-  const double magnitude_N = std::sqrt(force.force_N_D[0] * force.force_N_D[0] +
-                                       force.force_N_D[1] * force.force_N_D[1] +
-                                       force.force_N_D[2] * force.force_N_D[2]);
+  const double magnitude_N =
+      std::sqrt(force.force_N_D[0] * force.force_N_D[0] + force.force_N_D[1] * force.force_N_D[1] +
+                force.force_N_D[2] * force.force_N_D[2]);
   if (std::isfinite(magnitude_N)) peak_force_N_ = std::max(peak_force_N_, magnitude_N);
 
   // The sample it answers: one of ours (seq 1..N, published before this receipt)?
@@ -182,8 +182,7 @@ void Replayer::Impl::OnForce(const ForceCommandView& force) {
     }
   }
   if (forces_file_) {
-    const double answers_t_s =
-        ours ? static_cast<double>(offsets_ns_[seq - 1]) / 1e9 : -1.0;
+    const double answers_t_s = ours ? static_cast<double>(offsets_ns_[seq - 1]) / 1e9 : -1.0;
     forces_file_->Write(static_cast<double>(force.receive_time_ns - start_ns_) / 1e9, answers_t_s,
                         force);
   }
@@ -208,9 +207,9 @@ void Replayer::Impl::ReceiveLoop() {
 }
 
 bool Replayer::Impl::FreshStatus(int64_t after_wall_ns, ServerStatusView* out) {
-  const bool found = WaitUntil(
-      [&] { return client_->LatestStatus(out) && out->wall_time_ns > after_wall_ns; },
-      config_.status_timeout, std::chrono::milliseconds(10));
+  const bool found =
+      WaitUntil([&] { return client_->LatestStatus(out) && out->wall_time_ns > after_wall_ns; },
+                config_.status_timeout, std::chrono::milliseconds(10));
   return found;
 }
 
@@ -412,11 +411,10 @@ std::string FormatReplayReport(const ReplayReport& r) {
                 static_cast<unsigned long long>(r.contact_forces), r.peak_force_N);
   out += buffer;
   if (r.server_counts) {
-    std::snprintf(buffer, sizeof(buffer),
-                  "server               %lld received, %lld rejected, %lld lost\n",
-                  static_cast<long long>(r.server_received),
-                  static_cast<long long>(r.server_rejected),
-                  static_cast<long long>(r.pointer_lost));
+    std::snprintf(
+        buffer, sizeof(buffer), "server               %lld received, %lld rejected, %lld lost\n",
+        static_cast<long long>(r.server_received), static_cast<long long>(r.server_rejected),
+        static_cast<long long>(r.pointer_lost));
   } else {
     std::snprintf(buffer, sizeof(buffer), "server               no felt/status: lost unknown\n");
   }

@@ -20,23 +20,24 @@ namespace felt::transport {
 
 /// How a trace is replayed.
 struct ReplayConfig {
-  DdsSettings dds;                     ///< domain and Cyclone configuration
-  TopicNames topics;                   ///< must match the server's
-  std::string device_id = "default";   ///< the device id the samples are published as (1..64)
-  double rate = 1.0;                   ///< time scale, > 0: 2 plays twice as fast
-  uint32_t loops = 1;                  ///< times the trace is played back to back, >= 1
+  DdsSettings dds;                    ///< domain and Cyclone configuration
+  TopicNames topics;                  ///< must match the server's
+  std::string device_id = "default";  ///< the device id the samples are published as (1..64)
+  double rate = 1.0;                  ///< time scale, > 0: 2 plays twice as fast
+  uint32_t loops = 1;                 ///< times the trace is played back to back, >= 1
   double duration_s = 0.0;  ///< > 0: loop the trace until this much replay time [s] (loops unused)
-  double late_threshold_us = 1000.0;  ///< a sample published later than this after its deadline
-                                      ///< is counted late [us], > 0
+  /// A sample published more than this after its deadline is counted late [us], > 0.
+  double late_threshold_us = 1000.0;
   std::chrono::nanoseconds discovery_timeout = std::chrono::seconds(10);  ///< WaitForServer limit
   /// After this side has matched the server's reader and writer, WaitForServer waits this much
   /// longer: best-effort DDS has no acknowledgement that the server has matched this writer in
   /// turn, and samples sent before it has are dropped (its discovery runs at the same time).
   std::chrono::nanoseconds discovery_settle = std::chrono::milliseconds(250);
-  std::chrono::nanoseconds drain_timeout = std::chrono::milliseconds(300);  ///< wait for the last
-                                                                            ///< forces after the end
-  std::chrono::nanoseconds status_timeout = std::chrono::milliseconds(2500);  ///< wait for a
-      ///< felt/status newer than the start and the end (for the server's counts); 0 = do not
+  /// After the last sample, how long to wait for the force that answers it.
+  std::chrono::nanoseconds drain_timeout = std::chrono::milliseconds(300);
+  /// How long to wait for a felt/status before the start and one newer than the end (the
+  /// server's counts, for pointer_lost); 0 = do not subscribe to felt/status.
+  std::chrono::nanoseconds status_timeout = std::chrono::milliseconds(2500);
   std::string forces_out;  ///< write every force received here (felt-forces v1); "" = no file
 };
 
@@ -52,13 +53,13 @@ struct TimeSummary {
 
 /// What a replay measured.
 struct ReplayReport {
-  std::string device_id;        ///< the id published as
-  uint64_t trace_samples = 0;   ///< samples in the trace
-  double trace_length_s = 0;    ///< last t_s - first t_s of the trace [s]
-  double rate = 1;              ///< time scale used
-  uint64_t loops_started = 0;   ///< passes through the trace begun
-  double wall_s = 0;            ///< from the first deadline to the last publication [s]
-  bool stopped_early = false;   ///< the stop flag ended the replay before the schedule did
+  std::string device_id;       ///< the id published as
+  uint64_t trace_samples = 0;  ///< samples in the trace
+  double trace_length_s = 0;   ///< last t_s - first t_s of the trace [s]
+  double rate = 1;             ///< time scale used
+  uint64_t loops_started = 0;  ///< passes through the trace begun
+  double wall_s = 0;           ///< from the first deadline to the last publication [s]
+  bool stopped_early = false;  ///< the stop flag ended the replay before the schedule did
 
   uint64_t scheduled = 0;         ///< samples the schedule held
   uint64_t published = 0;         ///< samples written to DDS

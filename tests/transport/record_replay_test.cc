@@ -325,8 +325,7 @@ TEST(RecordReplay, ClientTakeForcesReturnsEveryForceInOrderNotOnlyTheNewest) {
   client_config.force_history = 64;
   ClientTransport client(client_config);
   ASSERT_TRUE(WaitUntil(
-      [&] { return client.MatchedForceWriters() > 0 && server.MatchedForceReaders() > 0; },
-      kWait));
+      [&] { return client.MatchedForceWriters() > 0 && server.MatchedForceReaders() > 0; }, kWait));
 
   // Ten forces pushed at once; the client takes them all, oldest first, in batches of four.
   for (uint64_t i = 1; i <= 10; ++i) {

@@ -1,0 +1,132 @@
+// `felt record --out FILE [--duration S] [--forces-out FILE] [--device ID] [--domain N]
+// [--dds-config FILE]`: records one device's pointer samples from felt/pointer into a felt-trace
+// v1 file and the forces it receives from felt/force into a felt-forces v1 file, counting gaps by
+// sequence number (issue 7, docs/replay.md). Runs until the duration or SIGINT/SIGTERM.
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "app/command.h"
+#include "transport/clock.h"
+#include "transport/recorder.h"
+
+namespace felt::app {
+namespace {
+
+// Set by the signal handler; lock-free, so async-signal-safe.
+std::atomic<bool> g_record_stop{false};
+static_assert(std::atomic<bool>::is_always_lock_free);
+
+extern "C" void OnRecordStopSignal(int /*signal*/) { g_record_stop.store(true); }
+
+struct RecordArgs {
+  std::string out;
+  std::optional<double> duration_s;
+  std::string forces_out;
+  bool no_forces = false;
+  std::string device;
+  uint32_t domain = 0;
+  std::string dds_config;
+  double rate_hz = 1000.0;
+};
+
+int Record(const RecordArgs& args) {
+  // Set-up: the options, then the DDS readers.
+  if (args.duration_s && !(*args.duration_s > 0.0 && *args.duration_s <= 86400.0)) {
+    throw std::invalid_argument("--duration must be in (0, 86400] s, got " +
+                                fmt::format("{}", *args.duration_s));
+  }
+  transport::RecorderConfig config;
+  config.dds.domain_id = args.domain;
+  config.dds.config_file = args.dds_config;
+  config.out_path = args.out;
+  config.forces_path = args.no_forces
+                           ? std::string()
+                           : (args.forces_out.empty() ? args.out + ".forces.csv" : args.forces_out);
+  config.device_id = args.device;
+  config.rate_hz = args.rate_hz;
+  transport::Recorder recorder(config);
+
+  struct sigaction action {};
+  action.sa_handler = OnRecordStopSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  std::printf("felt record: listening on DDS domain %u for %s%s%s\n", args.domain,
+              args.device.empty() ? "the first device heard" : ("device " + args.device).c_str(),
+              args.duration_s ? fmt::format(", {:g} s", *args.duration_s).c_str()
+                              : ", until SIGINT/SIGTERM",
+              config.forces_path.empty() ? "" : (", forces to " + config.forces_path).c_str());
+  std::fflush(stdout);
+
+  // Record until the duration (counted from the first sample) or a signal.
+  int64_t end_ns = INT64_MAX;
+  while (!g_record_stop.load() && transport::MonotonicNowNs() < end_ns) {
+    recorder.Poll(std::chrono::milliseconds(50));
+    if (args.duration_s && end_ns == INT64_MAX && recorder.Stats().pointers_written > 0) {
+      end_ns = transport::MonotonicNowNs() + static_cast<int64_t>(*args.duration_s * 1e9);
+    }
+  }
+  recorder.Close();
+
+  // Summary.
+  const transport::RecorderStats s = recorder.Stats();
+  std::printf("felt record: stopped %s\n",
+              g_record_stop.load() ? "by signal" : "after the duration");
+  std::printf(
+      "device %s: %llu samples written to %s (%llu received, %llu missing by seq, %llu out "
+      "of order, %llu with time not increasing; %llu of other devices)\n",
+      s.device_id.empty() ? "(none heard)" : s.device_id.c_str(),
+      static_cast<unsigned long long>(s.pointers_written), args.out.c_str(),
+      static_cast<unsigned long long>(s.pointers_received),
+      static_cast<unsigned long long>(s.pointer_seq_gaps),
+      static_cast<unsigned long long>(s.pointers_out_of_order),
+      static_cast<unsigned long long>(s.pointers_time_not_increasing),
+      static_cast<unsigned long long>(s.pointers_other_device));
+  if (!config.forces_path.empty()) {
+    std::printf(
+        "forces: %llu written to %s (%llu received, %llu missing by seq; %llu for other "
+        "devices)\n",
+        static_cast<unsigned long long>(s.forces_written), config.forces_path.c_str(),
+        static_cast<unsigned long long>(s.forces_received),
+        static_cast<unsigned long long>(s.force_seq_gaps),
+        static_cast<unsigned long long>(s.forces_other_device));
+  }
+  if (s.pointers_written == 0) {
+    std::fprintf(stderr, "felt record: no pointer sample received: %s was not written\n",
+                 args.out.c_str());
+    return 1;
+  }
+  return 0;
+}
+
+CommandRun Setup(CLI::App& cmd) {
+  auto args = std::make_shared<RecordArgs>();
+  cmd.add_option("--out", args->out, "the felt-trace v1 file to write")->required();
+  cmd.add_option("--duration", args->duration_s,
+                 "stop this many seconds after the first sample (default: SIGINT/SIGTERM)");
+  cmd.add_option("--forces-out", args->forces_out,
+                 "the felt-forces v1 file for the forces (default: OUT.forces.csv)");
+  cmd.add_flag("--no-forces", args->no_forces, "do not record the forces");
+  cmd.add_option("--device", args->device, "record this device id (default: the first heard)");
+  cmd.add_option("--domain", args->domain, "DDS domain id (default 0)")->check(CLI::Range(0, 230));
+  cmd.add_option("--dds-config", args->dds_config,
+                 "Cyclone DDS configuration file (default: CYCLONEDDS_URI, else loopback)");
+  cmd.add_option("--rate-hz", args->rate_hz, "nominal rate written into the trace header")
+      ->check(CLI::PositiveNumber);
+  return [args]() -> int { return Record(*args); };
+}
+
+const bool kRegistered = RegisterCommand(
+    {"", "record", "record a device's pointer samples (and forces) from DDS into a trace", Setup});
+
+}  // namespace
+}  // namespace felt::app

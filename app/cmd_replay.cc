@@ -1,0 +1,137 @@
+// `felt replay FILE [--rate R] [--loop N | --duration S] [--forces-out FILE] [--json FILE]
+// [--device ID] [--late-us US] [--domain N] [--dds-config FILE]`: publishes a felt-trace v1 file
+// on felt/pointer at its recorded timing (absolute deadlines) as a stand-in device, takes the
+// forces that come back, and reports end-to-end latency percentiles, lost and late samples
+// (issue 7, docs/replay.md). SIGINT/SIGTERM end the replay early; the report is still printed.
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "app/command.h"
+#include "recordings/trace.h"
+#include "transport/replayer.h"
+
+namespace felt::app {
+namespace {
+
+// Set by the signal handler; lock-free, so async-signal-safe.
+std::atomic<bool> g_replay_stop{false};
+static_assert(std::atomic<bool>::is_always_lock_free);
+
+extern "C" void OnReplayStopSignal(int /*signal*/) { g_replay_stop.store(true); }
+
+struct ReplayArgs {
+  std::string trace;
+  double rate = 1.0;
+  uint32_t loops = 1;
+  std::optional<double> duration_s;
+  std::string forces_out;
+  std::string json;
+  std::string device = "default";
+  double late_us = 1000.0;
+  double discovery_timeout_s = 15.0;
+  uint32_t domain = 0;
+  std::string dds_config;
+};
+
+int Replay(const ReplayArgs& args) {
+  // Set-up: the whole trace is read and checked before anything is published.
+  if (!(args.rate > 0.0 && args.rate <= 100.0)) {
+    throw std::invalid_argument(fmt::format("--rate must be in (0, 100], got {}", args.rate));
+  }
+  if (args.duration_s && !(*args.duration_s > 0.0 && *args.duration_s <= 86400.0)) {
+    throw std::invalid_argument(
+        fmt::format("--duration must be in (0, 86400] s, got {}", *args.duration_s));
+  }
+  Trace trace = ReadTrace(args.trace);
+  transport::ReplayConfig config;
+  config.dds.domain_id = args.domain;
+  config.dds.config_file = args.dds_config;
+  config.device_id = args.device;
+  config.rate = args.rate;
+  config.loops = args.loops;
+  config.duration_s = args.duration_s.value_or(0.0);
+  config.late_threshold_us = args.late_us;
+  config.discovery_timeout =
+      std::chrono::nanoseconds(static_cast<int64_t>(args.discovery_timeout_s * 1e9));
+  config.forces_out = args.forces_out;
+  const size_t samples = trace.samples.size();
+  transport::Replayer replayer(std::move(trace), config);
+
+  struct sigaction action {};
+  action.sa_handler = OnReplayStopSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+
+  // Discovery: a server must be there before the first sample goes out.
+  std::printf("felt replay: %s (%zu samples) as device %s on DDS domain %u, waiting for a server\n",
+              args.trace.c_str(), samples, args.device.c_str(), args.domain);
+  std::fflush(stdout);
+  if (!replayer.WaitForServer(&g_replay_stop)) {
+    if (g_replay_stop.load()) {
+      std::printf("felt replay: stopped by signal before a server was found\n");
+      return 1;
+    }
+    std::fprintf(stderr,
+                 "felt replay: no server found on DDS domain %u within %.0f s (is `felt serve` "
+                 "running with the same --domain?)\n",
+                 args.domain, args.discovery_timeout_s);
+    return 1;
+  }
+
+  // The replay; the "publishing" line tells a watcher (felt soak) that the samples start now.
+  const transport::ReplayReport report = replayer.Run(&g_replay_stop, [] {
+    std::printf("felt replay: publishing\n");
+    std::fflush(stdout);
+  });
+  std::printf("%s", transport::FormatReplayReport(report).c_str());
+  if (!args.json.empty()) {
+    std::ofstream out(args.json);
+    out << transport::ReplayReportJson(report);
+    if (!out) throw std::runtime_error("cannot write --json file '" + args.json + "'");
+  }
+  std::fflush(stdout);
+  return 0;
+}
+
+CommandRun Setup(CLI::App& cmd) {
+  auto args = std::make_shared<ReplayArgs>();
+  cmd.add_option("trace", args->trace, "the felt-trace v1 file to publish")->required();
+  cmd.add_option("--rate", args->rate, "time scale: 2 plays twice as fast (default 1)");
+  auto* loop = cmd.add_option("--loop", args->loops, "play the trace N times back to back")
+                   ->check(CLI::Range(1u, 1000000u));
+  cmd.add_option("--duration", args->duration_s,
+                 "loop the trace until this many seconds of replay time")
+      ->excludes(loop);
+  cmd.add_option("--forces-out", args->forces_out,
+                 "write every force received here (felt-forces v1)");
+  cmd.add_option("--json", args->json, "write the report as JSON here");
+  cmd.add_option("--device", args->device, "publish as this device id (default \"default\")");
+  cmd.add_option("--late-us", args->late_us,
+                 "count a sample late when published more than this after its deadline (us)")
+      ->check(CLI::PositiveNumber);
+  cmd.add_option("--discovery-timeout", args->discovery_timeout_s,
+                 "seconds to wait for a server (default 15)")
+      ->check(CLI::PositiveNumber);
+  cmd.add_option("--domain", args->domain, "DDS domain id (default 0)")->check(CLI::Range(0, 230));
+  cmd.add_option("--dds-config", args->dds_config,
+                 "Cyclone DDS configuration file (default: CYCLONEDDS_URI, else loopback)");
+  return [args]() -> int { return Replay(*args); };
+}
+
+const bool kRegistered = RegisterCommand(
+    {"", "replay",
+     "publish a pointer trace over DDS at its recorded timing; report latency, lost, late", Setup});
+
+}  // namespace
+}  // namespace felt::app
