@@ -76,6 +76,7 @@ std::string Json(const CompareArgs& args, const bench::MachineInfo& machine,
         .Number("tick_us_p99", s.tick_us_p99)
         .Number("frame_ms_median", s.frame_ms_median)
         .Number("frame_ms_p99", s.frame_ms_p99)
+        .Number("timer_overhead_us", s.timer_overhead_us)
         .Number("force_rms_error_N", s.force_rms_error_N)
         .Number("force_max_error_N", s.force_max_error_N)
         .Number("max_jump_N", s.max_jump_N)
@@ -122,10 +123,11 @@ int Compare(const CompareArgs& args) {
   const std::string table = Table(result.summaries);
   std::printf(
       "felt compare: %s on %s, %lld ticks (%.3f s virtual), %lld frames, %u device(s); "
-      "reference '%s'; load %s -> %s\n\n%s",
+      "reference '%s'; timer overhead %.2f us (in every cost); load %s -> %s\n\n%s",
       args.trace.c_str(), args.scene.c_str(), static_cast<long long>(ref.ticks),
       static_cast<double>(ref.ticks) * ref.tick_dt_s, static_cast<long long>(ref.frames),
-      ref.devices, ref.name.c_str(), machine.load_average.c_str(), load_end.c_str(), table.c_str());
+      ref.devices, ref.name.c_str(), result.summaries.front().timer_overhead_us,
+      machine.load_average.c_str(), load_end.c_str(), table.c_str());
   std::fflush(stdout);
   if (!args.json.empty()) bench::WriteTextFile(args.json, Json(args, machine, load_end, result));
   if (!args.md.empty()) {
@@ -134,9 +136,10 @@ int Compare(const CompareArgs& args) {
     const std::string what = fmt::format(
         "Trace `{}` on scene `{}`: {} haptic ticks ({:.3f} s of virtual time), {} sim frames, {} "
         "device(s), in lock-step virtual time (docs/compare.md). Reference: `{}`. Costs are "
-        "thread CPU time and vary from run to run; forces are bit-identical run to run.\n\n",
+        "thread CPU time and vary from run to run (each includes one timer read: {:.2f} us "
+        "measured between two back-to-back reads); forces are bit-identical run to run.\n\n",
         args.trace, args.scene, ref.ticks, static_cast<double>(ref.ticks) * ref.tick_dt_s,
-        ref.frames, ref.devices, ref.name);
+        ref.frames, ref.devices, ref.name, result.summaries.front().timer_overhead_us);
     bench::WriteTextFile(args.md, header + "\n" + what + table);
   }
   return 0;

@@ -375,6 +375,15 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
   run.tick_cpu_us.reserve(static_cast<size_t>(ticks));
   run.frame_cpu_ms.reserve(static_cast<size_t>(span_s * frame_rate_hz) + 2);
 
+  // The timer's own cost: back-to-back reads.
+  std::vector<double> empty_us;
+  empty_us.reserve(1000);
+  for (int i = 0; i < 1000; ++i) {
+    const int64_t begin = ThreadCpuNs();
+    empty_us.push_back(static_cast<double>(ThreadCpuNs() - begin) * 1e-3);
+  }
+  run.timer_overhead_us = NearestRankPercentile(std::move(empty_us), 50.0);
+
   // Virtual time (file comment): the rest state at t0, frames before the ticks they precede.
   const int64_t t0 = kLockstepEpochNs;
   server.PublishInitialSnapshot(t0);
@@ -452,6 +461,7 @@ std::vector<VariantSummary> SummarizeRuns(const std::vector<LockstepRun>& runs) 
     s.tick_us_p99 = NearestRankPercentile(r.tick_cpu_us, 99.0);
     s.frame_ms_median = NearestRankPercentile(r.frame_cpu_ms, 50.0);
     s.frame_ms_p99 = NearestRankPercentile(r.frame_cpu_ms, 99.0);
+    s.timer_overhead_us = r.timer_overhead_us;
     // Errors against the reference, tick by tick and device by device.
     double sum2 = 0.0;
     for (size_t i = 0; i < r.force_D_N.size(); ++i) {

@@ -82,10 +82,13 @@ struct LockstepRun {
   std::vector<uint8_t> in_contact;   ///< 1 when the proxy touched the cloth at that tick
   std::vector<double> tick_cpu_us;   ///< thread CPU time of each HapticTick, us
   std::vector<double> frame_cpu_ms;  ///< thread CPU time of each SimFrame, ms
-  uint64_t clamped_ticks = 0;        ///< device ticks flagged clamped (force or rate)
-  uint64_t stalled_ticks = 0;        ///< device ticks flagged sim stalled
-  uint64_t nan_events = 0;           ///< safety NaN events
-  uint64_t cloth_nan_events = 0;     ///< sim frames that recovered from non-finite values
+  /// Median thread CPU time between two back-to-back clock reads (1000 pairs before the run), us:
+  /// the timer's own share of each tick and frame figure (not subtracted from them).
+  double timer_overhead_us = 0.0;
+  uint64_t clamped_ticks = 0;     ///< device ticks flagged clamped (force or rate)
+  uint64_t stalled_ticks = 0;     ///< device ticks flagged sim stalled
+  uint64_t nan_events = 0;        ///< safety NaN events
+  uint64_t cloth_nan_events = 0;  ///< sim frames that recovered from non-finite values
 };
 
 /// Runs `spec` driven by `samples` (fed to every device) in lock-step virtual time (file
@@ -104,6 +107,7 @@ struct VariantSummary {
   double tick_us_p99 = 0.0;         ///< ... 99th percentile (nearest rank), us
   double frame_ms_median = 0.0;     ///< SimFrame thread CPU time, median, ms
   double frame_ms_p99 = 0.0;        ///< ... 99th percentile (nearest rank), ms
+  double timer_overhead_us = 0.0;   ///< LockstepRun::timer_overhead_us, us
   double force_rms_error_N = 0.0;   ///< sqrt(mean |F - F_ref|^2) over every tick and device, N
   double force_max_error_N = 0.0;   ///< max |F - F_ref|, N
   double max_jump_N = 0.0;          ///< this variant's largest |F(k) - F(k-1)|, N
