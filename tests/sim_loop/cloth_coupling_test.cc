@@ -119,23 +119,32 @@ TEST(ClothCouplingTest, LargeStiffnessIsBoundedCountedAndStable) {
     ExternalForce bound[1] = {Press(model, tri, 0.02, k_max)};
     press[0].max_force_N = bound[0].max_force_N = 0.05;  // a hand's force on 3 light particles
     ClothState at_bound = MakeClothState(model);
+    // The largest particle speed over frames 300-599 and over 600-899: a stable ring stays
+    // within its envelope; an instability grows from one window to the next.
+    double window_speed[2] = {0.0, 0.0};
     for (int f = 0; f < 900; ++f) {
       StepFrame(model, press, kFrame_s, &state);
       StepFrame(model, bound, kFrame_s, &at_bound);
+      if (f < 300) continue;
+      for (const Vec3& v : state.v) {
+        window_speed[f < 600 ? 0 : 1] = std::max(window_speed[f < 600 ? 0 : 1], v.norm());
+      }
     }
-    double speed = 0.0;
-    for (const Vec3& v : state.v) speed = std::max(speed, v.norm());
     EXPECT_EQ(state.counters.nan_events, 0u) << static_cast<int>(kind);
     EXPECT_EQ(state.counters.coupling_reduced_frames, 900u) << static_cast<int>(kind);
     EXPECT_EQ(at_bound.counters.coupling_reduced_frames, 0u) << static_cast<int>(kind);
     // k was replaced by the bound: the very same motion as a spring of k_max.
     EXPECT_EQ(std::memcmp(state.x.data(), at_bound.x.data(), state.x.size() * sizeof(Vec3)), 0)
         << static_cast<int>(kind);
-    // Bounded, no blow-up: near the anchor, slow. (At the bound, with this light drag, the
-    // unilateral contact keeps ringing at a few cm/s: it is stable, not yet at rest.)
+    // Bounded, no blow-up: near the anchor, slow, and not growing. (At the bound, with this light
+    // drag and no damper on the contact spring, the unilateral contact keeps ringing, with peaks
+    // of 0.1-0.3 m/s depending on the integrator: stable, not at rest. Issue 4's press-and-hold
+    // needs that ringing damped; see tests/proxy/coupled_test.cc.)
     const double depth = (Centroid(model, state, tri) - press[0].anchor_m).dot(Vec3::UnitY());
     EXPECT_LT(std::abs(depth), 0.01) << static_cast<int>(kind);
-    EXPECT_LT(speed, 0.1) << static_cast<int>(kind);
+    EXPECT_LT(window_speed[0], 0.5) << static_cast<int>(kind);
+    EXPECT_LT(window_speed[1], 0.5) << static_cast<int>(kind);
+    EXPECT_LE(window_speed[1], 1.25 * window_speed[0] + 0.005) << static_cast<int>(kind);
   }
 }
 
