@@ -46,9 +46,10 @@ run: build
 
 # Every test: the release build, then ASan+UBSan on everything, then TSan on threaded code.
 test: deps test-release test-asan test-tsan
-	@echo "make test: all test builds passed"
+	@echo "make test: all test builds passed ($$(date -u +%H:%M:%S))"
 
 test-release: deps
+	@echo "== make test-release: start $$(date -u +%H:%M:%S)"
 	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
 	cmake --build $(BUILD) -j $(JOBS)
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
@@ -59,6 +60,7 @@ SAN_FLAGS := -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO
              "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG"
 
 test-asan: deps
+	@echo "== make test-asan: start $$(date -u +%H:%M:%S)"
 	cmake -S . -B $(BUILD)-asan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=address $(CMAKE_FLAGS)
 	cmake --build $(BUILD)-asan -j $(JOBS)
 	cd $(BUILD)-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
@@ -66,6 +68,7 @@ test-asan: deps
 	  ctest --output-on-failure -j $(JOBS)
 
 test-tsan: deps
+	@echo "== make test-tsan: start $$(date -u +%H:%M:%S)"
 	cmake -S . -B $(BUILD)-tsan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=thread \
 	  "-DFELT_TEST_MODULES=haptic_loop;transport" $(CMAKE_FLAGS)
 	cmake --build $(BUILD)-tsan -j $(JOBS) --target felt_haptic_loop_tests felt_transport_tests
