@@ -37,6 +37,9 @@ struct Child {
 Child StartServe(const std::string& args, const std::string& name) {
   Child child;
   child.log = (std::filesystem::path(testing::TempDir()) / (name + ".log")).string();
+  // A log left by an earlier run must not be mistaken for this child's output (the shell truncates
+  // it only once the child runs).
+  std::filesystem::remove(child.log);
   const std::string command = "exec " + kFelt + " serve " + args + " > " + child.log + " 2>&1";
   child.pid = fork();
   if (child.pid == 0) {
