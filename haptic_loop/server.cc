@@ -85,6 +85,11 @@ void Server::Start() {
   // The first snapshot (the rest state) is published before the threads start, so the haptic
   // thread always has a cloth.
   PublishInitialSnapshot(MonotonicNowNs());
+  // No deep C-states while the loops run (a refusal logs one warning; the loops run anyway).
+  if (options_.apply_realtime && spec_.haptic.cpu_dma_latency_zero) {
+    dma_hold_ = std::make_unique<CpuDmaLatencyHold>();
+    dma_held_.store(dma_hold_->held());
+  }
 
   stop_.store(false);
   running_ = true;
@@ -110,6 +115,7 @@ void Server::Stop() {
   haptic_thread_.join();
   sim_thread_.join();
   monitor_thread_.join();
+  dma_hold_.reset();
   running_ = false;
 }
 
@@ -343,6 +349,7 @@ std::unique_ptr<ServerReport> Server::Report() const {
     r->sim_realtime = sim_report_.fifo_granted;
     r->sim_realtime_summary = options_.apply_realtime ? sim_report_.Summary() : "not applied";
   }
+  r->cpu_dma_latency_zero = dma_held_.load();
   r->body_ticks = body_ticks_.load();
   r->sim_stalled_ticks = sim_stalled_ticks_.load();
   r->sim_stalled = sim_stalled_.load();
@@ -384,6 +391,7 @@ std::string Server::ReportJson(const ServerReport& r) {
   json.BeginObject();
   json.Bool("realtime", r.realtime);
   json.Bool("sim_realtime", r.sim_realtime);
+  json.Bool("cpu_dma_latency_zero", r.cpu_dma_latency_zero);
   json.String("haptic_realtime_steps", r.haptic_realtime_summary);
   json.String("sim_realtime_steps", r.sim_realtime_summary);
   WriteHapticJson(json, "haptic", r.haptic);

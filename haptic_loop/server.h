@@ -110,6 +110,7 @@ struct ServerReport {
   LoopStatsSnapshot sim;                  ///< the 60 Hz loop
   bool realtime = false;                  ///< SCHED_FIFO granted to the haptic thread
   bool sim_realtime = false;              ///< SCHED_FIFO granted to the sim thread
+  bool cpu_dma_latency_zero = false;      ///< /dev/cpu_dma_latency held at 0 while running
   std::string haptic_realtime_summary;    ///< RealtimeReport::Summary of the haptic thread
   std::string sim_realtime_summary;       ///< ... of the sim thread
   uint64_t body_ticks = 0;                ///< HapticTick calls (the body's own count)
@@ -262,6 +263,8 @@ class Server {
   std::atomic<bool> stop_{false};
   bool running_ = false;
   RealtimeReport haptic_report_;
+  std::unique_ptr<CpuDmaLatencyHold> dma_hold_;  // between Start and Stop, when requested
+  std::atomic<bool> dma_held_{false};             // the hold was granted (kept after Stop)
   RealtimeReport sim_report_;
   std::atomic<bool> haptic_ready_{false};
   std::atomic<bool> sim_ready_{false};

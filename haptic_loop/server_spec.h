@@ -17,6 +17,7 @@
 //   passivity_controller = false  # Hannaford & Ryu 2002 damping when the observed energy < 0
 //   max_passivity_damping_N_s_per_m = 50
 //   monitor_period_s = 1.0      # the monitor's log line and status period
+//   cpu_dma_latency_zero = true # hold /dev/cpu_dma_latency at 0 while running (no deep C-states)
 #include <string>
 #include <vector>
 
@@ -44,6 +45,11 @@ struct HapticSpec {
   double stale_input_s = 0.050;                        ///< input older than this is stale, s (> 0)
   double sim_stall_s = 0.100;     ///< a snapshot older than this means a stalled sim, s (> 0)
   double monitor_period_s = 1.0;  ///< monitor log / status period, s (> 0)
+  /// Hold /dev/cpu_dma_latency at 0 while the server runs (with the real-time settings): idle
+  /// CPUs then never enter deep sleep states, whose wake-up costs the 1 kHz loop milliseconds on
+  /// these VMs (shared/notes/cyclonedds-and-realtime.md; a 10-minute soak measured p99 lateness
+  /// 1568 us without it and 17 us with it).
+  bool cpu_dma_latency_zero = true;
   /// Safety rules shared by every device; max_force_N is replaced per device by its own.
   SafetySpec safety;
 };
