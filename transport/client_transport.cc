@@ -10,6 +10,7 @@
 
 #include "felt_types.h"
 #include "transport/dds_config.h"
+#include "transport/message_views.h"
 #include "transport/qos.h"
 
 namespace felt::transport {
@@ -137,18 +138,7 @@ void ClientTransport::Impl::PollForces() {
       }
       Device& d = devices_[index];
       NoteSeq(d, m.seq);
-      ForceCommandView& v = d.latest;
-      v.device_index = static_cast<uint32_t>(index);
-      v.seq = m.seq;
-      v.answers_seq = m.answers_seq;
-      v.answers_device_time_ns = m.answers_device_time_ns;
-      for (int k = 0; k < 3; ++k) {
-        v.force_N_D[k] = m.force_N[k];
-        v.proxy_position_m_D[k] = m.proxy_position_m[k];
-      }
-      v.in_contact = m.in_contact;
-      v.flags = m.flags;
-      v.receive_time_ns = now_ns;
+      d.latest = ForceViewOf(m, static_cast<uint32_t>(index), now_ns);
       d.fresh = true;
       Bump(received_);
     }
@@ -232,18 +222,7 @@ size_t ClientTransport::TakeForces(ForceCommandView* out, size_t capacity) {
         continue;
       }
       impl.NoteSeq(impl.devices_[index], m.seq);
-      ForceCommandView& v = out[count++];
-      v.device_index = static_cast<uint32_t>(index);
-      v.seq = m.seq;
-      v.answers_seq = m.answers_seq;
-      v.answers_device_time_ns = m.answers_device_time_ns;
-      for (int k = 0; k < 3; ++k) {
-        v.force_N_D[k] = m.force_N[k];
-        v.proxy_position_m_D[k] = m.proxy_position_m[k];
-      }
-      v.in_contact = m.in_contact;
-      v.flags = m.flags;
-      v.receive_time_ns = now_ns;
+      out[count++] = ForceViewOf(m, static_cast<uint32_t>(index), now_ns);
       Bump(impl.received_);
     }
     if (n < static_cast<dds_return_t>(batch)) break;

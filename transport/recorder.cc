@@ -11,6 +11,7 @@
 
 #include "felt_types.h"
 #include "transport/dds_config.h"
+#include "transport/message_views.h"
 #include "transport/qos.h"
 
 namespace felt::transport {
@@ -112,15 +113,7 @@ size_t StreamTap::Poll(std::chrono::nanoseconds timeout, const TapPointerHandler
     for (dds_return_t i = 0; i < n; ++i) {
       if (!impl.infos_[i].valid_data) continue;
       const felt_msgs_PointerSample& m = impl.pointers_[i];
-      PointerSampleView v;
-      v.seq = m.seq;
-      v.device_time_ns = m.device_time_ns;
-      for (int k = 0; k < 3; ++k) {
-        v.position_m_D[k] = m.position_m[k];
-        v.velocity_m_per_s_D[k] = m.velocity_m_per_s[k];
-      }
-      v.buttons = m.buttons;
-      v.receive_time_ns = now_ns;
+      const PointerSampleView v = PointerViewOf(m, 0, now_ns);
       ++taken;
       if (on_pointer) on_pointer(IdOf(m.device_id), v);
     }
@@ -138,17 +131,7 @@ size_t StreamTap::Poll(std::chrono::nanoseconds timeout, const TapPointerHandler
     for (dds_return_t i = 0; i < n; ++i) {
       if (!impl.infos_[i].valid_data) continue;
       const felt_msgs_ForceCommand& m = impl.forces_[i];
-      ForceCommandView v;
-      v.seq = m.seq;
-      v.answers_seq = m.answers_seq;
-      v.answers_device_time_ns = m.answers_device_time_ns;
-      for (int k = 0; k < 3; ++k) {
-        v.force_N_D[k] = m.force_N[k];
-        v.proxy_position_m_D[k] = m.proxy_position_m[k];
-      }
-      v.in_contact = m.in_contact;
-      v.flags = m.flags;
-      v.receive_time_ns = now_ns;
+      const ForceCommandView v = ForceViewOf(m, 0, now_ns);
       ++taken;
       if (on_force) on_force(IdOf(m.device_id), v);
     }

@@ -15,6 +15,7 @@
 #include "haptic_loop/spsc_queue.h"
 #include "haptic_loop/triple_buffer.h"
 #include "transport/dds_config.h"
+#include "transport/message_views.h"
 #include "transport/qos.h"
 
 namespace felt::transport {
@@ -293,16 +294,7 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
 
   // Accepted: into the device's slot for the haptic thread.
   TripleBuffer<PointerSampleView>& slot = slots_[index];
-  PointerSampleView& view = slot.write_slot();
-  view.device_index = static_cast<uint32_t>(index);
-  view.seq = sample.seq;
-  view.device_time_ns = sample.device_time_ns;
-  for (int k = 0; k < 3; ++k) {
-    view.position_m_D[k] = sample.position_m[k];
-    view.velocity_m_per_s_D[k] = sample.velocity_m_per_s[k];
-  }
-  view.buttons = sample.buttons;
-  view.receive_time_ns = now_ns;
+  slot.write_slot() = PointerViewOf(sample, static_cast<uint32_t>(index), now_ns);
   slot.Publish();
   Bump(accepted_);
 }

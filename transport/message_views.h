@@ -1,0 +1,48 @@
+#pragma once
+// Internal to transport/*.cc: the idlc message -> view conversions, written once. Real-time safe
+// (plain copies, no allocation).
+
+#include <cstdint>
+
+#include "felt_types.h"
+#include "transport/views.h"
+
+namespace felt::transport {
+
+/// The view of a received PointerSample, taken at CLOCK_MONOTONIC `receive_time_ns` for device
+/// `device_index` (the receiver's index of m.device_id).
+inline PointerSampleView PointerViewOf(const felt_msgs_PointerSample& m, uint32_t device_index,
+                                       int64_t receive_time_ns) {
+  PointerSampleView v;
+  v.device_index = device_index;
+  v.seq = m.seq;
+  v.device_time_ns = m.device_time_ns;
+  for (int k = 0; k < 3; ++k) {
+    v.position_m_D[k] = m.position_m[k];
+    v.velocity_m_per_s_D[k] = m.velocity_m_per_s[k];
+  }
+  v.buttons = m.buttons;
+  v.receive_time_ns = receive_time_ns;
+  return v;
+}
+
+/// The view of a received ForceCommand, taken at CLOCK_MONOTONIC `receive_time_ns` for device
+/// `device_index` (the receiver's index of m.device_id).
+inline ForceCommandView ForceViewOf(const felt_msgs_ForceCommand& m, uint32_t device_index,
+                                    int64_t receive_time_ns) {
+  ForceCommandView v;
+  v.device_index = device_index;
+  v.seq = m.seq;
+  v.answers_seq = m.answers_seq;
+  v.answers_device_time_ns = m.answers_device_time_ns;
+  for (int k = 0; k < 3; ++k) {
+    v.force_N_D[k] = m.force_N[k];
+    v.proxy_position_m_D[k] = m.proxy_position_m[k];
+  }
+  v.in_contact = m.in_contact;
+  v.flags = m.flags;
+  v.receive_time_ns = receive_time_ns;
+  return v;
+}
+
+}  // namespace felt::transport
