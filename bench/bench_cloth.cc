@@ -44,6 +44,7 @@ struct GridResult {
   std::vector<double> wall_ms;
   std::vector<double> cpu_ms;
   double max_stretch = 1.0;    // over every frame, settling included
+  double timed_stretch = 1.0;  // over the timed frames only (the settled cloth)
   double final_stretch = 1.0;  // after the last frame
   uint64_t nan_events = 0;
   // The issue's target for this grid, if it has one: median ms, and whether stretch is part of it.
@@ -65,7 +66,7 @@ GridResult RunGrid(const Args& args, int32_t grid) {
   r.grid = grid;
   r.particles = model.num_particles();
   r.springs = static_cast<int64_t>(model.springs.size());
-  r.provot_constraints = static_cast<int64_t>(model.provot.size());
+  r.provot_constraints = ProvotPairCount(model);
   r.substeps = model.substeps;
   r.target_ms = TargetMs(grid);
   r.stretch_target = grid == 64;
@@ -87,7 +88,9 @@ GridResult RunGrid(const Args& args, int32_t grid) {
     const double cpu1 = ThreadCpuMs();
     r.wall_ms.push_back(wall1 - wall0);
     r.cpu_ms.push_back(cpu1 - cpu0);
-    r.max_stretch = std::max(r.max_stretch, MaxStretch(model, state));
+    const double stretch = MaxStretch(model, state);
+    r.max_stretch = std::max(r.max_stretch, stretch);
+    r.timed_stretch = std::max(r.timed_stretch, stretch);
   }
   r.final_stretch = MaxStretch(model, state);
   r.nan_events = state.counters.nan_events;
@@ -133,7 +136,7 @@ std::vector<std::vector<std::string>> Rows(const std::vector<GridResult>& result
                     std::to_string(r.substeps), Fixed(Median(r.wall_ms), 4),
                     Fixed(Percentile(r.wall_ms, 99), 4), Fixed(Median(r.cpu_ms), 4),
                     Fixed(Percentile(r.cpu_ms, 99), 4), Fixed(r.max_stretch, 4),
-                    Fixed(r.final_stretch, 4), std::to_string(r.nan_events), TargetText(r)});
+                    Fixed(r.timed_stretch, 4), Fixed(r.final_stretch, 4), std::to_string(r.nan_events), TargetText(r)});
   }
   return rows;
 }
@@ -162,27 +165,30 @@ int Run(const Args& args) {
   const std::vector<std::string> header = {"grid",          "particles",       "springs",
                                            "substeps",      "frame ms median", "frame ms p99",
                                            "cpu ms median", "cpu ms p99",      "max stretch",
-                                           "final stretch", "nan events",      "target"};
+                                           "timed max stretch", "final stretch", "nan events",      "target"};
   std::string md = ReportHeader("Cloth frame cost (`felt bench cloth`)", cmd, machine, load_end);
   md +=
       "The default curtain (scenes/curtain.toml: pinned at its two top corners, leapfrog "
-      "Verlet, auto substeps, Provot 10% with long range attachments) resized to each grid "
+      "Verlet, auto substeps, Provot 10% with long range attachments and multiresolution "
+      "families, 3 sweeps) resized to each grid "
       "over the same 0.496 m square. " +
       std::to_string(args.settle_frames) + " frames settle (not timed), then " +
       std::to_string(args.frames) +
       " frames of 1/60 s are timed one by one. `frame ms` is wall time of StepFrame, `cpu ms` "
       "this thread's CPU time (it does not count time preempted by other processes). Max "
       "stretch: the largest structural spring length / rest length after any frame, settling "
-      "included. Targets (issue 2): 64 x 64 <= 1 ms median with max stretch <= 1.10; 128 x 128 "
+      "included (the release transient peaks at frames 5-8); `timed max stretch` only over the "
+      "timed frames, the settled cloth. Targets (issue 2): 64 x 64 <= 1 ms median with max stretch <= 1.10; 128 x 128 "
       "<= 4 ms median; judged on the wall-clock median.\n\n";
   md += MarkdownTable(header,
-                      {true, true, true, true, true, true, true, true, true, true, true, false},
+                      {true, true, true, true, true, true, true, true, true, true, true, true,
+                       false},
                       Rows(results));
   WriteTextFile(args.out + "/cloth.md", md);
   WriteTextFile(args.out + "/cloth.csv",
                 CsvTable({"grid", "particles", "springs", "substeps", "frame_ms_median",
                           "frame_ms_p99", "cpu_ms_median", "cpu_ms_p99", "max_stretch",
-                          "final_stretch", "nan_events", "target"},
+                          "timed_max_stretch", "final_stretch", "nan_events", "target"},
                          Rows(results)));
   std::vector<std::string> items;
   for (const GridResult& r : results) {
@@ -193,6 +199,7 @@ int Run(const Args& args) {
         .Number("cpu_ms_median", Median(r.cpu_ms))
         .Number("cpu_ms_p99", Percentile(r.cpu_ms, 99))
         .Number("max_stretch", r.max_stretch)
+        .Number("timed_max_stretch", r.timed_stretch)
         .Number("final_stretch", r.final_stretch)
         .Integer("substeps", r.substeps)
         .Integer("particles", r.particles)

@@ -40,23 +40,27 @@ struct SpringFamily {
   SpringType type = SpringType::kStructural;
 };
 
-/// One Provot deformation constraint (000_25210a744b053ca5.txt slide 9): particles i and j may be
-/// at most max_length_m apart; a violation is removed by moving i by share_i and j by share_j of
-/// it (share_i + share_j = 1; 0 for a pinned end).
-struct ProvotConstraint {
-  int32_t i = 0;
-  int32_t j = 0;
-  double max_length_m = 0.0;  ///< (1 + max_elongation) * rest length
-  double share_i = 0.5;
-  double share_j = 0.5;
-};
-
-/// ClothModel::provot packed for the sweeps: particles i and j at most max_length_m apart; j is
-/// the pinned end for the first ClothModel::provot_pinned_pairs entries.
-struct ProvotPair {
-  int32_t i = 0;
-  int32_t j = 0;
-  double max_length_m = 0.0;
+/// One family of Provot deformation constraints (000_25210a744b053ca5.txt slide 9) as a grid
+/// stencil: particle (col, row) and particle (col + dc, row + dr) may be at most max_length_m
+/// apart, for every (col, row) where both are on the grid. A violation is removed by moving the two
+/// ends by equal shares (the free end alone if the other is pinned). `level` 1 is a spring family
+/// (structural or shear); level s > 1 joins particles s apart along a row or column (see
+/// ProvotSpec::multiresolution).
+struct ProvotFamily {
+  /// Particles [lo, hi) of one row, whose pairs a sweep projects together (see runs).
+  struct Run {
+    int32_t lo = 0;
+    int32_t hi = 0;
+    int32_t pinned = 0;  ///< 1 if a pair of the run has a pinned end (else both ends move)
+  };
+  int32_t dc = 0;             ///< column offset of end j from end i, in particles
+  int32_t dr = 0;             ///< row offset of end j from end i, >= 0
+  double max_length_m = 0.0;  ///< (1 + max_elongation) * rest distance of the two ends
+  int32_t level = 1;          ///< 1: a spring family; s > 1: a multiresolution family of stride s
+  /// The pairs in sweep order, as runs of end-i particles: for dc = 1 (2) a run holds every
+  /// second (every other two) particle from lo, else every particle in [lo, hi). The runs of the
+  /// first colour come first; no two pairs of one colour share a particle.
+  std::vector<Run> runs;
 };
 
 /// A long range attachment (ProvotSpec::long_range_attachments): free particle `particle` may be
@@ -104,13 +108,13 @@ struct ClothModel {
   double stable_dt_s = 0.0;  ///< the integrator's stability limit, s (StableStep)
 
   // Derived constants (filled by BuildClothModel; read by the kernels and the benchmarks).
-  double particle_mass_kg = 0.0;         ///< mass of every particle (pinned ones included)
-  std::vector<uint8_t> pin_scripted;     ///< [pinned.size()] 1 if that pin's motion is not all zero
-  std::vector<ProvotConstraint> provot;  ///< structural (+ shear) springs Provot constrains, in
-                                         ///< sweep order: nearest the pins first
-  std::vector<PinAttachment> attachments;  ///< each free particle to its nearest pin (if any)
-  std::vector<ProvotPair> provot_pairs;    ///< `provot` in the same order, 16 bytes each
-  int32_t provot_pinned_pairs = 0;         ///< the leading provot_pairs with a pinned end j
+  double particle_mass_kg = 0.0;      ///< mass of every particle (pinned ones included)
+  std::vector<uint8_t> pin_scripted;  ///< [pinned.size()] 1 if that pin's motion is not all zero
+  /// Provot's constraint families in sweep order: multiresolution ones coarsest first, then the
+  /// structural (+ shear) spring families. Empty when Provot is off.
+  std::vector<ProvotFamily> provot_families;
+  std::vector<double> provot_movable;         ///< [width*height] 1 for a free particle, 0 for a pin
+  std::vector<PinAttachment> attachments;     ///< each free particle to its nearest pin (if any)
   std::vector<SpringFamily> spring_families;  ///< `springs` grouped by type and direction
   /// Bound on the highest natural frequency of the linearised spring system, rad/s, for every
   /// configuration: omega_max^2 = max over wave vectors of the grid Laplacian's symbol / m (see
@@ -153,6 +157,9 @@ struct ClothState {
   struct Scratch;
   std::shared_ptr<Scratch> scratch;
 };
+
+/// Number of particle pairs Provot's sweeps visit (every family's pairs on the grid), per sweep.
+int64_t ProvotPairCount(const ClothModel& model);
 
 /// Validates `spec` and builds the model. Throws std::invalid_argument whose message names the
 /// field (e.g. "cloth.width: must be >= 2, got 1").

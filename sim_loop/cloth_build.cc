@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
-#include <deque>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -220,63 +219,88 @@ void AddSprings(ClothModel* model_out, const SpringSpec& spec, SpringType type, 
   model_out->spring_families.push_back(family);
 }
 
-// Provot's constraints in sweep order: springs nearest the pins first (breadth-first distance of
-// the nearer end, in springs), so a Gauss-Seidel sweep carries a correction from the pins
-// outward. Stable sort: ties keep their build order, which keeps the result deterministic.
-std::vector<ProvotConstraint> BuildProvot(const ClothModel& model, const ProvotSpec& spec) {
-  const int32_t n = model.num_particles();
-  std::vector<std::vector<int32_t>> neighbours(static_cast<size_t>(n));
-  for (const Spring& s : model.springs) {
-    neighbours[s.i].push_back(s.j);
-    neighbours[s.j].push_back(s.i);
-  }
-  constexpr int32_t kUnreached = std::numeric_limits<int32_t>::max();
-  std::vector<int32_t> depth(static_cast<size_t>(n), kUnreached);
-  std::deque<int32_t> queue;
-  for (int32_t p : model.pinned) {
-    depth[p] = 0;
-    queue.push_back(p);
-  }
-  while (!queue.empty()) {
-    const int32_t p = queue.front();
-    queue.pop_front();
-    for (int32_t q : neighbours[p]) {
-      if (depth[q] > depth[p] + 1) {
-        depth[q] = depth[p] + 1;
-        queue.push_back(q);
+// The runs of a Provot family (ProvotFamily::runs), in two colours whose pairs share no particle,
+// so that a colour's pairs can be projected four at a time: graph-coloured Gauss-Seidel (Adams
+// 2001; Fratarcangeli, Tibaldo & Pellacini 2016 for position based dynamics).
+std::vector<ProvotFamily::Run> ProvotRuns(const ProvotFamily& f, int32_t width, int32_t height) {
+  std::vector<ProvotFamily::Run> runs;
+  for (int32_t colour = 0; colour < 2; ++colour) {
+    if (f.dr > 0) {
+      // Rows r and r + dr: colour (r / dr) mod 2 never holds both.
+      const int32_t c_lo = std::max(0, -f.dc), c_hi = width - std::max(0, f.dc);
+      if (c_hi <= c_lo) continue;
+      for (int32_t r = 0; r + f.dr < height; ++r) {
+        if ((r / f.dr) % 2 == colour) runs.push_back({r * width + c_lo, r * width + c_hi});
+      }
+      continue;
+    }
+    // Along a row, pairs (c, c + dc): colour (c / dc) mod 2 never holds both ends of two pairs.
+    for (int32_t r = 0; r < height; ++r) {
+      if (f.dc <= 2) {
+        // Every second (dc 1) or every other two (dc 2) particle from the first of the colour.
+        if (colour * f.dc + f.dc < width) {
+          runs.push_back({r * width + colour * f.dc, r * width + width - f.dc});
+        }
+        continue;
+      }
+      for (int32_t c0 = colour * f.dc; c0 + f.dc < width; c0 += 2 * f.dc) {
+        runs.push_back({r * width + c0, r * width + std::min(c0 + f.dc, width - f.dc)});
       }
     }
   }
-  std::vector<ProvotConstraint> out;
-  std::vector<int32_t> level;
-  for (const Spring& s : model.springs) {
-    const bool kept =
-        s.type == SpringType::kStructural || (spec.shear && s.type == SpringType::kShear);
-    const bool free_i = model.inv_mass_per_kg[s.i] > 0.0, free_j = model.inv_mass_per_kg[s.j] > 0.0;
-    if (!kept || (!free_i && !free_j)) continue;
-    ProvotConstraint c;
-    c.i = s.i;
-    c.j = s.j;
-    c.max_length_m = (1.0 + spec.max_elongation) * s.rest_length_m;
-    // Provot 1995: a pinned end stays and the free end takes the whole correction; else halves.
-    if (!free_i) {
-      c.share_i = 0.0;
-      c.share_j = 1.0;
-    } else if (!free_j) {
-      c.share_i = 1.0;
-      c.share_j = 0.0;
-    }
-    out.push_back(c);
-    level.push_back(std::min(depth[s.i], depth[s.j]));
+  return runs;
+}
+
+// Provot's constraint families in sweep order. Coarse before fine, like the descent of a multigrid
+// V-cycle (Briggs, Henson & McCormick 2000, ch. 3): the multiresolution families (stride s = the
+// largest power of two below the grid's side, down to 2, along rows then columns) move whole
+// regions back within reach, then the spring families fix the springs themselves.
+std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const ProvotSpec& spec) {
+  std::vector<ProvotFamily> out;
+  const auto limit = [&](const SpringFamily& f) {
+    return (1.0 + spec.max_elongation) * f.rest_length_m;
+  };
+  const SpringFamily* along_row = nullptr;
+  const SpringFamily* along_column = nullptr;
+  for (const SpringFamily& f : model.spring_families) {
+    if (f.type != SpringType::kStructural) continue;
+    (f.dr == 0 ? along_row : along_column) = &f;
   }
-  std::vector<int32_t> order(out.size());
-  for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int32_t>(k);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int32_t a, int32_t b) { return level[a] < level[b]; });
-  std::vector<ProvotConstraint> sorted;
-  sorted.reserve(out.size());
-  for (int32_t k : order) sorted.push_back(out[k]);
-  return sorted;
+  if (spec.multiresolution) {
+    int32_t stride = 2;
+    while (2 * stride < std::max(model.width, model.height)) stride *= 2;
+    for (; stride >= 2; stride /= 2) {
+      // A straight chain of s springs, each at most (1 + e) L long, spans at most (1 + e) s L
+      // (triangle inequality): these constraints are implied by the springs' own and never
+      // over-constrain a configuration that satisfies them.
+      if (along_row != nullptr && stride < model.width) {
+        out.push_back({stride, 0, stride * limit(*along_row), stride, {}});
+      }
+      if (along_column != nullptr && stride < model.height) {
+        out.push_back({0, stride, stride * limit(*along_column), stride, {}});
+      }
+    }
+  }
+  for (const SpringFamily& f : model.spring_families) {
+    const bool kept =
+        f.type == SpringType::kStructural || (spec.shear && f.type == SpringType::kShear);
+    if (kept) out.push_back({f.dc, f.dr, limit(f), 1, {}});
+  }
+  for (ProvotFamily& f : out) {
+    f.runs = ProvotRuns(f, model.width, model.height);
+    // A run whose pairs are all free skips the pinned-end shares (most runs of most cloths).
+    const auto pinned = [&](int32_t p) { return model.inv_mass_per_kg[p] == 0.0; };
+    for (ProvotFamily::Run& run : f.runs) {
+      if (f.dr == 0 && f.dc <= 2) {
+        // Every second (other two) particle of [lo, hi) and its partner: within [lo, hi + dc).
+        for (int32_t p = run.lo; p < run.hi + f.dc; ++p) run.pinned |= pinned(p) ? 1 : 0;
+        continue;
+      }
+      const int32_t off = f.dr * model.width + f.dc;
+      for (int32_t p = run.lo; p < run.hi; ++p) run.pinned |= pinned(p) || pinned(p + off) ? 1 : 0;
+    }
+  }
+  return out;
 }
 
 // Long range attachments: each free particle to the pinned particle nearest its rest place (ties:
@@ -392,6 +416,15 @@ Vec3 PinVelocity(const PinMotionSpec& m, double t_s) {
   return drift + m.amplitude_m * omega * std::cos(omega * (t_s - m.start_s));
 }
 
+int64_t ProvotPairCount(const ClothModel& model) {
+  int64_t pairs = 0;
+  for (const ProvotFamily& f : model.provot_families) {
+    pairs += static_cast<int64_t>(std::max(0, model.width - std::abs(f.dc))) *
+             std::max(0, model.height - f.dr);
+  }
+  return pairs;
+}
+
 ClothModel BuildClothModel(const SimSpec& spec) {
   const ClothSpec& cs = spec.cloth;
   // Validate the cloth, field by field.
@@ -475,22 +508,10 @@ ClothModel BuildClothModel(const SimSpec& spec) {
   }
   model.triangles = MakeGridTriangles(cs.width, cs.height);
   if (spec.provot.enabled) {
-    model.provot = BuildProvot(model, spec.provot);
-    // Packed for the sweeps: the pinned-end constraints lead (breadth-first level 0), each with
-    // its pinned end as j, in the same order as `provot`.
-    for (const ProvotConstraint& c : model.provot) {
-      const bool pinned_end = c.share_i == 0.0 || c.share_j == 0.0;
-      if (pinned_end) ++model.provot_pinned_pairs;
-      if (c.share_i == 0.0) {
-        model.provot_pairs.push_back({c.j, c.i, c.max_length_m});
-      } else {
-        model.provot_pairs.push_back({c.i, c.j, c.max_length_m});
-      }
-    }
-    for (int32_t k = 0; k < model.provot_pinned_pairs; ++k) {
-      const ProvotPair& pair = model.provot_pairs[static_cast<size_t>(k)];
-      assert(model.inv_mass_per_kg[pair.j] == 0.0 && model.inv_mass_per_kg[pair.i] > 0.0);
-      (void)pair;
+    model.provot_families = BuildProvotFamilies(model, spec.provot);
+    model.provot_movable.resize(model.inv_mass_per_kg.size());
+    for (size_t p = 0; p < model.inv_mass_per_kg.size(); ++p) {
+      model.provot_movable[p] = model.inv_mass_per_kg[p] > 0.0 ? 1.0 : 0.0;
     }
     if (spec.provot.long_range_attachments)
       model.attachments = BuildAttachments(model, spec.provot);
@@ -535,8 +556,8 @@ ClothState MakeClothState(const ClothModel& model) {
                                &s.kx_sum, &s.kv_sum, &s.x_start, &s.a_last, &s.x_prev}) {
     a->assign(n, Vec3::Zero());
   }
-  s.soa.assign(12 * n, 0.0);
-  s.provot_x_before.assign(3 * n, 0.0);
+  s.soa.assign(12 * SoaStride(static_cast<size_t>(n)), 0.0);
+  s.provot_soa.assign(6 * SoaStride(n), 0.0);
   if (model.spec.integration.integrator == IntegratorKind::kImplicitEuler) {
     BuildImplicitPattern(model, &s);
   }

@@ -1,7 +1,12 @@
 // What is enforced after each substep: Provot's deformation constraints, the obstacles, the pins.
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstddef>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
@@ -22,6 +27,8 @@ constexpr double kProvotConverged = 1e-3;
 // lowers the peak stretch from 1.154 to 1.131 at 32 x 32, from 1.169 to about 1.13 at 64 x 64, at
 // the same cost. An inequality constraint left below its limit is inactive, so nothing is pushed.
 constexpr double kProvotOverRelaxation = 1.5;
+// (1 + kProvotConverged)^2: a pair is loose if its squared length exceeds this times its limit's.
+constexpr double kLoose2 = (1.0 + kProvotConverged) * (1.0 + kProvotConverged);
 // Sphere-tracing steps along a substep's path before it is taken as a graze.
 constexpr int kMaxMarchSteps = 48;
 
@@ -58,6 +65,234 @@ bool FirstContact(const ObstacleSpec& o, const Vec3& a, const Vec3& b, Vec3* hit
     t += gap;
   }
   return false;
+}
+
+// Set by UsePortableProvotKernels: the sweeps ignore AVX2.
+std::atomic<bool> g_provot_portable{false};
+
+// Positions of ApplyProvot in structure-of-arrays form, and each particle's movability (1 free,
+// 0 pinned: ClothModel::provot_movable).
+struct ProvotSoa {
+  double* x;
+  double* y;
+  double* z;
+  const double* w;
+};
+
+// Provot 1995 (000_25210a744b053ca5.txt slides 9-10) on one pair p, q: a pair longer than its limit
+// is shortened by kProvotOverRelaxation times its excess, split equally between its free ends (the
+// free end alone if the other is pinned). Branch-free; the same operations in the same order as
+// ProjectLanes, so both give the same bits. Returns true if the pair was loose (over the limit by
+// more than kProvotConverged).
+inline bool ProjectPair(const ProvotSoa& a, ptrdiff_t p, ptrdiff_t q, double max_len,
+                        double loose2) {
+  const double dx = a.x[q] - a.x[p], dy = a.y[q] - a.y[p], dz = a.z[q] - a.z[p];
+  const double len2 = dx * dx + dy * dy + dz * dz;
+  const double max2 = max_len * max_len;
+  // (len - max) / len without a square root: (len^2 - max^2) / (len^2 + max^2), one Newton step
+  // for the square root from len = max (Jakobsen 2001, "Advanced Character Physics"): the same to
+  // first order, 4.5 % more at 10 % over the limit.
+  const double over = len2 - max2;
+  const double excess = over > 0.0 ? over : 0.0;
+  const double wp = a.w[p], wq = a.w[q];
+  // 1 / (number of free ends): 0.5 for two, 1 for one (and moot for none: both weights are 0).
+  const double share = 1.0 - 0.5 * (wp * wq);
+  const double s = kProvotOverRelaxation * excess / (len2 + max2) * share;
+  const double sp = wp * s, sq = wq * s;
+  a.x[p] += sp * dx;
+  a.y[p] += sp * dy;
+  a.z[p] += sp * dz;
+  a.x[q] -= sq * dx;
+  a.y[q] -= sq * dy;
+  a.z[q] -= sq * dz;
+  return len2 > loose2;
+}
+
+// Pairs (p, p + off) for p in [lo, hi); the two ranges must not overlap.
+bool ProjectRun(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, ptrdiff_t off, double max_len,
+                double loose2) {
+  bool loose = false;
+  for (ptrdiff_t p = lo; p < hi; ++p) loose = ProjectPair(a, p, p + off, max_len, loose2) || loose;
+  return loose;
+}
+
+// Pairs (c, c + 1) for c = lo, lo + 2, ... < hi.
+bool ProjectNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, double max_len,
+                       double loose2) {
+  bool loose = false;
+  for (ptrdiff_t c = lo; c < hi; c += 2) loose = ProjectPair(a, c, c + 1, max_len, loose2) || loose;
+  return loose;
+}
+
+// Pairs (c, c + 2) for c in {lo, lo + 1} + 4 k, c < hi.
+bool ProjectSecondNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, double max_len,
+                             double loose2) {
+  bool loose = false;
+  for (ptrdiff_t c = lo; c < hi; c += 4) {
+    loose = ProjectPair(a, c, c + 2, max_len, loose2) || loose;
+    if (c + 1 < hi) loose = ProjectPair(a, c + 1, c + 3, max_len, loose2) || loose;
+  }
+  return loose;
+}
+
+// One Gauss-Seidel sweep over a family's runs, one pair at a time. Returns true if any pair was
+// loose.
+bool SweepFamilyPortable(const ProvotSoa& a, int32_t width, const ProvotFamily& f) {
+  const double loose2 = kLoose2 * f.max_length_m * f.max_length_m;
+  const ptrdiff_t off = static_cast<ptrdiff_t>(f.dr) * width + f.dc;
+  bool loose = false;
+  for (const ProvotFamily::Run& run : f.runs) {
+    if (f.dr == 0 && f.dc == 1) {
+      loose = ProjectNeighbours(a, run.lo, run.hi, f.max_length_m, loose2) || loose;
+    } else if (f.dr == 0 && f.dc == 2) {
+      loose = ProjectSecondNeighbours(a, run.lo, run.hi, f.max_length_m, loose2) || loose;
+    } else {
+      loose = ProjectRun(a, run.lo, run.hi, off, f.max_length_m, loose2) || loose;
+    }
+  }
+  return loose;
+}
+
+#if defined(__x86_64__)
+// Four pairs at once: ProjectPair on registers (p ends px.., q ends qx..), updated in place.
+// Returns the lanes' loose mask.
+__attribute__((target("avx2"), always_inline)) inline __m256d ProjectLanes(
+    __m256d* px, __m256d* py, __m256d* pz, __m256d* qx, __m256d* qy, __m256d* qz, __m256d wp,
+    __m256d wq, __m256d max2, __m256d loose2) {
+  const __m256d dx = _mm256_sub_pd(*qx, *px);
+  const __m256d dy = _mm256_sub_pd(*qy, *py);
+  const __m256d dz = _mm256_sub_pd(*qz, *pz);
+  const __m256d len2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+                                     _mm256_mul_pd(dz, dz));
+  const __m256d excess = _mm256_max_pd(_mm256_sub_pd(len2, max2), _mm256_setzero_pd());
+  const __m256d share =
+      _mm256_sub_pd(_mm256_set1_pd(1.0), _mm256_mul_pd(_mm256_set1_pd(0.5), _mm256_mul_pd(wp, wq)));
+  const __m256d s =
+      _mm256_mul_pd(_mm256_div_pd(_mm256_mul_pd(_mm256_set1_pd(kProvotOverRelaxation), excess),
+                                  _mm256_add_pd(len2, max2)),
+                    share);
+  const __m256d sp = _mm256_mul_pd(wp, s), sq = _mm256_mul_pd(wq, s);
+  *px = _mm256_add_pd(*px, _mm256_mul_pd(sp, dx));
+  *py = _mm256_add_pd(*py, _mm256_mul_pd(sp, dy));
+  *pz = _mm256_add_pd(*pz, _mm256_mul_pd(sp, dz));
+  *qx = _mm256_sub_pd(*qx, _mm256_mul_pd(sq, dx));
+  *qy = _mm256_sub_pd(*qy, _mm256_mul_pd(sq, dy));
+  *qz = _mm256_sub_pd(*qz, _mm256_mul_pd(sq, dz));
+  return _mm256_cmp_pd(len2, loose2, _CMP_GT_OQ);
+}
+
+// SweepFamilyPortable four pairs at a time (the same operations in the same order per pair, no
+// fused multiply-add: the same bits).
+__attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t width,
+                                                     const ProvotFamily& f) {
+  const double max2_s = f.max_length_m * f.max_length_m;
+  const double loose2_s = kLoose2 * max2_s;
+  const __m256d max2 = _mm256_set1_pd(max2_s), loose2 = _mm256_set1_pd(loose2_s);
+  double* __restrict x = a.x;
+  double* __restrict y = a.y;
+  double* __restrict z = a.z;
+  const double* __restrict w = a.w;
+  // Movability of a run without pins: every end moves (the same values the loads would give).
+  const __m256d one = _mm256_set1_pd(1.0);
+  __m256d loose = _mm256_setzero_pd();
+  bool tail = false;
+  if (f.dr == 0 && f.dc == 1) {
+    // Eight particles, four pairs per step: the even lanes of two loads against the odd ones (the
+    // lane order does not matter, the pairs are independent).
+    for (const ProvotFamily::Run& run : f.runs) {
+      ptrdiff_t c = run.lo;
+      for (; c + 7 < run.hi + 1; c += 8) {
+        const __m256d x0 = _mm256_loadu_pd(x + c), x1 = _mm256_loadu_pd(x + c + 4);
+        const __m256d y0 = _mm256_loadu_pd(y + c), y1 = _mm256_loadu_pd(y + c + 4);
+        const __m256d z0 = _mm256_loadu_pd(z + c), z1 = _mm256_loadu_pd(z + c + 4);
+        const __m256d w0 = run.pinned ? _mm256_loadu_pd(w + c) : one;
+        const __m256d w1 = run.pinned ? _mm256_loadu_pd(w + c + 4) : one;
+        __m256d px = _mm256_unpacklo_pd(x0, x1), qx = _mm256_unpackhi_pd(x0, x1);
+        __m256d py = _mm256_unpacklo_pd(y0, y1), qy = _mm256_unpackhi_pd(y0, y1);
+        __m256d pz = _mm256_unpacklo_pd(z0, z1), qz = _mm256_unpackhi_pd(z0, z1);
+        loose = _mm256_or_pd(loose,
+                             ProjectLanes(&px, &py, &pz, &qx, &qy, &qz, _mm256_unpacklo_pd(w0, w1),
+                                          _mm256_unpackhi_pd(w0, w1), max2, loose2));
+        _mm256_storeu_pd(x + c, _mm256_unpacklo_pd(px, qx));
+        _mm256_storeu_pd(x + c + 4, _mm256_unpackhi_pd(px, qx));
+        _mm256_storeu_pd(y + c, _mm256_unpacklo_pd(py, qy));
+        _mm256_storeu_pd(y + c + 4, _mm256_unpackhi_pd(py, qy));
+        _mm256_storeu_pd(z + c, _mm256_unpacklo_pd(pz, qz));
+        _mm256_storeu_pd(z + c + 4, _mm256_unpackhi_pd(pz, qz));
+      }
+      if (c < run.hi) tail = ProjectNeighbours(a, c, run.hi, f.max_length_m, loose2_s) || tail;
+    }
+  } else if (f.dr == 0 && f.dc == 2) {
+    // Eight particles, four pairs per step: the low halves of two loads against the high halves.
+    for (const ProvotFamily::Run& run : f.runs) {
+      ptrdiff_t c = run.lo;
+      for (; c + 7 < run.hi + 2; c += 8) {
+        const __m256d x0 = _mm256_loadu_pd(x + c), x1 = _mm256_loadu_pd(x + c + 4);
+        const __m256d y0 = _mm256_loadu_pd(y + c), y1 = _mm256_loadu_pd(y + c + 4);
+        const __m256d z0 = _mm256_loadu_pd(z + c), z1 = _mm256_loadu_pd(z + c + 4);
+        const __m256d w0 = run.pinned ? _mm256_loadu_pd(w + c) : one;
+        const __m256d w1 = run.pinned ? _mm256_loadu_pd(w + c + 4) : one;
+        __m256d px = _mm256_permute2f128_pd(x0, x1, 0x20),
+                qx = _mm256_permute2f128_pd(x0, x1, 0x31);
+        __m256d py = _mm256_permute2f128_pd(y0, y1, 0x20),
+                qy = _mm256_permute2f128_pd(y0, y1, 0x31);
+        __m256d pz = _mm256_permute2f128_pd(z0, z1, 0x20),
+                qz = _mm256_permute2f128_pd(z0, z1, 0x31);
+        loose = _mm256_or_pd(
+            loose, ProjectLanes(&px, &py, &pz, &qx, &qy, &qz, _mm256_permute2f128_pd(w0, w1, 0x20),
+                                _mm256_permute2f128_pd(w0, w1, 0x31), max2, loose2));
+        _mm256_storeu_pd(x + c, _mm256_permute2f128_pd(px, qx, 0x20));
+        _mm256_storeu_pd(x + c + 4, _mm256_permute2f128_pd(px, qx, 0x31));
+        _mm256_storeu_pd(y + c, _mm256_permute2f128_pd(py, qy, 0x20));
+        _mm256_storeu_pd(y + c + 4, _mm256_permute2f128_pd(py, qy, 0x31));
+        _mm256_storeu_pd(z + c, _mm256_permute2f128_pd(pz, qz, 0x20));
+        _mm256_storeu_pd(z + c + 4, _mm256_permute2f128_pd(pz, qz, 0x31));
+      }
+      if (c < run.hi) {
+        tail = ProjectSecondNeighbours(a, c, run.hi, f.max_length_m, loose2_s) || tail;
+      }
+    }
+  } else {
+    // Contiguous ends: p in the run, q = p + off in another row or run.
+    const ptrdiff_t off = static_cast<ptrdiff_t>(f.dr) * width + f.dc;
+    for (const ProvotFamily::Run& run : f.runs) {
+      ptrdiff_t p = run.lo;
+      for (; p + 4 <= run.hi; p += 4) {
+        const ptrdiff_t q = p + off;
+        __m256d px = _mm256_loadu_pd(x + p), py = _mm256_loadu_pd(y + p);
+        __m256d pz = _mm256_loadu_pd(z + p), qx = _mm256_loadu_pd(x + q);
+        __m256d qy = _mm256_loadu_pd(y + q), qz = _mm256_loadu_pd(z + q);
+        loose =
+            _mm256_or_pd(loose, ProjectLanes(&px, &py, &pz, &qx, &qy, &qz,
+                                             run.pinned ? _mm256_loadu_pd(w + p) : one,
+                                             run.pinned ? _mm256_loadu_pd(w + q) : one, max2,
+                                             loose2));
+        _mm256_storeu_pd(x + p, px);
+        _mm256_storeu_pd(y + p, py);
+        _mm256_storeu_pd(z + p, pz);
+        _mm256_storeu_pd(x + q, qx);
+        _mm256_storeu_pd(y + q, qy);
+        _mm256_storeu_pd(z + q, qz);
+      }
+      if (p < run.hi) tail = ProjectRun(a, p, run.hi, off, f.max_length_m, loose2_s) || tail;
+    }
+  }
+  return _mm256_movemask_pd(loose) != 0 || tail;
+}
+
+// True if this CPU runs AVX2 (asked once) and the tests have not asked for the portable loops.
+bool CpuHasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2") != 0;
+  return has && !g_provot_portable.load(std::memory_order_relaxed);
+}
+#endif
+
+// One Gauss-Seidel sweep over a family: AVX2 where the CPU has it, else the portable loop.
+bool SweepFamily(const ProvotSoa& a, int32_t width, const ProvotFamily& f) {
+#if defined(__x86_64__)
+  if (CpuHasAvx2()) return SweepFamilyAvx2(a, width, f);
+#endif
+  return SweepFamilyPortable(a, width, f);
 }
 
 }  // namespace
@@ -105,65 +340,59 @@ double ObstacleDistance(const ObstacleSpec& o, const Vec3& p, Vec3* normal) {
   return len - capsule.radius_m;
 }
 
+void UsePortableProvotKernels(bool portable) {
+  g_provot_portable.store(portable, std::memory_order_relaxed);
+}
+
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
-  const double inv_h = 1.0 / h_s;
-  const size_t n3 = 3 * static_cast<size_t>(model.num_particles());
-  // Flat loops over raw coordinates (a Vec3 is three packed doubles), no Eigen temporaries. Only
-  // positions move inside the loops; velocities follow once at the end (v += (x - x_before) / h,
-  // the sum of every move / h), which halves the memory each projection touches.
-  double* __restrict x = state->x.data()->data();
-  double* __restrict v = state->v.data()->data();
-  double* __restrict x_before = state->scratch->provot_x_before.data();
-  std::copy(x, x + n3, x_before);
+  const size_t n = static_cast<size_t>(model.num_particles());
+  const size_t stride = SoaStride(n);
+  double* soa = state->scratch->provot_soa.data();
+  const ProvotSoa a{soa, soa + stride, soa + 2 * stride, model.provot_movable.data()};
+  double* __restrict bx = soa + 3 * stride;
+  double* __restrict by = soa + 4 * stride;
+  double* __restrict bz = soa + 5 * stride;
+  // Into structure-of-arrays, and a copy of where the particles started.
+  const double* __restrict x = state->x.data()->data();
+  for (size_t p = 0; p < n; ++p) {
+    a.x[p] = bx[p] = x[3 * p];
+    a.y[p] = by[p] = x[3 * p + 1];
+    a.z[p] = bz[p] = x[3 * p + 2];
+  }
   // Long range attachments first: each free particle back into the ball around its pin (Kim,
   // Chentanez & Mueller 2012); the pin is kinematic, so only the particle moves.
-  for (const PinAttachment& a : model.attachments) {
-    const size_t p = 3 * static_cast<size_t>(a.particle), q = 3 * static_cast<size_t>(a.pin);
-    const double dx = x[p] - x[q], dy = x[p + 1] - x[q + 1], dz = x[p + 2] - x[q + 2];
+  for (const PinAttachment& at : model.attachments) {
+    const size_t p = static_cast<size_t>(at.particle), q = static_cast<size_t>(at.pin);
+    const double dx = a.x[p] - a.x[q], dy = a.y[p] - a.y[q], dz = a.z[p] - a.z[q];
     const double len2 = dx * dx + dy * dy + dz * dz;
-    if (len2 <= a.max_length_m * a.max_length_m) continue;
+    if (len2 <= at.max_length_m * at.max_length_m) continue;
     const double len = std::sqrt(len2);
-    const double scale = (len - a.max_length_m) / len;
-    x[p] -= scale * dx;
-    x[p + 1] -= scale * dy;
-    x[p + 2] -= scale * dz;
+    const double scale = (len - at.max_length_m) / len;
+    a.x[p] -= scale * dx;
+    a.y[p] -= scale * dy;
+    a.z[p] -= scale * dz;
   }
-  // The constraints in sweep order: first those with a pinned end j (the free end i takes the
-  // whole correction), then those with two free ends (halves); 16 bytes each.
-  const ProvotPair* __restrict pairs = model.provot_pairs.data();
-  const size_t pinned_count = static_cast<size_t>(model.provot_pinned_pairs);
-  const size_t count = model.provot_pairs.size();
-  constexpr double kLoose2 = (1.0 + kProvotConverged) * (1.0 + kProvotConverged);
+  // Sweeps over every family, coarse to fine; converged once no pair of a sweep was more than
+  // kProvotConverged over its limit.
   for (int32_t sweep = 0; sweep < model.spec.provot.iterations; ++sweep) {
-    // Converged when no spring of this sweep was over its limit by more than kProvotConverged.
     bool loose = false;
-    for (size_t k = 0; k < count; ++k) {
-      // Provot 1995 (000_25210a744b053ca5.txt slides 9-10): a spring longer than its limit
-      // (1 + tau_c) L is shortened back to it by moving its ends by their shares.
-      const ProvotPair& c = pairs[k];
-      const size_t i = 3 * static_cast<size_t>(c.i), j = 3 * static_cast<size_t>(c.j);
-      const double dx = x[j] - x[i], dy = x[j + 1] - x[i + 1], dz = x[j + 2] - x[i + 2];
-      const double len2 = dx * dx + dy * dy + dz * dz;
-      const double max2 = c.max_length_m * c.max_length_m;
-      if (len2 <= max2) continue;
-      loose = loose || len2 > kLoose2 * max2;
-      const double len = std::sqrt(len2);
-      const double scale = kProvotOverRelaxation * (len - c.max_length_m) / len;
-      // A pinned end j stays and the free end takes the whole correction; else halves.
-      const bool pinned_j = k < pinned_count;
-      const double a = pinned_j ? scale : 0.5 * scale;
-      x[i] += a * dx;
-      x[i + 1] += a * dy;
-      x[i + 2] += a * dz;
-      if (pinned_j) continue;
-      x[j] -= a * dx;
-      x[j + 1] -= a * dy;
-      x[j + 2] -= a * dz;
+    for (const ProvotFamily& family : model.provot_families) {
+      loose = SweepFamily(a, model.width, family) || loose;
     }
     if (!loose) break;
   }
-  // Velocities follow the positions, v += dx / h, so (x, v) stay consistent.
-  for (size_t k = 0; k < n3; ++k) v[k] += inv_h * (x[k] - x_before[k]);
+  // Back to the state; velocities follow the positions, v += dx / h, so (x, v) stay consistent.
+  const double inv_h = 1.0 / h_s;
+  double* __restrict xo = state->x.data()->data();
+  double* __restrict vo = state->v.data()->data();
+  for (size_t p = 0; p < n; ++p) {
+    xo[3 * p] = a.x[p];
+    xo[3 * p + 1] = a.y[p];
+    xo[3 * p + 2] = a.z[p];
+    vo[3 * p] += inv_h * (a.x[p] - bx[p]);
+    vo[3 * p + 1] += inv_h * (a.y[p] - by[p]);
+    vo[3 * p + 2] += inv_h * (a.z[p] - bz[p]);
+  }
 }
 
 void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state) {

@@ -64,13 +64,15 @@ void AddSpringForces(const ClothModel& model, std::span<const Vec3> x, std::span
 namespace {
 
 // The particles' positions, velocities and forces as structure-of-arrays views into
-// scratch.soa (6 x n coordinates in, 3 x n forces, 3 x n per-spring forces of one family).
+// scratch.soa (6 arrays of coordinates in, 3 of forces, 3 of per-spring forces of one family),
+// SoaStride(n) doubles apart.
 struct SoaViews {
   double *x, *y, *z, *vx, *vy, *vz, *fx, *fy, *fz, *sx, *sy, *sz;
 };
 
-SoaViews Views(std::vector<double>* soa, size_t n) {
+SoaViews Views(std::vector<double>* soa, size_t particles) {
   double* b = soa->data();
+  const size_t n = SoaStride(particles);
   return {b,         b + n,     b + 2 * n, b + 3 * n, b + 4 * n,  b + 5 * n,
           b + 6 * n, b + 7 * n, b + 8 * n, b + 9 * n, b + 10 * n, b + 11 * n};
 }

@@ -26,10 +26,11 @@ struct ClothState::Scratch {
   std::vector<Vec3> kv_sum;      ///< RK4: weighted sum of velocity slopes
   std::vector<Vec3> x_start;     ///< positions at the start of the substep (obstacle sweeps)
   CouplingSprings coupling;      ///< contact springs of this frame (fixed capacity)
-  /// [12 n] structure-of-arrays work space of the force kernel: x, y, z, vx, vy, vz, then the
-  /// force fx, fy, fz, then one spring family's forces (cloth_forces.cc).
+  /// [12 SoaStride(n)] structure-of-arrays work space of the force kernel: x, y, z, vx, vy, vz,
+  /// then the force fx, fy, fz, then one spring family's forces (cloth_forces.cc).
   std::vector<double> soa;
-  std::vector<double> provot_x_before;  ///< [3 n] positions before ApplyProvot moved them
+  /// [6 SoaStride(n)] ApplyProvot's positions x, y, z as it moves them, then the positions before.
+  std::vector<double> provot_soa;
 
   // Integrator history (leapfrog, basic Verlet), [n] each.
   bool history_valid = false;  ///< false: restart from x, v at the next substep
@@ -51,6 +52,11 @@ struct ClothState::Scratch {
   Eigen::VectorXd b, dv, r, z, p, Ap, inv_diag;     ///< [3n] CG vectors
 };
 
+/// Distance, in doubles, between consecutive arrays of a structure-of-arrays block for n particles:
+/// n rounded up to a cache line plus one more line, so the arrays never start a multiple of 4 KiB
+/// apart (with n = 4096 the twelve arrays would share the same L1 sets and alias on 4 KiB pages).
+constexpr size_t SoaStride(size_t n) { return (n + 7) / 8 * 8 + 8; }
+
 /// Accelerations [m/s^2] at positions x and velocities v: gravity, drag, springs, and the frame's
 /// external forces (scratch.external_N); zero for pinned particles. Works in scratch.soa (spring
 /// families as grid stencils, AVX2 where the CPU has it).
@@ -62,9 +68,14 @@ void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std:
 /// implicit solve hit its iteration cap.
 bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state);
 
-/// Provot 1995 (000_25210a744b053ca5.txt slides 9-10): sweeps over model.provot, shortening every
-/// spring longer than its limit; velocities are corrected by the move / h_s.
+/// Provot 1995 (000_25210a744b053ca5.txt slides 9-10): the long range attachments, then sweeps over
+/// model.provot_families, shortening every pair longer than its limit; velocities are corrected by
+/// the move / h_s.
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state);
+
+/// Tests only: true makes ApplyProvot use its portable loops even where the CPU has AVX2 (both
+/// give the same bits; this lets one machine check both).
+void UsePortableProvotKernels(bool portable);
 
 /// Keeps free particles outside every declared obstacle (surface + margin), sweeping the path
 /// from scratch.x_start so a fast particle cannot tunnel through a thin obstacle; removes the

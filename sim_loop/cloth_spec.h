@@ -129,16 +129,23 @@ struct IntegrationSpec {
 struct ProvotSpec {
   bool enabled = true;
   double max_elongation = 0.10;  ///< a spring never ends a substep longer than (1 + this) * rest
-  /// Relaxation sweeps per substep at most, >= 1; sweeping stops early once no spring exceeds its
-  /// limit by more than 0.1 %. Gauss-Seidel: 10 hold a hanging cloth at the limit, but the
-  /// transient of a freshly released 32 x 32 cloth peaks near 15 %; 40 keep it within 2 %.
-  int32_t iterations = 10;
+  /// Relaxation sweeps per substep at most, >= 1; sweeping stops early once no pair exceeds its
+  /// limit by more than 0.1 %. With the multiresolution families, 3 sweeps hold the release
+  /// transient of a 64 x 64 two-corner curtain to about 12 % and the hanging cloth to about 11 %
+  /// (bench/results/cloth.md); without them 10 sweeps let the transient reach 17 %.
+  int32_t iterations = 3;
   bool shear = true;  ///< also constrain shear springs (structural always)
   /// Also keep every free particle within (1 + max_elongation) times its rest distance of its
   /// nearest pinned particle (long range attachments, Kim, Chentanez & Mueller 2012), projected
   /// before Provot's sweeps. Pins are kinematic, so this only removes energy; it stops the
   /// stretch that Gauss-Seidel sweeps carry only O(1/N^2) per sweep down an N-row hanging cloth.
   bool long_range_attachments = true;
+  /// Also limit particles 2, 4, 8, ... apart along a row or column to (1 + max_elongation) times
+  /// their rest distance, swept coarsest first. Implied by the spring limits (so never an extra
+  /// restriction), they carry a correction across the cloth in one sweep instead of one spring
+  /// per sweep: the coarse levels of multigrid (Briggs, Henson & McCormick 2000) and of
+  /// hierarchical position based dynamics (Mueller 2008), as stencils on the grid.
+  bool multiresolution = true;
 };
 
 /// Everything the 60 Hz simulation needs from a scene.

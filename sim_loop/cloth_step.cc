@@ -67,7 +67,7 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
 
   GatherExternalForces(model, external, state);
   const bool obstacles = !model.spec.cloth.obstacles.empty();
-  const bool provot = model.spec.provot.enabled && !model.provot.empty();
+  const bool provot = model.spec.provot.enabled && !model.provot_families.empty();
   const double t0 = state->time_s;
   for (int32_t k = 0; k < substeps; ++k) {
     // Integrate, then constrain: Provot (000 slide 9), obstacles, pins at the substep's end time.

@@ -675,13 +675,15 @@ IntegrationSpec ParseIntegration(const SceneTable& table) {
 }
 
 ProvotSpec ParseProvot(const SceneTable& table) {
-  table.ExpectKeys({"enabled", "max_elongation", "iterations", "shear", "long_range_attachments"});
+  table.ExpectKeys({"enabled", "max_elongation", "iterations", "shear", "long_range_attachments",
+                    "multiresolution"});
   ProvotSpec spec;
   spec.enabled = table.Bool("enabled", spec.enabled);
   spec.max_elongation = table.Number("max_elongation", spec.max_elongation, Positive());
   spec.iterations = table.Integer("iterations", spec.iterations, InRange(1, 10000));
   spec.shear = table.Bool("shear", spec.shear);
   spec.long_range_attachments = table.Bool("long_range_attachments", spec.long_range_attachments);
+  spec.multiresolution = table.Bool("multiresolution", spec.multiresolution);
   return spec;
 }
 

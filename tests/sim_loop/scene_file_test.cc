@@ -347,7 +347,7 @@ TEST(SceneFileErrors, UnknownKey) {
   // No close match: the known keys are listed. The first unknown key in file order is reported.
   EXPECT_EQ(ErrorOf("[cloth]\n[provot]\nzzz = 1\naaa = 2\n"),
             "t.toml:3:1: provot.zzz: unknown key 'zzz' in [provot]; known keys: enabled, "
-            "max_elongation, iterations, shear, long_range_attachments");
+            "max_elongation, iterations, shear, long_range_attachments, multiresolution");
   EXPECT_EQ(ErrorOf("[cloth]\n[[cloth.pins]]\nkind = \"corner\"\nname = \"top_left\"\ncol = 3\n"),
             "t.toml:5:1: cloth.pins[0].col: unknown key 'col' in cloth.pins[0]; known keys: kind, "
             "name, motion");
