@@ -351,7 +351,7 @@ struct BvhImpl {
   // nine loads, the min/max of three vertices, one branch-free comparison with the stored box and
   // one store; per parent the same over its children's boxes. Same volumes and counters as
   // Sweep<false, false>: min/max keep the operand order of AabbOps::Leaf and AabbOps::Merge
-  // (std::min(a, b) = b < a ? b : a), so even NaN and signed zeros come out the same.
+  // (std::min(a, b) = b < a ? b : a, Eigen's cwiseMin on scalars), so the boxes are the same.
   static RepairStats SweepAabbExact(Bvh& h, std::span<const Vec3> x) {
     const BvhTopology& t = *h.topology_;
     Aabb* bv = h.aabb_.data();
