@@ -17,7 +17,7 @@ set xlabel 'triangles'
 
 set title 'repair per frame (median, ms)'
 set ylabel 'ms'
-repair = "bvh-sphere-2-bottomup bvh-aabb-2-bottomup bvh-sphere-4-bottomup bvh-aabb-4-bottomup bvh-aabb-4-bottomup-d5mm bvh-sphere-4-topdown bvh-aabb-4-rebuild osh"
+repair = "bvh-sphere-2-bottomup bvh-aabb-2-bottomup bvh-sphere-4-bottomup bvh-aabb-4-bottomup bvh-aabb-4-queue bvh-aabb-4-bottomup-d5mm bvh-sphere-4-topdown bvh-aabb-4-rebuild osh"
 plot for [s in repair] csv skip 1 using 3:(strcol(1) eq s ? $4 : NaN) with linespoints title s, \
      0.05 with lines dashtype 2 lc 'black' title 'target at 4802 triangles: 0.05 ms'
 

@@ -9,6 +9,10 @@
 #include <string>
 #include <type_traits>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace felt {
 namespace {
 
@@ -30,6 +34,11 @@ struct AabbOps {
            (inner.hi.array() <= outer.hi.array()).all();
   }
   static bool Equal(const Aabb& x, const Aabb& y) { return x.lo == y.lo && x.hi == y.hi; }
+  // !Equal without branches (bitwise or of the six comparisons; NaN differs, as in Equal).
+  static bool Differ(const Aabb& x, const Aabb& y) {
+    return (x.lo.x() != y.lo.x()) | (x.lo.y() != y.lo.y()) | (x.lo.z() != y.lo.z()) |
+           (x.hi.x() != y.hi.x()) | (x.hi.y() != y.hi.y()) | (x.hi.z() != y.hi.z());
+  }
   static Aabb Inflate(const Aabb& x, double d) { return {x.lo.array() - d, x.hi.array() + d}; }
   // Is p within `reach` of the box?
   static bool Near(const Aabb& x, const Vec3& p, double reach) {
@@ -101,6 +110,7 @@ struct SphereOps {
   static bool Equal(const BoundingSphere& x, const BoundingSphere& y) {
     return x.center == y.center && x.radius == y.radius;
   }
+  static bool Differ(const BoundingSphere& x, const BoundingSphere& y) { return !Equal(x, y); }
   static BoundingSphere Inflate(const BoundingSphere& x, double d) {
     return {x.center, x.radius + d};
   }
@@ -124,6 +134,61 @@ struct SphereOps {
     return t <= t_max ? t : kInf;
   }
 };
+
+// An Aabb in registers for SweepAabbExact: SSE2 pairs (x, y) and singles z where available,
+// plain doubles otherwise. Operand order as in AabbOps (std::min(a, b) = b < a ? b : a, which is
+// _mm_min_pd(b, a); std::max(a, b) = a < b ? b : a, which is _mm_max_pd(b, a)).
+#if defined(__SSE2__)
+struct Box {
+  __m128d lo_xy, lo_z, hi_xy, hi_z;
+
+  static Box Load(const Aabb& b) {
+    return {_mm_loadu_pd(b.lo.data()), _mm_load_sd(b.lo.data() + 2), _mm_loadu_pd(b.hi.data()),
+            _mm_load_sd(b.hi.data() + 2)};
+  }
+  static Box Leaf(const Vec3& a, const Vec3& b, const Vec3& c) {
+    const __m128d a_xy = _mm_loadu_pd(a.data()), a_z = _mm_load_sd(a.data() + 2);
+    const __m128d b_xy = _mm_loadu_pd(b.data()), b_z = _mm_load_sd(b.data() + 2);
+    const __m128d c_xy = _mm_loadu_pd(c.data()), c_z = _mm_load_sd(c.data() + 2);
+    return {_mm_min_pd(c_xy, _mm_min_pd(b_xy, a_xy)), _mm_min_sd(c_z, _mm_min_sd(b_z, a_z)),
+            _mm_max_pd(c_xy, _mm_max_pd(b_xy, a_xy)), _mm_max_sd(c_z, _mm_max_sd(b_z, a_z))};
+  }
+  // This box grows to hold q (AabbOps::Merge(*this, q)).
+  void Merge(const Box& q) {
+    lo_xy = _mm_min_pd(q.lo_xy, lo_xy);
+    lo_z = _mm_min_sd(q.lo_z, lo_z);
+    hi_xy = _mm_max_pd(q.hi_xy, hi_xy);
+    hi_z = _mm_max_sd(q.hi_z, hi_z);
+  }
+  // Writes this box to *o; returns 1 if any coordinate differs from what *o held (NaN differs).
+  uint8_t StoreDiffer(Aabb* o) const {
+    const Box old = Load(*o);
+    const __m128d z = _mm_unpacklo_pd(lo_z, hi_z);
+    const __m128d old_z = _mm_unpacklo_pd(old.lo_z, old.hi_z);
+    const __m128d ne = _mm_or_pd(_mm_or_pd(_mm_cmpneq_pd(lo_xy, old.lo_xy),
+                                           _mm_cmpneq_pd(hi_xy, old.hi_xy)),
+                                 _mm_cmpneq_pd(z, old_z));
+    _mm_storeu_pd(o->lo.data(), lo_xy);
+    _mm_store_sd(o->lo.data() + 2, lo_z);
+    _mm_storeu_pd(o->hi.data(), hi_xy);
+    _mm_store_sd(o->hi.data() + 2, hi_z);
+    return _mm_movemask_pd(ne) != 0;
+  }
+};
+#else
+struct Box {
+  Aabb b;
+
+  static Box Load(const Aabb& a) { return {a}; }
+  static Box Leaf(const Vec3& a, const Vec3& b, const Vec3& c) { return {AabbOps::Leaf(a, b, c)}; }
+  void Merge(const Box& q) { b = AabbOps::Merge(b, q.b); }
+  uint8_t StoreDiffer(Aabb* o) const {
+    const uint8_t ch = AabbOps::Differ(*o, b);
+    *o = b;
+    return ch;
+  }
+};
+#endif
 
 }  // namespace
 
@@ -158,8 +223,14 @@ BvhTopology BvhTopology::Make(int32_t num_triangles, int32_t arity) {
       depth.push_back(depth[i] + 1);
     }
   }
+  t.leaf_of_slot.assign(static_cast<size_t>(num_triangles), -1);
   for (int32_t i = t.num_nodes() - 1; i >= 0; --i) {
-    if (t.first_child[i] < 0) t.leaves_desc.push_back(i);
+    if (t.first_child[i] < 0) {
+      t.leaves_desc.push_back(i);
+      t.leaf_of_slot[static_cast<size_t>(t.begin[i])] = i;
+    } else {
+      t.internal_desc.push_back(i);
+    }
   }
   t.depth = *std::max_element(depth.begin(), depth.end());
   if ((arity - 1) * t.depth + 1 > kMaxStack) {
@@ -208,25 +279,152 @@ struct BvhImpl {
     return merged;
   }
 
-  // Tight leaf volume of triangle `tri` at one snapshot, or over two.
+  // Tight leaf volume of the triangle in leaf slot `slot` at one snapshot, or over two.
   struct LeafFit {
-    const std::vector<Triangle>& tris;
+    const Triangle* slot_vertices;  // [triangles] Bvh::slot_vertices_
     std::span<const Vec3> x0;
     std::span<const Vec3> x1;  // empty: one snapshot
-    BV operator()(int32_t tri) const {
-      const Triangle& t = tris[tri];
+    BV operator()(int32_t slot) const {
+      const Triangle& t = slot_vertices[slot];
       const BV fit0 = Ops::Leaf(x0[t[0]], x0[t[1]], x0[t[2]]);
       if (x1.empty()) return fit0;
       return Ops::Merge(fit0, Ops::Leaf(x1[t[0]], x1[t[1]], x1[t[2]]));
     }
   };
 
+  // kBottomUp and kRebuild: one pass over the leaf slots, then one over the internal nodes in
+  // decreasing id order (children before parents, since breadth-first ids put every parent before
+  // its children: 001 §6.3). No queue and no branch on which node is invalidated: changed_[node]
+  // records whether the node's stored volume changed, and a parent is "invalidated" (001 §6.3)
+  // when one of its children changed. Exact mode (d = 0) stores every fit unconditionally: a
+  // parent none of whose children changed merges the same stored volumes into the same result,
+  // so the volumes and the counters equal those of kBottomUpQueue. `kAll`: kRebuild, every
+  // volume rewritten and counted.
+  template <bool kAll, bool kSwept>
+  static RepairStats Sweep(Bvh& h, std::span<const Vec3> x0, std::span<const Vec3> x1) {
+    const BvhTopology& t = *h.topology_;
+    BV* bv = Bounds(h).data();
+    uint8_t* changed = h.changed_.data();
+    const double d = h.options_.inflation_m;
+    const int32_t num_slots = static_cast<int32_t>(h.slot_vertices_.size());
+    const Triangle* sv = h.slot_vertices_.data();
+    const int32_t* leaf_of_slot = t.leaf_of_slot.data();
+    const Vec3* p0 = x0.data();
+    const Vec3* p1 = x1.data();
+    int32_t updates = 0;
+    // Leaves: every triangle's tight volume (over both snapshots when swept).
+    for (int32_t s = 0; s < num_slots; ++s) {
+      const Triangle& tr = sv[s];
+      BV fit = Ops::Leaf(p0[tr[0]], p0[tr[1]], p0[tr[2]]);
+      if constexpr (kSwept) fit = Ops::Merge(fit, Ops::Leaf(p1[tr[0]], p1[tr[1]], p1[tr[2]]));
+      const int32_t node = leaf_of_slot[s];
+      const uint8_t c = StoreFlat<kAll>(d, true, &bv[node], fit);
+      changed[node] = c;
+      updates += c;
+    }
+    // Internal nodes, deepest first.
+    const int32_t* first_child = t.first_child.data();
+    const int32_t* num_children = t.num_children.data();
+    int32_t invalidated = 0;
+    for (const int32_t node : t.internal_desc) {
+      const int32_t first = first_child[node];
+      const int32_t k = num_children[node];
+      BV fit = bv[first];
+      uint8_t need = changed[first];
+      for (int32_t j = 1; j < k; ++j) {
+        fit = Ops::Merge(fit, bv[first + j]);
+        need |= changed[first + j];
+      }
+      const uint8_t c = StoreFlat<kAll>(d, need != 0, &bv[node], fit);
+      changed[node] = c;
+      updates += c;
+      invalidated += need;
+    }
+    RepairStats stats;
+    stats.leaves_refit = num_slots;
+    stats.parents_refit = kAll ? t.num_internal : invalidated;
+    stats.node_updates = updates;
+    return stats;
+  }
+
+  // Sweep for exact AABB trees over one snapshot, the case the sim runs every frame: per leaf
+  // nine loads, the min/max of three vertices, one branch-free comparison with the stored box and
+  // one store; per parent the same over its children's boxes. Same volumes and counters as
+  // Sweep<false, false>: min/max keep the operand order of AabbOps::Leaf and AabbOps::Merge
+  // (std::min(a, b) = b < a ? b : a, Eigen's cwiseMin on scalars), so the boxes are the same.
+  static RepairStats SweepAabbExact(Bvh& h, std::span<const Vec3> x) {
+    const BvhTopology& t = *h.topology_;
+    Aabb* bv = h.aabb_.data();
+    uint8_t* changed = h.changed_.data();
+    const int32_t num_slots = static_cast<int32_t>(h.slot_vertices_.size());
+    const Triangle* sv = h.slot_vertices_.data();
+    const int32_t* leaf_of_slot = t.leaf_of_slot.data();
+    const Vec3* p = x.data();
+    int32_t updates = 0;
+    // Leaves. The positions may be cold (in the benchmark they come from a long cycle of
+    // frames): request every cache line of x first, in address order, so that the misses overlap
+    // instead of stalling the indexed loads below one at a time.
+    const char* bytes = reinterpret_cast<const char*>(p);
+    const size_t num_bytes = x.size_bytes();
+    for (size_t off = 0; off < num_bytes; off += 64) __builtin_prefetch(bytes + off);
+    for (int32_t s = 0; s < num_slots; ++s) {
+      const Box box = Box::Leaf(p[sv[s][0]], p[sv[s][1]], p[sv[s][2]]);
+      const int32_t node = leaf_of_slot[s];
+      const uint8_t ch = box.StoreDiffer(&bv[node]);
+      changed[node] = ch;
+      updates += ch;
+    }
+    // Internal nodes, deepest first.
+    const int32_t* first_child = t.first_child.data();
+    const int32_t* num_children = t.num_children.data();
+    int32_t invalidated = 0;
+    for (const int32_t node : t.internal_desc) {
+      const int32_t first = first_child[node];
+      const int32_t k = num_children[node];
+      Box box = Box::Load(bv[first]);
+      uint8_t need = changed[first];
+      for (int32_t j = 1; j < k; ++j) {
+        box.Merge(Box::Load(bv[first + j]));
+        need |= changed[first + j];
+      }
+      const uint8_t ch = need & box.StoreDiffer(&bv[node]);
+      changed[node] = ch;
+      updates += ch;
+      invalidated += need;
+    }
+    RepairStats stats;
+    stats.leaves_refit = num_slots;
+    stats.parents_refit = invalidated;
+    stats.node_updates = updates;
+    return stats;
+  }
+
+  // Sweep's store: returns 1 if the stored volume changed. Exact mode writes the fit whatever
+  // `need` says (it equals the stored volume when no child changed); inflated mode writes only an
+  // invalidated node whose fit escapes its stored volume, as Store does.
+  template <bool kAll>
+  static uint8_t StoreFlat(double d, bool need, BV* stored, const BV& fit) {
+    if constexpr (kAll) {
+      *stored = d > 0.0 ? Ops::Inflate(fit, d) : fit;
+      return 1;
+    } else {
+      if (d > 0.0) {
+        if (!need || Ops::Contains(*stored, fit)) return 0;
+        *stored = Ops::Inflate(fit, d);
+        return 1;
+      }
+      const uint8_t c = need & Ops::Differ(*stored, fit);
+      *stored = fit;
+      return c;
+    }
+  }
+
   // 001 §6.3: the leaves sit in an array in decreasing id order; a changed node queues its
   // parent. Nodes are taken in decreasing id order from the merge of the leaf array and the
   // queue; since a breadth-first parent id never increases as the child id decreases, the queue
   // fills in decreasing order and a parent already queued is always the last one added ("last
   // added parent" test), so each parent is refitted at most once, after all its children.
-  static RepairStats BottomUp(Bvh& h, const LeafFit& fit) {
+  static RepairStats BottomUpQueue(Bvh& h, const LeafFit& fit) {
     const BvhTopology& t = *h.topology_;
     std::vector<BV>& bv = Bounds(h);
     const double d = h.options_.inflation_m;
@@ -251,7 +449,7 @@ struct BvhImpl {
       // Refit it from its triangle or its children.
       bool changed;
       if (t.is_leaf(node)) {
-        changed = Store(d, &bv[node], fit(h.order_[t.begin[node]]));
+        changed = Store(d, &bv[node], fit(t.begin[node]));
         ++stats.leaves_refit;
       } else {
         changed = Store(d, &bv[node], MergeChildren(t, bv, node));
@@ -275,7 +473,7 @@ struct BvhImpl {
     const double d = h.options_.inflation_m;
     bool changed;
     if (t.is_leaf(node)) {
-      changed = Store(d, &bv[node], fit(h.order_[t.begin[node]]));
+      changed = Store(d, &bv[node], fit(t.begin[node]));
       ++stats->leaves_refit;
     } else {
       bool any_child = false;
@@ -299,7 +497,7 @@ struct BvhImpl {
     for (int32_t node = t.num_nodes() - 1; node >= 0; --node) {
       BV v;
       if (t.is_leaf(node)) {
-        v = fit(h.order_[t.begin[node]]);
+        v = fit(t.begin[node]);
         ++stats.leaves_refit;
       } else {
         v = MergeChildren(t, bv, node);
@@ -312,11 +510,18 @@ struct BvhImpl {
   }
 
   static RepairStats Run(Bvh& h, std::span<const Vec3> x0, std::span<const Vec3> x1) {
-    const LeafFit fit{*h.triangles_, x0, x1};
+    const LeafFit fit{h.slot_vertices_.data(), x0, x1};
     if (h.topology_->num_nodes() == 0) return {};
+    const bool swept = !x1.empty();
     switch (h.options_.repair) {
       case BvhRepair::kBottomUp:
-        return BottomUp(h, fit);
+        if (swept) return Sweep<false, true>(h, x0, x1);
+        if constexpr (std::is_same_v<BV, Aabb>) {
+          if (h.options_.inflation_m == 0.0) return SweepAabbExact(h, x0);
+        }
+        return Sweep<false, false>(h, x0, x1);
+      case BvhRepair::kBottomUpQueue:
+        return BottomUpQueue(h, fit);
       case BvhRepair::kTopDown: {
         RepairStats stats;
         TopDownNode(h, fit, 0, &stats);
@@ -325,8 +530,8 @@ struct BvhImpl {
       case BvhRepair::kRebuild:
         break;
     }
-    Partition(h, x1.empty() ? x0 : x1);
-    return All(h, fit);
+    Partition(h, swept ? x1 : x0);
+    return swept ? Sweep<true, true>(h, x0, x1) : Sweep<true, false>(h, x0, x1);
   }
 
   // Top-down median split (001 §4.1, "top-down ... using heuristics"): each internal node's range
@@ -366,6 +571,8 @@ struct BvhImpl {
         from = at;
       }
     }
+    // The leaf pass reads each slot's vertices directly.
+    for (size_t slot = 0; slot < tris.size(); ++slot) h.slot_vertices_[slot] = tris[order[slot]];
   }
 
   // Query 1: depth-first walk of the volumes within r (+ slack) of p.
@@ -463,6 +670,8 @@ Bvh::Bvh(std::shared_ptr<const std::vector<Triangle>> triangles, std::span<const
   order_.resize(tris.size());
   std::iota(order_.begin(), order_.end(), 0);
   centroid_.resize(tris.size());
+  slot_vertices_.resize(tris.size());
+  changed_.resize(static_cast<size_t>(topology_->num_nodes()));
   queue_.resize(static_cast<size_t>(std::max(topology_->num_internal, 1)));
   if (options_.volume == BoundingVolume::kAabb) {
     aabb_.resize(static_cast<size_t>(topology_->num_nodes()));
@@ -489,9 +698,9 @@ RepairStats Bvh::RepairSwept(std::span<const Vec3> x_old, std::span<const Vec3> 
 RepairStats Bvh::RefitAll(std::span<const Vec3> x) {
   covers_motion_ = false;
   if (options_.volume == BoundingVolume::kAabb) {
-    return BvhImpl<AabbOps>::All(*this, {*triangles_, x, {}});
+    return BvhImpl<AabbOps>::All(*this, {slot_vertices_.data(), x, {}});
   }
-  return BvhImpl<SphereOps>::All(*this, {*triangles_, x, {}});
+  return BvhImpl<SphereOps>::All(*this, {slot_vertices_.data(), x, {}});
 }
 
 WithinResult Bvh::TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,

@@ -25,9 +25,18 @@ enum class BoundingVolume : uint8_t { kSphere, kAabb };
 
 /// How Bvh::Repair brings the volumes up to date with new positions.
 enum class BvhRepair : uint8_t {
-  kBottomUp,  ///< 001 §6.3: leaves in an array, parents refitted once each in decreasing id order
-  kTopDown,   ///< recursive refit from the root (children first, then the parent)
-  kRebuild,   ///< re-split the triangles by their current centroids, then refit everything
+  /// Bottom-up over flat arrays: every leaf refitted in one pass over the leaf slots, then every
+  /// internal node evaluated once in decreasing id order, with no queue and no branch on which
+  /// node is invalidated (a changed-flag per node decides what counts and, with inflation, what is
+  /// stored). Same volumes and counters as kBottomUpQueue; the fast choice when the whole cloth
+  /// moves, as it does every frame in the sim.
+  kBottomUp,
+  kTopDown,  ///< recursive refit from the root (children first, then the parent)
+  kRebuild,  ///< re-split the triangles by their current centroids, then refit everything
+  /// 001 §6.3 as written: leaves in an array, a changed node queues its parent, only queued
+  /// (invalidated) parents are refitted, each at most once, in decreasing id order. Does less work
+  /// than kBottomUp when few triangles move.
+  kBottomUpQueue,
 };
 
 /// Construction options of a Bvh.
@@ -62,6 +71,8 @@ struct BvhTopology {
   std::vector<int32_t> begin;         ///< [nodes] first slot of the node's range in the leaf order
   std::vector<int32_t> end;           ///< [nodes] one past its last slot (a leaf holds one slot)
   std::vector<int32_t> leaves_desc;   ///< ids of the leaves in decreasing order (001 §6.3's array)
+  std::vector<int32_t> leaf_of_slot;  ///< [triangles] the leaf whose range is that one slot
+  std::vector<int32_t> internal_desc;  ///< ids of the internal nodes in decreasing order
   int32_t num_internal = 0;           ///< nodes with children
   int32_t depth = 0;                  ///< edges from the root to the deepest leaf
 
@@ -132,8 +143,10 @@ class Bvh {
   std::vector<int32_t> order_;          // [triangles] leaf slot -> triangle
   std::vector<Aabb> aabb_;              // [nodes] if volume == kAabb
   std::vector<BoundingSphere> sphere_;  // [nodes] if volume == kSphere
-  std::vector<int32_t> queue_;          // [internal nodes] bottom-up repair's parent queue
-  std::vector<Vec3> centroid_;          // [triangles] rebuild scratch
+  std::vector<Triangle> slot_vertices_;  // [triangles] the vertices of order_[slot], by slot
+  std::vector<uint8_t> changed_;         // [nodes] kBottomUp: 1 if the last repair changed it
+  std::vector<int32_t> queue_;           // [internal nodes] kBottomUpQueue's parent queue
+  std::vector<Vec3> centroid_;           // [triangles] rebuild scratch
   bool covers_motion_ = false;
 };
 

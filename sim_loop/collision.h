@@ -50,7 +50,9 @@ struct SweepHit {
 struct RepairStats {
   int32_t node_updates = 0;   ///< bounding volumes rewritten (leaves and parents; 001 Table 2)
   int32_t leaves_refit = 0;   ///< leaf volumes recomputed from their triangle
-  int32_t parents_refit = 0;  ///< parent volumes recomputed from their children
+  /// parents refitted because a child changed (001 §6.3's invalidated parents; kBottomUp's flat
+  /// sweep also merges the others, whose volumes cannot change, and does not count them)
+  int32_t parents_refit = 0;
   int32_t entries = 0;        ///< spatial hash only: (triangle, cell) entries written
 };
 

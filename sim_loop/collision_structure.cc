@@ -41,6 +41,9 @@ std::string CollisionStructureName(const CollisionStructureSpec& spec) {
     case BvhRepair::kRebuild:
       name += "-rebuild";
       break;
+    case BvhRepair::kBottomUpQueue:
+      name += "-queue";
+      break;
   }
   if (o.inflation_m > 0.0) {
     name += "-d" + std::to_string(static_cast<int>(std::lround(o.inflation_m * 1e3))) + "mm";

@@ -38,7 +38,8 @@ CollisionStructure MakeCollisionStructure(const CollisionStructureSpec& spec,
                                           std::shared_ptr<const std::vector<Triangle>> triangles,
                                           std::span<const Vec3> x);
 
-/// A short name, e.g. "naive", "osh", "bvh-sphere-4-bottomup", "bvh-aabb-2-topdown-d5mm".
+/// A short name, e.g. "naive", "osh", "bvh-sphere-4-bottomup", "bvh-aabb-4-queue" (001 §6.3's
+/// queue repair, BvhRepair::kBottomUpQueue), "bvh-aabb-2-topdown-d5mm".
 std::string CollisionStructureName(const CollisionStructureSpec& spec);
 
 /// Brings the structure up to date with positions x [m]. Real-time safe.

@@ -44,6 +44,12 @@ TEST(BvhTopologyTest, BreadthFirstArraysWithParentsBeforeChildren) {
       EXPECT_EQ(leaves, n);
       EXPECT_EQ(static_cast<int32_t>(t.leaves_desc.size()), n);
       EXPECT_TRUE(std::is_sorted(t.leaves_desc.rbegin(), t.leaves_desc.rend()));
+      // The flat sweep's arrays: each slot's leaf, and every internal node once, deepest first.
+      ASSERT_EQ(static_cast<int32_t>(t.leaf_of_slot.size()), n);
+      for (int32_t s = 0; s < n; ++s) ASSERT_EQ(t.begin[t.leaf_of_slot[s]], s);
+      EXPECT_EQ(static_cast<int32_t>(t.internal_desc.size()), t.num_internal);
+      EXPECT_TRUE(std::is_sorted(t.internal_desc.rbegin(), t.internal_desc.rend()));
+      for (int32_t i : t.internal_desc) ASSERT_FALSE(t.is_leaf(i));
       if (arity == 2) {
         EXPECT_EQ(t.num_nodes(), 2 * n - 1);
       }
@@ -124,6 +130,7 @@ TEST(BvhRepairTest, BottomUpRefitsEachParentOnceAndEqualsRefitFromScratch) {
       for (double d : {0.0, 0.01}) {
         Bvh bottom_up(tris, rest, {v, arity, BvhRepair::kBottomUp, d});
         Bvh top_down(tris, rest, {v, arity, BvhRepair::kTopDown, d});
+        Bvh queue(tris, rest, {v, arity, BvhRepair::kBottomUpQueue, d});
         Bvh scratch = bottom_up;
         ASSERT_EQ(&bottom_up.topology(), &scratch.topology());  // shape shared by copies
         const BvhTopology& t = bottom_up.topology();
@@ -132,6 +139,7 @@ TEST(BvhRepairTest, BottomUpRefitsEachParentOnceAndEqualsRefitFromScratch) {
         for (const std::vector<Vec3>& x : Shapes(w)) {
           const RepairStats bu = bottom_up.Repair(x);
           const RepairStats td = top_down.Repair(x);
+          const RepairStats qu = queue.Repair(x);
           const std::string what = "volume " + std::to_string(static_cast<int>(v)) + " arity " +
                                    std::to_string(arity) + " d " + std::to_string(d) + " step " +
                                    std::to_string(step++);
@@ -141,7 +149,12 @@ TEST(BvhRepairTest, BottomUpRefitsEachParentOnceAndEqualsRefitFromScratch) {
           EXPECT_EQ(bu.parents_refit, td.parents_refit) << what;
           EXPECT_EQ(bu.node_updates, td.node_updates) << what;
           EXPECT_LE(bu.parents_refit, t.num_internal) << what;
+          // The flat sweep and 001's queue make the same decisions.
+          EXPECT_EQ(qu.leaves_refit, leaves) << what;
+          EXPECT_EQ(qu.parents_refit, td.parents_refit) << what;
+          EXPECT_EQ(qu.node_updates, td.node_updates) << what;
           EXPECT_TRUE(SameVolumes(bottom_up, top_down)) << what;
+          EXPECT_TRUE(SameVolumes(queue, top_down)) << what;
           EXPECT_TRUE(VolumesNest(bottom_up, x)) << what;
           if (d == 0.0) {
             // Exact mode: identical to recomputing every volume from scratch.
@@ -156,17 +169,51 @@ TEST(BvhRepairTest, BottomUpRefitsEachParentOnceAndEqualsRefitFromScratch) {
   }
 }
 
+TEST(BvhRepairTest, SweptRepairsAgreeBetweenSweepQueueAndTopDown) {
+  const auto cloths = MakeTestCloths(19, 6);
+  for (BoundingVolume v : {BoundingVolume::kSphere, BoundingVolume::kAabb}) {
+    for (int32_t arity : {2, 4}) {
+      for (double d : {0.0, 0.01}) {
+        Bvh sweep(cloths[0].triangles, cloths[0].x, {v, arity, BvhRepair::kBottomUp, d});
+        Bvh queue(cloths[0].triangles, cloths[0].x, {v, arity, BvhRepair::kBottomUpQueue, d});
+        Bvh top_down(cloths[0].triangles, cloths[0].x, {v, arity, BvhRepair::kTopDown, d});
+        for (size_t i = 1; i < cloths.size(); ++i) {
+          if (cloths[i].name == "degenerate" || cloths[i - 1].name == "degenerate") continue;
+          // Swept between two shapes, then a plain repair at the second.
+          for (int pass = 0; pass < 2; ++pass) {
+            const auto run = [&](Bvh& h) {
+              return pass == 0 ? h.RepairSwept(cloths[i - 1].x, cloths[i].x) : h.Repair(cloths[i].x);
+            };
+            const RepairStats a = run(sweep);
+            const RepairStats b = run(queue);
+            const RepairStats c = run(top_down);
+            const std::string what = cloths[i].name + " pass " + std::to_string(pass);
+            EXPECT_EQ(a.node_updates, b.node_updates) << what;
+            EXPECT_EQ(a.parents_refit, b.parents_refit) << what;
+            EXPECT_EQ(a.node_updates, c.node_updates) << what;
+            EXPECT_TRUE(SameVolumes(sweep, queue)) << what;
+            EXPECT_TRUE(SameVolumes(sweep, top_down)) << what;
+            EXPECT_TRUE(VolumesNest(sweep, cloths[i].x)) << what;
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST(BvhRepairTest, ExactRepairOfAGlobalMotionRefitsEveryNodeOnce) {
   const int32_t w = 17;
   const auto tris = std::make_shared<const std::vector<Triangle>>(MakeGridTriangles(w, w));
   std::vector<Vec3> x = FlatGrid(w, w);
   for (int32_t arity : {2, 4}) {
-    Bvh h(tris, x, {BoundingVolume::kAabb, arity, BvhRepair::kBottomUp, 0.0});
-    std::vector<Vec3> moved = x;
-    for (Vec3& p : moved) p += Vec3(0.01, -0.02, 0.03);
-    const RepairStats s = h.Repair(moved);
-    EXPECT_EQ(s.parents_refit, h.topology().num_internal);
-    EXPECT_EQ(s.node_updates, h.num_nodes());
+    for (BvhRepair m : {BvhRepair::kBottomUp, BvhRepair::kBottomUpQueue}) {
+      Bvh h(tris, x, {BoundingVolume::kAabb, arity, m, 0.0});
+      std::vector<Vec3> moved = x;
+      for (Vec3& p : moved) p += Vec3(0.01, -0.02, 0.03);
+      const RepairStats s = h.Repair(moved);
+      EXPECT_EQ(s.parents_refit, h.topology().num_internal);
+      EXPECT_EQ(s.node_updates, h.num_nodes());
+    }
   }
 }
 

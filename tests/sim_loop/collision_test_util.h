@@ -90,7 +90,8 @@ inline std::vector<CollisionStructureSpec> AllSpecs(double inflation_m) {
   specs.push_back({CollisionStructureSpec::Kind::kSpatialHash, {}, {}});
   for (BoundingVolume v : {BoundingVolume::kSphere, BoundingVolume::kAabb})
     for (int32_t arity : {2, 4})
-      for (BvhRepair m : {BvhRepair::kBottomUp, BvhRepair::kTopDown, BvhRepair::kRebuild})
+      for (BvhRepair m : {BvhRepair::kBottomUp, BvhRepair::kBottomUpQueue, BvhRepair::kTopDown,
+                          BvhRepair::kRebuild})
         for (double d : {0.0, inflation_m})
           specs.push_back({CollisionStructureSpec::Kind::kBvh, {v, arity, m, d}, {}});
   return specs;
