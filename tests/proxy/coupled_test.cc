@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "proxy/frame_motion.h"
 #include "proxy/proxy.h"
 #include "proxy/proxy_scene.h"
 #include "sim_loop/cloth.h"
@@ -67,6 +68,8 @@ PressResult PressAndHold(const PressSetup& setup) {
   ClothSnapshot next = MakeClothSnapshot(model, state, proxy.structure);
   ProxyState ps = MakeProxyState(proxy);
   std::vector<ExternalForce> external(512);
+  std::vector<Vec3> frame_start_x(state.x.size());
+  std::vector<Vec3> frame_v(state.x.size());
   // The centre particle is where the user presses, from the +z side.
   const int32_t centre = GridIndex(model.width, model.width / 2, model.height / 2);
   const Vec3 target_W = state.x[centre] + setup.offset_W_m + Vec3(0.0, 0.0, -depth_m);
@@ -82,9 +85,11 @@ PressResult PressAndHold(const PressSetup& setup) {
     // averaged impulses), step, publish.
     if (t < 1.5) reduced_at_1s = state.counters.coupling_reduced_frames;
     const int32_t n = ps.reaction.DrainInto(external);
+    frame_start_x = state.x;
     StepFrame(model, std::span<const ExternalForce>(external.data(), n), frame_dt, &state);
     std::swap(prev, next);
-    FillSnapshot(model, state, frame++, frame_dt, &next);
+    // Published as the server does: velocities = the frame's motion (proxy/frame_motion.h).
+    FillSnapshotWithFrameMotion(state, frame_start_x, frame_dt, frame++, frame_v, &next);
     // The haptic ticks of this frame.
     const double frame_end = t + frame_dt;
     double since = 0.0;
@@ -128,8 +133,10 @@ double ForceSpread(const std::vector<Sample>& s, double a, double b) {
 //    ~1e-5 J of sway: a time constant of ~2 minutes).
 //  - There is no undamped 100 Hz ring at a Provot-held press: the ~0.1 m/s seen on the contact
 //    particle is leapfrog's synchronised velocity v = v_half + h/2 a at a constraint-held rest
-//    (h/2 a = 1.39 ms * ~100 m/s^2), constant, not motion. Mode extrapolate extrapolates it over
-//    up to 17 ms (~2 mm) into the coupled cloth: 0-1.5 N, drift ~1 cm, also with 10 x drag.
+//    (h/2 a = 1.39 ms * ~100 m/s^2), constant, not motion. Extrapolated over up to 17 ms (~2 mm)
+//    it gave mode extrapolate 0-1.5 N and ~1 cm drift, also with 10 x drag; the snapshots now
+//    carry the frame's motion instead (proxy/frame_motion.h) and extrapolate behaves as the
+//    other modes (default curtain: 0.038 N, spread 0.010 N over the last second).
 //  - coupling_reduced_frames: at the centre vertex the contact mode has omega h = 1.87 for the
 //    device's 44.4 N/m (world) on a 0.098 g particle, beyond the 0.8 x 1.88 leapfrog bound, so k
 //    is lowered (~300 of 330 frames) and at rest the cloth gets k_eff / k of the user's force;
@@ -167,11 +174,11 @@ TEST(CoupledTest, DISABLED_PressAndHoldComesToRestWithoutOscillationOrDrift) {
 // The coupling itself comes to rest: the same press on a curtain whose air drag damps its own
 // sway (10 x the scene's, c/m = 5 /s), half a cell off the centre vertex so that the device's k
 // is within the contact spring's stability bound (k_eff == k: at rest the cloth gets exactly the
-// opposite of what the user feels). Mode extrapolate is left out: it extrapolates the snapshot's
-// synchronised velocities, not motion at a constraint-held rest (see the disabled test above).
+// opposite of what the user feels). Snapshots are published as the server does, with the frame's
+// motion as velocities (proxy/frame_motion.h), which mode extrapolate moves the cloth on with.
 TEST(CoupledTest, PressAndHoldOnAnAirDampedCurtainComesToRest) {
-  for (SnapshotMode mode :
-       {SnapshotMode::kInterpolate, SnapshotMode::kNewest, SnapshotMode::kBlendForces}) {
+  for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kNewest,
+                            SnapshotMode::kBlendForces, SnapshotMode::kExtrapolate}) {
     PressSetup setup;
     setup.mode = mode;
     setup.drag_scale = 10.0;
