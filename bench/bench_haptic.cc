@@ -249,7 +249,8 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
       ++ms.ticks;
       if (i > 0) ms.max_jump_N = std::max(ms.max_jump_N, (r.force_D_N - last_force[m]).norm());
       last_force[m] = r.force_D_N;
-      if (trackers[m].Check(ModeView(kModes[m], next, prev, since), states[m].body)) {
+      const ClothView view = r.on_newest ? ClothView::Of(next) : ModeView(kModes[m], next, prev, since);
+      if (trackers[m].Check(view, states[m].body)) {
         ++ms.pop_through;
       }
     }
