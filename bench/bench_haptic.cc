@@ -197,6 +197,10 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
   }
   std::vector<ExternalForce> external(512);
   std::vector<ExternalForce> discard(512);
+  // The modes' snapshots carry the frame's motion as velocities, as the server publishes them
+  // (proxy/frame_motion.h): (x - x at the last publication) / the time between.
+  std::vector<Vec3> x_published = x;
+  std::vector<Vec3> v_published(x.size(), Vec3::Zero());
   SideTracker trackers[4];
   Vec3 last_force[4];
   Vec3 last_ref = Vec3::Zero();
@@ -216,8 +220,12 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
     // A 60 Hz frame publishes this cloth to the modes.
     if (static_cast<int64_t>(i) >= next_frame_tick) {
       std::swap(prev, next);
-      FillSnapshot(x, v, normals, ++frame, t, t - last_publish_t > 0 ? t - last_publish_t : kFrameS,
-                   &next);
+      const double dt = t - last_publish_t;
+      for (size_t p = 0; p < x.size(); ++p) {
+        v_published[p] = dt > 0 ? Vec3((x[p] - x_published[p]) / dt) : Vec3(Vec3::Zero());
+      }
+      x_published = x;
+      FillSnapshot(x, v_published, normals, ++frame, t, dt > 0 ? dt : kFrameS, &next);
       last_publish_t = t;
       next_frame_tick = static_cast<int64_t>(std::llround((frame - 1) * kFrameS / kTickS));
     }
@@ -241,7 +249,8 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
       ++ms.ticks;
       if (i > 0) ms.max_jump_N = std::max(ms.max_jump_N, (r.force_D_N - last_force[m]).norm());
       last_force[m] = r.force_D_N;
-      if (trackers[m].Check(ModeView(kModes[m], next, prev, since), states[m].body)) {
+      const ClothView view = r.on_newest ? ClothView::Of(next) : ModeView(kModes[m], next, prev, since);
+      if (trackers[m].Check(view, states[m].body)) {
         ++ms.pop_through;
       }
     }

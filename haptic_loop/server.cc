@@ -12,6 +12,7 @@
 
 #include "haptic_loop/json_writer.h"
 #include "haptic_loop/periodic_loop.h"
+#include "proxy/frame_motion.h"
 
 namespace felt {
 namespace {
@@ -56,6 +57,8 @@ Server::Server(ServerSpec spec, PointerSource* source, ForceSink* sink, ServerOp
   PublishedSnapshot initial{MakeClothSnapshot(model_, cloth_, spec_.proxy.structure), 0};
   snapshots_ = std::make_unique<TripleBuffer<PublishedSnapshot>>(initial);
   copies_.assign(2, initial.snapshot);
+  frame_start_x_ = cloth_.x;
+  frame_motion_v_.assign(cloth_.x.size(), Vec3::Zero());
 
   // Reactions: the queue, the staged batch, the sim's scratch and its ExternalForce list.
   reactions_ = std::make_unique<SpscQueue<ReactionBatch>>(kReactionQueueCapacity);
@@ -326,12 +329,14 @@ void Server::SimFrame(double frame_dt_s, int64_t publish_ns) {
   }
   for (size_t i = 0; i < count; ++i) external_[i].force_N /= total_s;
 
-  // Step, repair, publish.
+  // Step, repair, publish with the frame's motion as the velocities (proxy/frame_motion.h).
+  std::copy(cloth_.x.begin(), cloth_.x.end(), frame_start_x_.begin());
   const FrameResult result = StepFrame(
       model_, std::span<const ExternalForce>(external_.data(), count), frame_dt_s, &cloth_);
   if (result.recovered) Bump(cloth_nan_events_);
   PublishedSnapshot& slot = snapshots_->write_slot();
-  FillSnapshot(model_, cloth_, ++sim_frame_counter_, result.dt_s, &slot.snapshot);
+  FillSnapshotWithFrameMotion(cloth_, frame_start_x_, result.dt_s, ++sim_frame_counter_,
+                              frame_motion_v_, &slot.snapshot);
   slot.publish_ns = publish_ns == 0 ? MonotonicNowNs() : publish_ns;
   snapshots_->Publish();
   sim_frames_.store(sim_frame_counter_, std::memory_order_release);

@@ -3,8 +3,9 @@
 // thread and a monitor thread around one cloth and any number of devices.
 //
 // Sim thread, each frame: pop the reaction batches the haptic thread queued (SPSC queue) and turn
-// them into the frame's ExternalForce list, StepFrame, FillSnapshot into the triple buffer's write
-// slot (repairing the collision structure), stamp the publication time, Publish.
+// them into the frame's ExternalForce list, StepFrame, fill the triple buffer's write slot with the
+// cloth and the frame's motion as its velocities (FillSnapshotWithFrameMotion, proxy/
+// frame_motion.h; repairing the collision structure), stamp the publication time, Publish.
 //
 // Haptic thread, each tick (HapticTick, real-time safe): Acquire the newest snapshot (no wait);
 // when a new one arrived, copy the one before it into a preallocated "previous" snapshot (for the
@@ -235,6 +236,10 @@ class Server {
   uint64_t newest_frame_ = 0;
   bool have_snapshot_ = false;
   uint64_t sim_frame_counter_ = 0;
+  // Sim-owned: the published positions of the last frame and the frame-motion velocities
+  // (proxy/frame_motion.h), [particles] each, sized once.
+  std::vector<Vec3> frame_start_x_;
+  std::vector<Vec3> frame_motion_v_;
 
   // Haptic -> sim: reaction batches; the staged one waits for room.
   std::unique_ptr<SpscQueue<ReactionBatch>> reactions_;

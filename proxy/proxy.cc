@@ -438,10 +438,34 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
     }
   }
 
+  // A previous tick that fell back to its newest snapshot (below) left the proxy on that cloth:
+  // the one now called prev after an arrival.
+  const bool interpolated = mode == SnapshotMode::kInterpolate || mode == SnapshotMode::kExtrapolate;
+  if (interpolated && state->last_on_newest && !first) {
+    before_view = arrived ? ClothView::Of(*prev) : ClothView::Of(newest);
+    moved = true;
+    inflation = std::max(inflation, arrived ? disp : 0.0);
+  }
+
   // Mode (b): the proxy on the previous cloth is the one that was on the newest last frame.
   if (mode == SnapshotMode::kBlendForces && arrived) state->body_prev = state->body;
-  const BodyTick main = TickBody(newest, inflation, now, moved ? &before_view : nullptr, goal, opts,
-                                 &state->local, &state->body);
+  const GodObject body_before = state->body;
+  BodyTick main = TickBody(newest, inflation, now, moved ? &before_view : nullptr, goal, opts,
+                           &state->local, &state->body);
+  // Modes (c), (d): after a gather overflow the sweeps query the newest snapshot's structure at
+  // its own positions (LocalCloth::Sweep) while the carry and the gathered triangles used the
+  // interpolated or extrapolated cloth, so the proxy could be solved against two cloths at once.
+  // Such a tick runs again wholly on the newest snapshot (mode (a) for one tick), from the
+  // previous tick's cloth; every vertex of both stays within `inflation` of it.
+  bool on_newest = false;
+  if (interpolated && main.overflow) {
+    state->body = body_before;
+    now = ClothView::Of(newest);
+    main = TickBody(newest, inflation, now, first ? nullptr : &before_view, goal, opts,
+                    &state->local, &state->body);
+    on_newest = true;
+  }
+  out.on_newest = on_newest;
   Vec3 proxy_W = state->body.p_W_m;
   out.iterations = main.step.iterations;
   out.overflow = main.overflow;
@@ -526,6 +550,7 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   if (!feasible) ++counters.infeasible_ticks;
   state->last_alpha = alpha;
   state->last_tau_s = tau;
+  state->last_on_newest = on_newest;
   state->last_proxy_W_m = mode == SnapshotMode::kBlendForces ? proxy_W : state->body.p_W_m;
   return out;
 }

@@ -77,6 +77,8 @@ struct ProxyState {
   bool have_frame = false;    ///< false before the first tick
   double last_alpha = 0.0;    ///< the previous tick's interpolation weight (modes b, c)
   double last_tau_s = 0.0;    ///< the previous tick's extrapolation time (mode d)
+  bool last_on_newest = false;  ///< modes c, d: the previous tick ran on its newest snapshot
+                                ///< itself (after a gather overflow)
   double pair_displacement_m = 0.0;    ///< max vertex displacement previous -> newest, m
   Vec3 last_proxy_W_m = Vec3::Zero();  ///< the proxy reported last tick (damping velocity), m
   LocalCloth local;                    ///< the gathered triangles of the tick (scratch)
@@ -103,6 +105,8 @@ struct ProxyTickResult {
   bool clamped = false;           ///< the force was clamped to max_force_N
   bool overflow = false;          ///< the gather overflowed: this tick may have missed triangles
   bool caught = false;            ///< the moving cloth caught a free proxy this tick
+  bool on_newest = false;  ///< modes c, d: the gather overflowed, so this tick ran on `newest`
+                           ///< itself (the cloth the structure's fallback queries answer for)
 };
 
 /// One haptic tick for one device (see the file comment). `newest` is the newest snapshot,

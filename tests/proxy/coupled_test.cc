@@ -1,5 +1,5 @@
 // The proxy coupled both ways with the real cloth simulation (sim_loop/cloth.h): a user pressing
-// into the default curtain and holding still must come to rest without oscillation or drift.
+// into the curtain and holding still must come to rest without oscillation or drift.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "proxy/frame_motion.h"
 #include "proxy/proxy.h"
 #include "proxy/proxy_scene.h"
 #include "sim_loop/cloth.h"
@@ -22,18 +23,38 @@ struct Sample {
   Vec3 proxy_W_m;
 };
 
-// Runs the curtain at 60 Hz and one device at 1 kHz in `mode`: settle `settle_s` untouched,
-// approach and press `depth_m` behind the curtain's centre over 0.5 s, then hold still for
-// `hold_s`. Returns the samples of the hold.
-std::vector<Sample> PressAndHold(SnapshotMode mode, double settle_s, double depth_m,
-                                 double hold_s) {
+// How a press-and-hold run is set up.
+struct PressSetup {
+  SnapshotMode mode = SnapshotMode::kInterpolate;
+  double settle_s = 2.0;     ///< untouched curtain before the approach, s
+  double depth_m = 0.02;     ///< the hand's final place behind the curtain, world, m
+  double hold_s = 5.0;       ///< holding still after the 0.5 s approach, s
+  double drag_scale = 1.0;   ///< the scene's air drag times this
+  Vec3 offset_W_m = Vec3::Zero();  ///< press point relative to the centre particle, world, m
+};
+
+// What a press-and-hold run gave.
+struct PressResult {
+  std::vector<Sample> hold;           ///< the samples of the hold
+  uint64_t reduced_frames = 0;        ///< frames with k_eff < k, the whole run
+  uint64_t reduced_late_frames = 0;   ///< frames from 1 s into the hold on with k_eff < k
+};
+
+// Runs the curtain at 60 Hz and one device at 1 kHz in `setup.mode`: settle untouched, approach
+// and press `depth_m` behind the press point over 0.5 s, then hold still for `hold_s`.
+PressResult PressAndHold(const PressSetup& setup) {
   const SceneDocument doc =
       LoadSceneDocument(std::string(FELT_SOURCE_DIR) + "/scenes/curtain.toml");
-  const ClothModel model = BuildClothModel(ParseSimSpec(doc));
+  SimSpec spec = ParseSimSpec(doc);
+  spec.cloth.drag_N_s_per_m *= setup.drag_scale;
+  const ClothModel model = BuildClothModel(spec);
   ClothState state = MakeClothState(model);
   DeviceSpec device = ParseDeviceSpec(doc);
   ProxySpec proxy = ParseProxySpec(doc);
-  proxy.snapshot_mode = mode;
+  proxy.snapshot_mode = setup.mode;
+  const double settle_s = setup.settle_s;
+  const double depth_m = setup.depth_m;
+  const double hold_s = setup.hold_s;
   const double frame_dt = 1.0 / 60.0;
   // Settle the hanging curtain first (no contact).
   for (int f = 0; f < static_cast<int>(settle_s * 60.0); ++f)
@@ -42,15 +63,19 @@ std::vector<Sample> PressAndHold(SnapshotMode mode, double settle_s, double dept
   EXPECT_EQ(state.counters.nan_events, 0u)
       << "the curtain went non-finite before any contact: a cloth-sim problem (sim_loop/cloth*)";
   if (state.counters.nan_events != 0) return {};
+  PressResult result;
   ClothSnapshot prev = MakeClothSnapshot(model, state, proxy.structure);
   ClothSnapshot next = MakeClothSnapshot(model, state, proxy.structure);
   ProxyState ps = MakeProxyState(proxy);
   std::vector<ExternalForce> external(512);
+  std::vector<Vec3> frame_start_x(state.x.size());
+  std::vector<Vec3> frame_v(state.x.size());
   // The centre particle is where the user presses, from the +z side.
   const int32_t centre = GridIndex(model.width, model.width / 2, model.height / 2);
-  const Vec3 target_W = state.x[centre] + Vec3(0.0, 0.0, -depth_m);
-  const Vec3 start_W = state.x[centre] + Vec3(0.0, 0.0, 0.05);
-  std::vector<Sample> hold;
+  const Vec3 target_W = state.x[centre] + setup.offset_W_m + Vec3(0.0, 0.0, -depth_m);
+  const Vec3 start_W = state.x[centre] + setup.offset_W_m + Vec3(0.0, 0.0, 0.05);
+  std::vector<Sample>& hold = result.hold;
+  uint64_t reduced_at_1s = 0;
   uint64_t frame = 1;
   double t = 0.0;
   int64_t tick = 0;
@@ -58,10 +83,13 @@ std::vector<Sample> PressAndHold(SnapshotMode mode, double settle_s, double dept
   while (t < total) {
     // A sim frame: apply the last frame's reaction (the contact spring while in contact, else the
     // averaged impulses), step, publish.
+    if (t < 1.5) reduced_at_1s = state.counters.coupling_reduced_frames;
     const int32_t n = ps.reaction.DrainInto(external);
+    frame_start_x = state.x;
     StepFrame(model, std::span<const ExternalForce>(external.data(), n), frame_dt, &state);
     std::swap(prev, next);
-    FillSnapshot(model, state, frame++, frame_dt, &next);
+    // Published as the server does: velocities = the frame's motion (proxy/frame_motion.h).
+    FillSnapshotWithFrameMotion(state, frame_start_x, frame_dt, frame++, frame_v, &next);
     // The haptic ticks of this frame.
     const double frame_end = t + frame_dt;
     double since = 0.0;
@@ -76,11 +104,10 @@ std::vector<Sample> PressAndHold(SnapshotMode mode, double settle_s, double dept
     }
   }
   EXPECT_EQ(state.counters.nan_events, 0u) << "the coupled cloth went non-finite";
-  // The contact spring ran at the device's stiffness (k_eff == k), so at rest the cloth gets
-  // exactly the opposite of what the user feels.
-  EXPECT_EQ(state.counters.coupling_reduced_frames, 0u);
   EXPECT_EQ(state.counters.coupling_overflows, 0u);
-  return hold;
+  result.reduced_frames = state.counters.coupling_reduced_frames;
+  result.reduced_late_frames = state.counters.coupling_reduced_frames - reduced_at_1s;
+  return result;
 }
 
 // Peak-to-peak of |force| over samples with t in [a, b).
@@ -95,26 +122,77 @@ double ForceSpread(const std::vector<Sample>& s, double a, double b) {
   return hi - lo;
 }
 
-// Disabled: issue 4's press-and-hold requirement is NOT met yet. Measured on the sim committed
-// at 3619973, 2 cm press, last 2 s of the hold: mode newest settles near 0.035 N (0.031-0.038
-// N), the curtain's real resistance at 2 cm (it swings away; the 0.2 N floor below is not what
-// this cloth gives), but the contact particle keeps ringing at ~0.1 m/s: the explicit contact
-// spring holds 0.1 g particles at omega h near the integrator's limit (k is lowered to that
-// bound while the contact sits near a vertex) and nothing damps that mode. Sampled at 60 Hz it
-// is a force spread of ~20 %; mode extrapolate extrapolates the ringing velocities over up to
-// 17 ms (0-1.0 N, 5-10 times the cloth's kinetic energy). The fix under way: the coupling as an
-// implicit spring-damper (Colgate, Stanley & Brown 1995; Adams & Hannaford 1999) at every
-// substep. Kept compiled to run by hand: --gtest_also_run_disabled_tests
-// --gtest_filter='Coupled*'.
+// Disabled: issue 4's press-and-hold requirement is NOT met on the default curtain. Measured on
+// the committed sim (04ecb69; 2 cm press at the centre particle, 6 leapfrog substeps of 2.78 ms):
+//  - The residual motion is the curtain's own slow sway (~3 Hz, proxy moving ~50 um, force
+//    spread ~10-15 % of 0.04 N), damped only by its air drag (c/m = 0.5 /s): with the coupling
+//    unchanged and 10 x the drag the same press settles to a constant force (0.0402 N, spread
+//    < 0.1 mN, modes newest, blend_forces, interpolate; the test below). A damper on the contact
+//    spring cannot remove it: the contact point is nearly a node of that sway (its 0.75 mm/s
+//    there puts ~1e-7 W into a critical damper, c = 2 sqrt(k m_eff) = 0.15 N s/m, against
+//    ~1e-5 J of sway: a time constant of ~2 minutes).
+//  - There is no undamped 100 Hz ring at a Provot-held press: the ~0.1 m/s seen on the contact
+//    particle is leapfrog's synchronised velocity v = v_half + h/2 a at a constraint-held rest
+//    (h/2 a = 1.39 ms * ~100 m/s^2), constant, not motion. Extrapolated over up to 17 ms (~2 mm)
+//    it gave mode extrapolate 0-1.5 N and ~1 cm drift, also with 10 x drag; the snapshots now
+//    carry the frame's motion instead (proxy/frame_motion.h) and extrapolate behaves as the
+//    other modes (default curtain: 0.038 N, spread 0.010 N over the last second).
+//  - coupling_reduced_frames: at the centre vertex the contact mode has omega h = 1.87 for the
+//    device's 44.4 N/m (world) on a 0.098 g particle, beyond the 0.8 x 1.88 leapfrog bound, so k
+//    is lowered (~300 of 330 frames) and at rest the cloth gets k_eff / k of the user's force;
+//    meeting k_eff == k there needs more substeps while a contact is held (sim_loop/cloth_step).
+//  - The 0.2 N floor is not what this cloth gives at 2 cm: it swings away (0.035-0.045 N).
+// Kept compiled to run by hand: --gtest_also_run_disabled_tests --gtest_filter='Coupled*'.
 TEST(CoupledTest, DISABLED_PressAndHoldComesToRestWithoutOscillationOrDrift) {
   for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kNewest,
                             SnapshotMode::kBlendForces, SnapshotMode::kExtrapolate}) {
-    const std::vector<Sample> hold = PressAndHold(mode, 2.0, 0.02, 5.0);
+    PressSetup setup;
+    setup.mode = mode;
+    const PressResult run = PressAndHold(setup);
+    const std::vector<Sample>& hold = run.hold;
+    // The contact spring ran at the device's stiffness (k_eff == k), so at rest the cloth gets
+    // exactly the opposite of what the user feels.
+    EXPECT_EQ(run.reduced_frames, 0u) << SnapshotModeName(mode);
     ASSERT_FALSE(hold.empty());
     const Sample& last = hold.back();
     // The user feels the curtain pushing back, well inside the device's range.
     EXPECT_GT(last.force_D_N.z(), 0.2) << SnapshotModeName(mode);
     EXPECT_LT(last.force_D_N.norm(), 3.3) << SnapshotModeName(mode);
+    // Converged: the last second barely moves, and any oscillation decays.
+    const double late = ForceSpread(hold, 4.0, 5.0);
+    const double early = ForceSpread(hold, 1.0, 2.0);
+    EXPECT_LT(late, 0.02 * last.force_D_N.norm() + 1e-3) << SnapshotModeName(mode);
+    EXPECT_LE(late, early + 1e-6) << SnapshotModeName(mode);
+    double drift = 0.0;
+    for (const Sample& s : hold) {
+      if (s.t_s >= 4.0) drift = std::max(drift, (s.proxy_W_m - last.proxy_W_m).norm());
+    }
+    EXPECT_LT(drift, 5e-4) << SnapshotModeName(mode);
+  }
+}
+
+// The coupling itself comes to rest: the same press on a curtain whose air drag damps its own
+// sway (10 x the scene's, c/m = 5 /s), half a cell off the centre vertex so that the device's k
+// is within the contact spring's stability bound (k_eff == k: at rest the cloth gets exactly the
+// opposite of what the user feels). Snapshots are published as the server does, with the frame's
+// motion as velocities (proxy/frame_motion.h), which mode extrapolate moves the cloth on with.
+TEST(CoupledTest, PressAndHoldOnAnAirDampedCurtainComesToRest) {
+  for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kNewest,
+                            SnapshotMode::kBlendForces, SnapshotMode::kExtrapolate}) {
+    PressSetup setup;
+    setup.mode = mode;
+    setup.drag_scale = 10.0;
+    setup.offset_W_m = Vec3(0.008, -0.005, 0.0);
+    const PressResult run = PressAndHold(setup);
+    const std::vector<Sample>& hold = run.hold;
+    ASSERT_FALSE(hold.empty());
+    const Sample& last = hold.back();
+    // The curtain pushes back toward the user (it swings away: ~0.035 N at 2 cm; a lost contact
+    // gives 0), well inside the device's range.
+    EXPECT_GT(last.force_D_N.z(), 0.01) << SnapshotModeName(mode);
+    EXPECT_LT(last.force_D_N.norm(), 3.3) << SnapshotModeName(mode);
+    // At rest the contact spring runs at the device's k.
+    EXPECT_EQ(run.reduced_late_frames, 0u) << SnapshotModeName(mode);
     // Converged: the last second barely moves, and any oscillation decays.
     const double late = ForceSpread(hold, 4.0, 5.0);
     const double early = ForceSpread(hold, 1.0, 2.0);

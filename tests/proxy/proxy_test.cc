@@ -108,12 +108,13 @@ struct SwingRun {
   std::vector<double> previous_z;
 };
 SwingRun RunMovingSheet(SnapshotMode mode, const Vec3& pointer, double z_start, double z_stop,
-                        double speed_m_per_s, int ticks) {
+                        double speed_m_per_s, int ticks, int32_t candidate_capacity = 1024) {
   const TestMesh base = FlatSheet();
   ClothSnapshot prev = Snap(base);
   ClothSnapshot next = Snap(base);
   const DeviceSpec d = UnitDevice(0.004);
-  const ProxySpec p = Spec(mode, true);
+  ProxySpec p = Spec(mode, true);
+  p.candidate_capacity = candidate_capacity;
   ProxyState st = MakeProxyState(p);
   SwingRun run;
   auto z_at = [&](double t) { return std::min(z_stop, z_start + speed_m_per_s * t); };
@@ -161,6 +162,26 @@ TEST(ProxyTest, ClothSwingingOverAStillPointerCarriesTheProxyInEveryMode) {
     const ProxyTickResult& last = run.results.back();
     EXPECT_NEAR(last.proxy_W_m.z(), 0.03 + 0.004, 1e-6) << SnapshotModeName(mode);
     EXPECT_NEAR(last.force_D_N.z(), 400.0 * 0.034, 1e-3) << SnapshotModeName(mode);
+  }
+}
+
+TEST(ProxyTest, GatherOverflowRunsTheTickOnTheNewestClothAndNeverCrosses) {
+  for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate}) {
+    // As above with room for 16 triangles: once carried, the proxy's reach (3 |proxy - goal|)
+    // covers most of the sheet's 200, so the gather overflows and the tick runs on `newest`.
+    const SwingRun run = RunMovingSheet(mode, Vec3(0.013, 0.021, 0.0), -0.02, 0.03, 0.5, 200, 16);
+    int on_newest = 0;
+    for (size_t k = 0; k < run.results.size(); ++k) {
+      const ProxyTickResult& r = run.results[k];
+      on_newest += r.on_newest ? 1 : 0;
+      EXPECT_GE(r.proxy_W_m.z(), std::min(run.previous_z[k], run.newest_z[k]) + 0.004 - 1e-7)
+          << SnapshotModeName(mode) << " tick " << k;
+      EXPECT_GE(r.force_D_N.z(), -1e-9) << SnapshotModeName(mode) << " tick " << k;
+    }
+    EXPECT_GT(on_newest, 10) << SnapshotModeName(mode);
+    const ProxyTickResult& last = run.results.back();
+    EXPECT_TRUE(last.on_newest) << SnapshotModeName(mode);
+    EXPECT_NEAR(last.proxy_W_m.z(), 0.03 + 0.004, 1e-6) << SnapshotModeName(mode);
   }
 }
 
