@@ -80,9 +80,11 @@ struct PinAttachment {
 /// positions being evaluated (virtual coupling, Colgate, Stanley & Brown 1995, on the god-object
 /// contact of Ruspini, Kolarov & Khatib 1997): p = the barycentric point, depth = max(0, (p -
 /// anchor_m) . normal), F = -normal min(max_force_N, k_eff depth), split by the barycentric
-/// weights (pinned particles get nothing); force_N is then not applied. k_eff = min(k, the
-/// largest stiffness the integrator is stable with at its substep; see ClothCounters::
-/// coupling_reduced_frames). At most 16 springs per frame (more are counted and dropped).
+/// weights (pinned particles get nothing); force_N is then not applied. A frame holding a spring
+/// too stiff for its substep is cut into up to 4 times its substeps (ClothCounters::
+/// coupling_substepped_frames); beyond that k_eff = min(k, the largest stiffness the integrator is
+/// stable with at the substep; see ClothCounters::coupling_reduced_frames). At most 16 springs per
+/// frame (more are counted and dropped).
 struct ExternalForce {
   int32_t triangle = 0;
   Vec3 barycentric = Vec3(1.0 / 3, 1.0 / 3, 1.0 / 3);  ///< non-negative, sums to 1
@@ -143,6 +145,8 @@ struct ClothCounters {
   uint64_t coupling_reduced_frames = 0;  ///< frames where a contact spring's k was lowered to the
                                          ///< integrator's stable bound (k_eff < k)
   uint64_t coupling_overflows = 0;       ///< contact springs dropped: more than 16 in a frame
+  uint64_t coupling_substepped_frames = 0;  ///< frames cut into more substeps for a contact
+                                            ///< spring (CouplingSubsteps)
 };
 
 /// Everything that changes while stepping, sized once by MakeClothState.

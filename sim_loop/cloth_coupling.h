@@ -37,25 +37,40 @@ struct CouplingSprings {
   bool reduced_this_frame = false;  ///< some spring's k was lowered to k_eff this frame
 };
 
-/// The largest coupling stiffness [N/m] the model's integrator integrates stably at its nominal
-/// substep h = 1 / (frame_rate_hz * substeps) (a frame's substeps are never longer) for a spring
+/// A frame with a contact spring stiffer than its substep allows is cut into up to this many times
+/// the nominal substeps (CouplingSubsteps); beyond that, k is lowered to the bound.
+inline constexpr int32_t kMaxCouplingSubstepFactor = 4;
+
+/// The largest coupling stiffness [N/m] the model's integrator integrates stably at substep h_s
+/// [s] for a spring
 /// whose largest weight on a free particle is `max_weight`: omega_c^2 = k w^2 / m <= (0.8
 /// omega_stable(h))^2, with omega_stable(h) = omega_max * stable_dt_s / h (the integrator's
 /// critical omega h, damping included); for implicit Euler (stable_dt_s infinite: its springs are
 /// implicit) k w^2 / m <= (0.8 * 2 / h)^2, symplectic Euler's limit for the explicit contact
-/// spring. +infinity for max_weight
-/// <= 0. Real-time safe.
+/// spring. +infinity for max_weight <= 0. Real-time safe.
+double MaxCouplingStiffness(const ClothModel& model, double max_weight, double h_s);
+
+/// MaxCouplingStiffness at the nominal substep h = 1 / (frame_rate_hz * substeps).
 double MaxCouplingStiffness(const ClothModel& model, double max_weight);
+
+/// Substeps for a frame of dt_s [s] normally cut into `substeps`: raised, to at most
+/// kMaxCouplingSubstepFactor times `substeps`, until every valid contact spring of `external` has
+/// k <= MaxCouplingStiffness at h = dt_s / result, so the hand's stiffness reaches the cloth
+/// unreduced (Colgate, Stanley & Brown 1995: the coupling must be stable at the simulation's
+/// step). Real-time safe.
+int32_t CouplingSubsteps(const ClothModel& model, std::span<const ExternalForce> external,
+                         double dt_s, int32_t substeps);
 
 /// Forgets the previous frame's springs. Real-time safe.
 void BeginCouplingFrame(CouplingSprings* springs);
 
-/// Adds `e` (stiffness_N_per_m > 0, triangle in range) as a contact spring: weights of pinned
-/// particles are zeroed, k is bounded by MaxCouplingStiffness (state->counters.
-/// coupling_reduced_frames counts each frame once), entries with non-finite or invalid fields
-/// are counted in invalid_external_forces, and entries past kMaxCouplingSprings in
+/// Adds `e` (stiffness_N_per_m > 0, triangle in range) as a contact spring for substeps of h_s
+/// [s]: weights of pinned particles are zeroed, k is bounded by MaxCouplingStiffness
+/// (state->counters. coupling_reduced_frames counts each frame once), entries with non-finite or
+/// invalid fields are counted in invalid_external_forces, and entries past kMaxCouplingSprings in
 /// coupling_overflows. Real-time safe.
-void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, ClothState* state);
+void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
+                       ClothState* state);
 
 /// Adds scale * the contact springs' forces at positions `x` [m, world, n entries] into `f`
 /// (3 n packed doubles, xyz per particle): p = sum b_c x_c (barycentric b), depth = max(0, (p -

@@ -13,7 +13,7 @@ namespace {
 
 // Spreads the frame's point forces over their triangles' particles by barycentric weight.
 void GatherExternalForces(const ClothModel& model, std::span<const ExternalForce> external,
-                          ClothState* state) {
+                          double h_s, ClothState* state) {
   std::vector<Vec3>& out = state->scratch->external_N;
   std::fill(out.begin(), out.end(), Vec3::Zero());
   BeginCouplingFrame(&state->scratch->coupling);
@@ -26,7 +26,7 @@ void GatherExternalForces(const ClothModel& model, std::span<const ExternalForce
     }
     // Contact springs are evaluated at every force evaluation (sim_loop/cloth_coupling.h).
     if (e.stiffness_N_per_m > 0.0) {
-      AddCouplingSpring(model, e, state);
+      AddCouplingSpring(model, e, h_s, state);
       continue;
     }
     const Triangle& t = model.triangles[e.triangle];
@@ -60,12 +60,15 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
     ++state->counters.clamped_frames;
   }
   const double h_nominal = 1.0 / (is.frame_rate_hz * model.substeps);
-  const int32_t substeps = std::max(1, static_cast<int32_t>(std::ceil(dt / h_nominal - 1e-9)));
+  const int32_t plain = std::max(1, static_cast<int32_t>(std::ceil(dt / h_nominal - 1e-9)));
+  // A held contact spring too stiff for this substep gets shorter substeps (up to a bound).
+  const int32_t substeps = CouplingSubsteps(model, external, dt, plain);
+  if (substeps > plain) ++state->counters.coupling_substepped_frames;
   const double h = dt / substeps;
   result.substeps = substeps;
   result.dt_s = dt;
 
-  GatherExternalForces(model, external, state);
+  GatherExternalForces(model, external, h, state);
   const bool obstacles = !model.spec.cloth.obstacles.empty();
   const bool provot = model.spec.provot.enabled && !model.provot_families.empty();
   const double t0 = state->time_s;

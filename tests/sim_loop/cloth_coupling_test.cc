@@ -113,7 +113,9 @@ TEST(ClothCouplingTest, LargeStiffnessIsBoundedCountedAndStable) {
     const ClothModel model = FlatSheet(kind);
     ClothState state = MakeClothState(model);
     const int32_t tri = CentreTriangle(model);
-    const double k_max = MaxCouplingStiffness(model, 1.0 / 3.0);
+    // The bound at the shortest substep a frame may be cut into for a contact.
+    const int32_t most = kMaxCouplingSubstepFactor * model.substeps;
+    const double k_max = MaxCouplingStiffness(model, 1.0 / 3.0, kFrame_s / most);
     ASSERT_TRUE(std::isfinite(k_max) && k_max > 0.0);
     ExternalForce press[1] = {Press(model, tri, 0.02, 1e4 * k_max)};
     ExternalForce bound[1] = {Press(model, tri, 0.02, k_max)};
@@ -133,7 +135,9 @@ TEST(ClothCouplingTest, LargeStiffnessIsBoundedCountedAndStable) {
     EXPECT_EQ(state.counters.nan_events, 0u) << static_cast<int>(kind);
     EXPECT_EQ(state.counters.coupling_reduced_frames, 900u) << static_cast<int>(kind);
     EXPECT_EQ(at_bound.counters.coupling_reduced_frames, 0u) << static_cast<int>(kind);
-    // k was replaced by the bound: the very same motion as a spring of k_max.
+    EXPECT_EQ(state.counters.coupling_substepped_frames, 900u) << static_cast<int>(kind);
+    EXPECT_EQ(at_bound.counters.coupling_substepped_frames, 900u) << static_cast<int>(kind);
+    // k was replaced by the bound at the most substeps: the very same motion as a spring of k_max.
     EXPECT_EQ(std::memcmp(state.x.data(), at_bound.x.data(), state.x.size() * sizeof(Vec3)), 0)
         << static_cast<int>(kind);
     // Bounded, no blow-up: near the anchor, slow, and not growing. (At the bound, with this light
@@ -145,6 +149,29 @@ TEST(ClothCouplingTest, LargeStiffnessIsBoundedCountedAndStable) {
     EXPECT_LT(window_speed[0], 0.5) << static_cast<int>(kind);
     EXPECT_LT(window_speed[1], 0.5) << static_cast<int>(kind);
     EXPECT_LE(window_speed[1], 1.25 * window_speed[0] + 0.005) << static_cast<int>(kind);
+  }
+}
+
+TEST(ClothCouplingTest, StiffContactGetsShorterSubstepsNotASofterSpring) {
+  for (IntegratorKind kind : kIntegrators) {
+    const ClothModel model = FlatSheet(kind);
+    const int32_t tri = CentreTriangle(model);
+    // Twice the bound at the nominal substep: sqrt(2) times the substeps keep the whole k.
+    const double k = 2.0 * MaxCouplingStiffness(model, 1.0 / 3.0);
+    ExternalForce press[1] = {Press(model, tri, 0.02, k)};
+    press[0].max_force_N = 0.05;
+    ClothState state = MakeClothState(model);
+    FrameResult last;
+    for (int f = 0; f < 120; ++f) last = StepFrame(model, press, kFrame_s, &state);
+    EXPECT_EQ(state.counters.coupling_reduced_frames, 0u) << static_cast<int>(kind);
+    EXPECT_EQ(state.counters.coupling_substepped_frames, 120u) << static_cast<int>(kind);
+    const int32_t expected =
+        static_cast<int32_t>(std::ceil(std::sqrt(2.0) * model.substeps - 1e-9));
+    EXPECT_EQ(last.substeps, expected) << static_cast<int>(kind);
+    EXPECT_EQ(state.counters.nan_events, 0u) << static_cast<int>(kind);
+    // Without a contact the frame goes back to its own substeps.
+    EXPECT_EQ(StepFrame(model, {}, kFrame_s, &state).substeps, model.substeps)
+        << static_cast<int>(kind);
   }
 }
 
