@@ -136,7 +136,8 @@ std::vector<std::vector<std::string>> Rows(const std::vector<GridResult>& result
                     std::to_string(r.substeps), Fixed(Median(r.wall_ms), 4),
                     Fixed(Percentile(r.wall_ms, 99), 4), Fixed(Median(r.cpu_ms), 4),
                     Fixed(Percentile(r.cpu_ms, 99), 4), Fixed(r.max_stretch, 4),
-                    Fixed(r.timed_stretch, 4), Fixed(r.final_stretch, 4), std::to_string(r.nan_events), TargetText(r)});
+                    Fixed(r.timed_stretch, 4), Fixed(r.final_stretch, 4),
+                    std::to_string(r.nan_events), TargetText(r)});
   }
   return rows;
 }
@@ -162,10 +163,10 @@ int Run(const Args& args) {
   const std::string load_end = LoadAverage();
 
   // Markdown, CSV, JSON.
-  const std::vector<std::string> header = {"grid",          "particles",       "springs",
-                                           "substeps",      "frame ms median", "frame ms p99",
-                                           "cpu ms median", "cpu ms p99",      "max stretch",
-                                           "timed max stretch", "final stretch", "nan events",      "target"};
+  const std::vector<std::string> header = {
+      "grid",          "particles",     "springs",    "substeps",    "frame ms median",
+      "frame ms p99",  "cpu ms median", "cpu ms p99", "max stretch", "timed max stretch",
+      "final stretch", "nan events",    "target"};
   std::string md = ReportHeader("Cloth frame cost (`felt bench cloth`)", cmd, machine, load_end);
   md +=
       "The default curtain (scenes/curtain.toml: pinned at its two top corners, leapfrog "
@@ -178,12 +179,12 @@ int Run(const Args& args) {
       "this thread's CPU time (it does not count time preempted by other processes). Max "
       "stretch: the largest structural spring length / rest length after any frame, settling "
       "included (the release transient peaks at frames 5-8); `timed max stretch` only over the "
-      "timed frames, the settled cloth. Targets (issue 2): 64 x 64 <= 1 ms median with max stretch <= 1.10; 128 x 128 "
+      "timed frames, the settled cloth. Targets (issue 2): 64 x 64 <= 1 ms median with max stretch "
+      "<= 1.10; 128 x 128 "
       "<= 4 ms median; judged on the wall-clock median.\n\n";
-  md += MarkdownTable(header,
-                      {true, true, true, true, true, true, true, true, true, true, true, true,
-                       false},
-                      Rows(results));
+  md += MarkdownTable(
+      header, {true, true, true, true, true, true, true, true, true, true, true, true, false},
+      Rows(results));
   WriteTextFile(args.out + "/cloth.md", md);
   WriteTextFile(args.out + "/cloth.csv",
                 CsvTable({"grid", "particles", "springs", "substeps", "frame_ms_median",

@@ -181,6 +181,75 @@ __attribute__((target("avx2"), always_inline)) inline __m256d ProjectLanes(
   return _mm256_cmp_pd(len2, loose2, _CMP_GT_OQ);
 }
 
+// The lane shuffles that split two loads of eight particles of a row into the four pairs (c,
+// c + kDc) of one colour, p ends and q ends; the same shuffles join them back. kDc = 1: the even
+// lanes against the odd ones; kDc = 2: the low halves against the high halves. The lane order
+// does not matter: the pairs are independent.
+template <int kDc>
+struct PairShuffle;
+
+template <>
+struct PairShuffle<1> {
+  __attribute__((target("avx2"), always_inline)) static __m256d First(__m256d a, __m256d b) {
+    return _mm256_unpacklo_pd(a, b);  // c, c + 4, c + 2, c + 6 (split) / c .. c + 3 (join)
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256d Second(__m256d a, __m256d b) {
+    return _mm256_unpackhi_pd(a, b);  // c + 1, c + 5, c + 3, c + 7 / c + 4 .. c + 7
+  }
+};
+
+template <>
+struct PairShuffle<2> {
+  __attribute__((target("avx2"), always_inline)) static __m256d First(__m256d a, __m256d b) {
+    return _mm256_permute2f128_pd(a, b, 0x20);  // c, c + 1, c + 4, c + 5 / c .. c + 3
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256d Second(__m256d a, __m256d b) {
+    return _mm256_permute2f128_pd(a, b, 0x31);  // c + 2, c + 3, c + 6, c + 7 / c + 4 .. c + 7
+  }
+};
+
+// The runs of a family along a row with dc = kDc (1 or 2), eight particles and four pairs per
+// step (PairShuffle), the rest one pair at a time; sets *tail if a pair of the rest was loose.
+// Returns the lanes' loose mask.
+template <int kDc>
+__attribute__((target("avx2"))) __m256d SweepShuffledRunsAvx2(const ProvotSoa& a,
+                                                              const ProvotFamily& f, __m256d max2,
+                                                              __m256d loose2, bool* tail) {
+  using S = PairShuffle<kDc>;
+  const double loose2_s = kLoose2 * f.max_length_m * f.max_length_m;
+  double* const coords[3] = {a.x, a.y, a.z};
+  const double* __restrict w = a.w;
+  // Movability of a run without pins: every end moves (the same values the loads would give).
+  const __m256d one = _mm256_set1_pd(1.0);
+  __m256d loose = _mm256_setzero_pd();
+  for (const ProvotFamily::Run& run : f.runs) {
+    ptrdiff_t c = run.lo;
+    // The step's last pair starts at c + 7 - kDc, which must be below run.hi.
+    for (; c + 7 < run.hi + kDc; c += 8) {
+      __m256d p[3], q[3];
+      for (int k = 0; k < 3; ++k) {
+        const __m256d lo = _mm256_loadu_pd(coords[k] + c), hi = _mm256_loadu_pd(coords[k] + c + 4);
+        p[k] = S::First(lo, hi);
+        q[k] = S::Second(lo, hi);
+      }
+      const __m256d w0 = run.pinned ? _mm256_loadu_pd(w + c) : one;
+      const __m256d w1 = run.pinned ? _mm256_loadu_pd(w + c + 4) : one;
+      loose = _mm256_or_pd(loose, ProjectLanes(&p[0], &p[1], &p[2], &q[0], &q[1], &q[2],
+                                               S::First(w0, w1), S::Second(w0, w1), max2, loose2));
+      for (int k = 0; k < 3; ++k) {
+        _mm256_storeu_pd(coords[k] + c, S::First(p[k], q[k]));
+        _mm256_storeu_pd(coords[k] + c + 4, S::Second(p[k], q[k]));
+      }
+    }
+    if (c < run.hi) {
+      const bool rest = kDc == 1 ? ProjectNeighbours(a, c, run.hi, f.max_length_m, loose2_s)
+                                 : ProjectSecondNeighbours(a, c, run.hi, f.max_length_m, loose2_s);
+      *tail = rest || *tail;
+    }
+  }
+  return loose;
+}
+
 // SweepFamilyPortable four pairs at a time (the same operations in the same order per pair, no
 // fused multiply-add: the same bits).
 __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t width,
@@ -197,61 +266,9 @@ __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t
   __m256d loose = _mm256_setzero_pd();
   bool tail = false;
   if (f.dr == 0 && f.dc == 1) {
-    // Eight particles, four pairs per step: the even lanes of two loads against the odd ones (the
-    // lane order does not matter, the pairs are independent).
-    for (const ProvotFamily::Run& run : f.runs) {
-      ptrdiff_t c = run.lo;
-      for (; c + 7 < run.hi + 1; c += 8) {
-        const __m256d x0 = _mm256_loadu_pd(x + c), x1 = _mm256_loadu_pd(x + c + 4);
-        const __m256d y0 = _mm256_loadu_pd(y + c), y1 = _mm256_loadu_pd(y + c + 4);
-        const __m256d z0 = _mm256_loadu_pd(z + c), z1 = _mm256_loadu_pd(z + c + 4);
-        const __m256d w0 = run.pinned ? _mm256_loadu_pd(w + c) : one;
-        const __m256d w1 = run.pinned ? _mm256_loadu_pd(w + c + 4) : one;
-        __m256d px = _mm256_unpacklo_pd(x0, x1), qx = _mm256_unpackhi_pd(x0, x1);
-        __m256d py = _mm256_unpacklo_pd(y0, y1), qy = _mm256_unpackhi_pd(y0, y1);
-        __m256d pz = _mm256_unpacklo_pd(z0, z1), qz = _mm256_unpackhi_pd(z0, z1);
-        loose = _mm256_or_pd(loose,
-                             ProjectLanes(&px, &py, &pz, &qx, &qy, &qz, _mm256_unpacklo_pd(w0, w1),
-                                          _mm256_unpackhi_pd(w0, w1), max2, loose2));
-        _mm256_storeu_pd(x + c, _mm256_unpacklo_pd(px, qx));
-        _mm256_storeu_pd(x + c + 4, _mm256_unpackhi_pd(px, qx));
-        _mm256_storeu_pd(y + c, _mm256_unpacklo_pd(py, qy));
-        _mm256_storeu_pd(y + c + 4, _mm256_unpackhi_pd(py, qy));
-        _mm256_storeu_pd(z + c, _mm256_unpacklo_pd(pz, qz));
-        _mm256_storeu_pd(z + c + 4, _mm256_unpackhi_pd(pz, qz));
-      }
-      if (c < run.hi) tail = ProjectNeighbours(a, c, run.hi, f.max_length_m, loose2_s) || tail;
-    }
+    loose = SweepShuffledRunsAvx2<1>(a, f, max2, loose2, &tail);
   } else if (f.dr == 0 && f.dc == 2) {
-    // Eight particles, four pairs per step: the low halves of two loads against the high halves.
-    for (const ProvotFamily::Run& run : f.runs) {
-      ptrdiff_t c = run.lo;
-      for (; c + 7 < run.hi + 2; c += 8) {
-        const __m256d x0 = _mm256_loadu_pd(x + c), x1 = _mm256_loadu_pd(x + c + 4);
-        const __m256d y0 = _mm256_loadu_pd(y + c), y1 = _mm256_loadu_pd(y + c + 4);
-        const __m256d z0 = _mm256_loadu_pd(z + c), z1 = _mm256_loadu_pd(z + c + 4);
-        const __m256d w0 = run.pinned ? _mm256_loadu_pd(w + c) : one;
-        const __m256d w1 = run.pinned ? _mm256_loadu_pd(w + c + 4) : one;
-        __m256d px = _mm256_permute2f128_pd(x0, x1, 0x20),
-                qx = _mm256_permute2f128_pd(x0, x1, 0x31);
-        __m256d py = _mm256_permute2f128_pd(y0, y1, 0x20),
-                qy = _mm256_permute2f128_pd(y0, y1, 0x31);
-        __m256d pz = _mm256_permute2f128_pd(z0, z1, 0x20),
-                qz = _mm256_permute2f128_pd(z0, z1, 0x31);
-        loose = _mm256_or_pd(
-            loose, ProjectLanes(&px, &py, &pz, &qx, &qy, &qz, _mm256_permute2f128_pd(w0, w1, 0x20),
-                                _mm256_permute2f128_pd(w0, w1, 0x31), max2, loose2));
-        _mm256_storeu_pd(x + c, _mm256_permute2f128_pd(px, qx, 0x20));
-        _mm256_storeu_pd(x + c + 4, _mm256_permute2f128_pd(px, qx, 0x31));
-        _mm256_storeu_pd(y + c, _mm256_permute2f128_pd(py, qy, 0x20));
-        _mm256_storeu_pd(y + c + 4, _mm256_permute2f128_pd(py, qy, 0x31));
-        _mm256_storeu_pd(z + c, _mm256_permute2f128_pd(pz, qz, 0x20));
-        _mm256_storeu_pd(z + c + 4, _mm256_permute2f128_pd(pz, qz, 0x31));
-      }
-      if (c < run.hi) {
-        tail = ProjectSecondNeighbours(a, c, run.hi, f.max_length_m, loose2_s) || tail;
-      }
-    }
+    loose = SweepShuffledRunsAvx2<2>(a, f, max2, loose2, &tail);
   } else {
     // Contiguous ends: p in the run, q = p + off in another row or run.
     const ptrdiff_t off = static_cast<ptrdiff_t>(f.dr) * width + f.dc;
@@ -262,11 +279,10 @@ __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t
         __m256d px = _mm256_loadu_pd(x + p), py = _mm256_loadu_pd(y + p);
         __m256d pz = _mm256_loadu_pd(z + p), qx = _mm256_loadu_pd(x + q);
         __m256d qy = _mm256_loadu_pd(y + q), qz = _mm256_loadu_pd(z + q);
-        loose =
-            _mm256_or_pd(loose, ProjectLanes(&px, &py, &pz, &qx, &qy, &qz,
-                                             run.pinned ? _mm256_loadu_pd(w + p) : one,
-                                             run.pinned ? _mm256_loadu_pd(w + q) : one, max2,
-                                             loose2));
+        loose = _mm256_or_pd(
+            loose,
+            ProjectLanes(&px, &py, &pz, &qx, &qy, &qz, run.pinned ? _mm256_loadu_pd(w + p) : one,
+                         run.pinned ? _mm256_loadu_pd(w + q) : one, max2, loose2));
         _mm256_storeu_pd(x + p, px);
         _mm256_storeu_pd(y + p, py);
         _mm256_storeu_pd(z + p, pz);

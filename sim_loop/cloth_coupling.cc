@@ -88,9 +88,7 @@ void BeginCouplingFrame(CouplingSprings* springs) {
 void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
                        ClothState* state) {
   CouplingSprings& cs = state->scratch->coupling;
-  const double n_len = e.normal.norm();
-  if (!std::isfinite(e.stiffness_N_per_m) || !e.anchor_m.allFinite() || !e.normal.allFinite() ||
-      !(n_len > 0.0) || !(e.max_force_N >= 0.0) || std::isnan(e.max_force_N)) {
+  if (!ValidSpring(model, e)) {
     ++state->counters.invalid_external_forces;
     return;
   }
@@ -101,16 +99,14 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
   // Resolve the triangle; pinned particles take no share.
   CouplingSpring& s = cs.springs[cs.count++];
   const Triangle& t = model.triangles[e.triangle];
-  double w_max = 0.0;
   for (int c = 0; c < 3; ++c) {
     s.particle[c] = t[c];
     s.barycentric[c] = e.barycentric[c];
-    const bool free = model.inv_mass_per_kg[t[c]] > 0.0;
-    s.weight[c] = free ? e.barycentric[c] : 0.0;
-    w_max = std::max(w_max, s.weight[c]);
+    s.weight[c] = model.inv_mass_per_kg[t[c]] > 0.0 ? e.barycentric[c] : 0.0;
   }
+  const double w_max = MaxFreeWeight(model, e);
   s.anchor_m = e.anchor_m;
-  s.normal = e.normal / n_len;
+  s.normal = e.normal / e.normal.norm();
   s.max_force_N = e.max_force_N;
   // Bound k by what the integrator stays stable with at the substep (Colgate et al. 1995).
   const double k_max = MaxCouplingStiffness(model, w_max, h_s);

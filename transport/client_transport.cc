@@ -155,14 +155,7 @@ bool ClientTransport::PublishPointer(const PointerSampleView& sample) {
   Impl& impl = *impl_;
   if (sample.device_index >= impl.devices_.size()) return false;
   felt_msgs_PointerSample& m = impl.pointer_message_;
-  std::memcpy(m.device_id, impl.devices_[sample.device_index].id, sizeof(m.device_id));
-  m.seq = sample.seq;
-  m.device_time_ns = sample.device_time_ns;
-  for (int k = 0; k < 3; ++k) {
-    m.position_m[k] = sample.position_m_D[k];
-    m.velocity_m_per_s[k] = sample.velocity_m_per_s_D[k];
-  }
-  m.buttons = sample.buttons;
+  FillPointerMessage(sample, impl.devices_[sample.device_index].id, &m);
   if (dds_write(impl.pointer_writer_.get(), &m) < 0) {
     Bump(impl.errors_);
     return false;

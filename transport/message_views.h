@@ -1,8 +1,9 @@
 #pragma once
-// Internal to transport/*.cc: the idlc message -> view conversions, written once. Real-time safe
+// Internal to transport/*.cc: the idlc message <-> view conversions, written once. Real-time safe
 // (plain copies, no allocation).
 
 #include <cstdint>
+#include <cstring>
 
 #include "felt_types.h"
 #include "transport/views.h"
@@ -43,6 +44,36 @@ inline ForceCommandView ForceViewOf(const felt_msgs_ForceCommand& m, uint32_t de
   v.flags = m.flags;
   v.receive_time_ns = receive_time_ns;
   return v;
+}
+
+/// Fills `m` (reused between writes) from `v` for the device with id `device_id` (the
+/// felt_msgs_PointerSample.device_id bytes).
+inline void FillPointerMessage(const PointerSampleView& v, const char* device_id,
+                               felt_msgs_PointerSample* m) {
+  std::memcpy(m->device_id, device_id, sizeof(m->device_id));
+  m->seq = v.seq;
+  m->device_time_ns = v.device_time_ns;
+  for (int k = 0; k < 3; ++k) {
+    m->position_m[k] = v.position_m_D[k];
+    m->velocity_m_per_s[k] = v.velocity_m_per_s_D[k];
+  }
+  m->buttons = v.buttons;
+}
+
+/// Fills `m` (reused between writes) from `v` for the device with id `device_id` (the
+/// felt_msgs_ForceCommand.device_id bytes).
+inline void FillForceMessage(const ForceCommandView& v, const char* device_id,
+                             felt_msgs_ForceCommand* m) {
+  std::memcpy(m->device_id, device_id, sizeof(m->device_id));
+  m->seq = v.seq;
+  m->answers_seq = v.answers_seq;
+  m->answers_device_time_ns = v.answers_device_time_ns;
+  for (int k = 0; k < 3; ++k) {
+    m->force_N[k] = v.force_N_D[k];
+    m->proxy_position_m[k] = v.proxy_position_m_D[k];
+  }
+  m->in_contact = v.in_contact;
+  m->flags = v.flags;
 }
 
 }  // namespace felt::transport

@@ -308,16 +308,7 @@ void ServerTransport::Impl::WriterLoop() {
     const uint32_t epoch = force_epoch_.load(std::memory_order_acquire);
     while (forces_.TryPop(&force)) {
       const int64_t start_ns = MonotonicNowNs();
-      std::memcpy(message.device_id, devices_[force.device_index].id, sizeof(message.device_id));
-      message.seq = force.seq;
-      message.answers_seq = force.answers_seq;
-      message.answers_device_time_ns = force.answers_device_time_ns;
-      for (int k = 0; k < 3; ++k) {
-        message.force_N[k] = force.force_N_D[k];
-        message.proxy_position_m[k] = force.proxy_position_m_D[k];
-      }
-      message.in_contact = force.in_contact;
-      message.flags = force.flags;
+      FillForceMessage(force, devices_[force.device_index].id, &message);
       if (dds_write(force_writer_.get(), &message) < 0) {
         Bump(dds_errors_write_);
       } else {
