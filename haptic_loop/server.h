@@ -228,7 +228,8 @@ class Server {
   double haptic_dt_s_;
   double sim_dt_s_;
 
-  // Sim -> haptic: newest snapshot. Haptic-owned: the previous snapshot (two alternating copies).
+  // Sim -> haptic: newest snapshot. Haptic-owned, in modes that need the previous snapshot: the
+  // newest and the previous, each swapped out of the read slot when it arrived (no deep copy).
   std::unique_ptr<TripleBuffer<PublishedSnapshot>> snapshots_;
   std::vector<ClothSnapshot> copies_;  // [2] the newest and the previous, alternating
   int newest_copy_ = -1;               // index into copies_ of the newest (-1: none yet)
