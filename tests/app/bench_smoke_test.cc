@@ -1,6 +1,7 @@
-// The cloth benchmarks run as a user would run them (`felt bench integrators --quick`, `felt bench
-// stability --quick`, `felt bench cloth --grid 10`), each into a temp folder: exit code 0 and the
-// JSON files hold the keys the reports and the issue rely on. No timing is asserted.
+// The cloth and loop benchmarks run as a user would run them (`felt bench integrators --quick`,
+// `felt bench stability --quick`, `felt bench cloth --grid 10`, `felt bench loops --seconds 1`),
+// each into a temp folder: exit code 0 and the JSON files hold the keys the reports and the issues
+// rely on. No timing is asserted.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -101,6 +102,24 @@ TEST(BenchSmoke, ClothOneGridWritesItsFiles) {
   EXPECT_NE(text.find("\"particles\": 100,"), std::string::npos) << text;
   EXPECT_TRUE(std::filesystem::exists(dir + "/cloth.md"));
   EXPECT_TRUE(std::filesystem::exists(dir + "/cloth.csv"));
+}
+
+// Issue 5's JSON: empty.lateness_us and server.lateness_us (p50, p99, p999, max), server.overruns,
+// server.ticks; with --server-setting-only the empty loop runs under the server's setting alone.
+TEST(BenchSmoke, LoopsOneSecondWritesTheIssueKeys) {
+  const std::string dir = FreshDir("felt_bench_loops");
+  const std::string json = dir + "/loops.json";
+  const Outcome outcome =
+      RunFelt("bench loops --seconds 1 --server-setting-only --json " + json + " --scene " +
+              kSource + "/scenes/curtain.toml --trace " + kSource + "/recordings/poke_hold.trace");
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  const std::string text = ReadFile(json);
+  ExpectKeys(text, {"empty", "server", "lateness_us", "p50", "p99", "p999", "max", "overruns",
+                    "ticks"});
+  EXPECT_NE(outcome.output.find("empty loop vs server"), std::string::npos) << outcome.output;
+  // One empty-loop setting only: the server's.
+  EXPECT_NE(outcome.output.find("fifo_spin"), std::string::npos) << outcome.output;
+  EXPECT_EQ(outcome.output.find("\nnormal "), std::string::npos) << outcome.output;
 }
 
 }  // namespace
