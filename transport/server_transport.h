@@ -12,7 +12,6 @@
 #include <vector>
 
 #include "transport/clock.h"
-#include "transport/hop_histogram.h"
 #include "transport/settings.h"
 #include "transport/views.h"
 
@@ -40,6 +39,17 @@ struct ServerTransportConfig {
   std::vector<DeviceLimits> devices;  ///< allowed devices; device_index = position here
   size_t force_queue_capacity = 256;  ///< forces held between PushForce and the writer thread
   ReceiveMode receive_mode = ReceiveMode::kListener;  ///< see ReceiveMode
+};
+
+/// Percentiles of a hop's cost, microseconds, as bin upper edges of a haptic_loop/loop_stats.h
+/// Histogram at 0.1 us resolution (never below the true value; max exact).
+struct HopSummary {
+  uint64_t count = 0;  ///< durations recorded
+  double mean_us = 0;  ///< mean, us
+  double p50_us = 0;   ///< median, us
+  double p99_us = 0;   ///< 99th percentile, us
+  double p999_us = 0;  ///< 99.9th percentile, us
+  double max_us = 0;   ///< largest, us (exact)
 };
 
 /// Counters of the server transport since construction. Any thread may take a copy (Stats()).
