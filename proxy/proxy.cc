@@ -528,15 +528,18 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   state->reaction.AddTime(tick_dt_s);
   // The contact of this tick as a spring the sim evaluates at its substep rate (virtual coupling,
   // Colgate, Stanley & Brown 1995). The device spring F_D = k (proxy_D - device_D) is, in the
-  // world, F_W = (k / scale^2) (proxy_W - goal_W) (proxy_spec.h); the anchor sits one proxy radius
-  // below the goal along the normal, so the spring's depth (p - anchor) . n is the proxy's
-  // (proxy - goal) . n when the proxy touches the cloth point p: at rest the cloth gets -F_W.
+  // world, F_W = (k / scale^2) (proxy_W - goal_W) (proxy_spec.h). The sim presses a sphere of the
+  // proxy's radius centred at the goal (anchor + radius normal) onto the nearest point of the
+  // cloth around the contact triangle, re-found at every force evaluation: its penetration is the
+  // proxy's (proxy - goal) . n when the proxy rests on the cloth, so at rest the cloth gets -F_W,
+  // and the force is a potential's gradient however the contact wanders between triangles (tying
+  // it to this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
   if (state->body.num_contacts > 0) {
     const ProxyContact& c = state->body.contacts[0];
     state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
                                      goal - opts.radius_m * c.normal_W,
                                      device.stiffness_N_per_m / (device.scale * device.scale),
-                                     device.max_force_N / device.scale);
+                                     device.max_force_N / device.scale, opts.radius_m);
   } else {
     state->reaction.ClearContactSpring();
   }

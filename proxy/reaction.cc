@@ -38,13 +38,15 @@ void ReactionAccumulator::AddForce(int32_t triangle, const Triangle& corners,
 
 void ReactionAccumulator::SetContactSpring(int32_t triangle, const Vec3& barycentric,
                                            const Vec3& normal_W, const Vec3& anchor_W_m,
-                                           double stiffness_N_per_m, double max_force_N) {
+                                           double stiffness_N_per_m, double max_force_N,
+                                           double radius_m) {
   spring_.triangle = triangle;
   spring_.barycentric = barycentric;
   spring_.normal = normal_W;
   spring_.anchor_m = anchor_W_m;
   spring_.stiffness_N_per_m = stiffness_N_per_m;
   spring_.max_force_N = max_force_N;
+  spring_.radius_m = radius_m;
   has_spring_ = true;
 }
 

@@ -78,13 +78,19 @@ struct PinAttachment {
 /// With stiffness_N_per_m > 0 it is instead a unilateral contact spring to the user's hand,
 /// evaluated at every force evaluation of the step (every substep and integrator stage) at the
 /// positions being evaluated (virtual coupling, Colgate, Stanley & Brown 1995, on the god-object
-/// contact of Ruspini, Kolarov & Khatib 1997): p = the barycentric point, depth = max(0, (p -
-/// anchor_m) . normal), F = -normal min(max_force_N, k_eff depth), split by the barycentric
-/// weights (pinned particles get nothing); force_N is then not applied. A frame holding a spring
-/// too stiff for its substep is cut into up to 4 times its substeps (ClothCounters::
-/// coupling_substepped_frames); beyond that k_eff = min(k, the largest stiffness the integrator is
-/// stable with at the substep; see ClothCounters::coupling_reduced_frames). At most 16 springs per
-/// frame (more are counted and dropped).
+/// contact of Ruspini, Kolarov & Khatib 1997): the proxy sphere of radius_m centred at g = anchor_m
+/// + radius_m normal penetrates the cloth by pen = radius_m - sd, where sd is g's distance to the
+/// nearest point c of the triangles around `triangle` (those of the 3 x 3 grid cells around its
+/// cell), negative when g is past the cloth (normal says which side is the proxy's). The cloth
+/// gets F = -n min(max_force_N, k_eff pen), n the unit direction from c toward the proxy's side,
+/// split over c's triangle by its barycentric weights (pinned particles get nothing): the
+/// gradient of the potential 1/2 k_eff pen^2, so the coupling is conservative however the cloth
+/// moves under it; `barycentric` only names where the haptic side found the contact, and force_N
+/// is not applied. A frame holding a spring too stiff for its substep is cut into up to 4 times
+/// its substeps (ClothCounters::coupling_substepped_frames); beyond that k_eff = min(k, the
+/// largest stiffness the integrator is stable with at the substep; see
+/// ClothCounters::coupling_reduced_frames). At most 16 springs per frame (more are counted and
+/// dropped).
 struct ExternalForce {
   int32_t triangle = 0;
   Vec3 barycentric = Vec3(1.0 / 3, 1.0 / 3, 1.0 / 3);  ///< non-negative, sums to 1
@@ -93,6 +99,7 @@ struct ExternalForce {
   Vec3 anchor_m = Vec3::Zero();    ///< spring: the user's hand (device goal), world, m
   Vec3 normal = Vec3::UnitZ();     ///< spring: unit, from the cloth toward the proxy's side
   double max_force_N = 0.0;        ///< spring: force clamp (the device's, mapped to world), N
+  double radius_m = 0.0;           ///< spring: the proxy sphere's radius, world, m (>= 0)
 };
 
 /// The validated, immutable cloth: shared read-only by every thread.

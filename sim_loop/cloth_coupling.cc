@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "sim_loop/cloth_internal.h"
+#include "sim_loop/geometry.h"
 
 namespace felt {
 namespace {
@@ -28,14 +29,20 @@ double CriticalOmegaH(const ClothModel& model) {
   return kSymplecticEulerLimit;
 }
 
-// The largest weight of a contact spring on a free particle of its triangle; 0 if all pinned.
+// The largest weight a contact spring may put on one free particle: the nearest point it presses
+// on can be a vertex, so 1 unless every particle around its triangle is pinned.
 double MaxFreeWeight(const ClothModel& model, const ExternalForce& e) {
-  const Triangle& t = model.triangles[e.triangle];
-  double w_max = 0.0;
-  for (int c = 0; c < 3; ++c) {
-    if (model.inv_mass_per_kg[t[c]] > 0.0) w_max = std::max(w_max, e.barycentric[c]);
+  // The spring presses on the nearest point of the triangles around e.triangle, which may be a
+  // vertex (weight 1): 1 if any particle of those cells is free, else 0 (all pinned).
+  const int32_t cells_per_row = model.width - 1;
+  const int32_t cell = e.triangle / 2;
+  const int32_t row = cell / cells_per_row, col = cell % cells_per_row;
+  for (int32_t r = std::max(0, row - 1); r <= std::min(model.height - 1, row + 2); ++r) {
+    for (int32_t c = std::max(0, col - 1); c <= std::min(model.width - 1, col + 2); ++c) {
+      if (model.inv_mass_per_kg[GridIndex(model.width, c, r)] > 0.0) return 1.0;
+    }
   }
-  return w_max;
+  return 0.0;
 }
 
 // True if `e` is a contact spring AddCouplingSpring accepts.
@@ -44,7 +51,45 @@ bool ValidSpring(const ClothModel& model, const ExternalForce& e) {
   return e.stiffness_N_per_m > 0.0 && e.triangle >= 0 &&
          e.triangle < static_cast<int32_t>(model.triangles.size()) && e.barycentric.allFinite() &&
          std::isfinite(e.stiffness_N_per_m) && e.anchor_m.allFinite() && e.normal.allFinite() &&
-         n_len > 0.0 && e.max_force_N >= 0.0 && !std::isnan(e.max_force_N);
+         n_len > 0.0 && e.max_force_N >= 0.0 && !std::isnan(e.max_force_N) &&
+         e.radius_m >= 0.0 && std::isfinite(e.radius_m);
+}
+
+// Where a spring's sphere meets the cloth at positions x: the nearest point of its candidates to
+// the goal, the unit direction n from that point toward the proxy's side, and the penetration
+// radius - signed distance (Ericson 2005 §5.1.5 for the nearest point of each triangle).
+struct SpringContact {
+  int32_t candidate = 0;
+  Vec3 barycentric = Vec3::Zero();
+  Vec3 n = Vec3::UnitZ();
+  double pen_m = 0.0;
+};
+
+SpringContact Contact(const CouplingSpring& s, std::span<const Vec3> x) {
+  SpringContact out;
+  TrianglePoint best;
+  best.distance_sq = std::numeric_limits<double>::infinity();
+  for (int32_t i = 0; i < s.num_candidates; ++i) {
+    const Triangle& t = s.candidates[i];
+    const TrianglePoint tp = ClosestPointOnTriangle(s.goal_m, x[t[0]], x[t[1]], x[t[2]]);
+    if (tp.distance_sq < best.distance_sq) {
+      best = tp;
+      out.candidate = i;
+    }
+  }
+  out.barycentric = best.barycentric;
+  const Vec3 d = s.goal_m - best.point;
+  const double dist = std::sqrt(best.distance_sq);
+  // The signed distance of the goal: positive on the proxy's side of the cloth, negative past it.
+  double sd = d.dot(s.normal);
+  out.n = s.normal;
+  if (dist > 1e-12) {
+    const bool past = d.dot(s.normal) < 0.0;
+    out.n = past ? Vec3(-d / dist) : Vec3(d / dist);
+    sd = past ? -dist : dist;
+  }
+  out.pen_m = s.radius_m - sd;
+  return out;
 }
 
 }  // namespace
@@ -96,17 +141,29 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
     ++state->counters.coupling_overflows;
     return;
   }
-  // Resolve the triangle; pinned particles take no share.
+  // The candidates: the triangles of the 3 x 3 cells around the contact triangle's cell (two per
+  // cell, MakeGridTriangles' order); pinned particles take no share.
   CouplingSpring& s = cs.springs[cs.count++];
-  const Triangle& t = model.triangles[e.triangle];
-  for (int c = 0; c < 3; ++c) {
-    s.particle[c] = t[c];
-    s.barycentric[c] = e.barycentric[c];
-    s.weight[c] = model.inv_mass_per_kg[t[c]] > 0.0 ? e.barycentric[c] : 0.0;
+  const int32_t cells_per_row = model.width - 1;
+  const int32_t cell = e.triangle / 2;
+  const int32_t row = cell / cells_per_row, col = cell % cells_per_row;
+  s.num_candidates = 0;
+  for (int32_t r = std::max(0, row - 1); r <= std::min(model.height - 2, row + 1); ++r) {
+    for (int32_t c = std::max(0, col - 1); c <= std::min(cells_per_row - 1, col + 1); ++c) {
+      for (int32_t half = 0; half < 2; ++half) {
+        const Triangle& t = model.triangles[2 * (r * cells_per_row + c) + half];
+        s.candidates[s.num_candidates] = t;
+        for (int k = 0; k < 3; ++k) {
+          s.free[s.num_candidates][k] = model.inv_mass_per_kg[t[k]] > 0.0 ? 1.0 : 0.0;
+        }
+        ++s.num_candidates;
+      }
+    }
   }
   const double w_max = MaxFreeWeight(model, e);
-  s.anchor_m = e.anchor_m;
   s.normal = e.normal / e.normal.norm();
+  s.radius_m = e.radius_m;
+  s.goal_m = e.anchor_m + e.radius_m * s.normal;
   s.max_force_N = e.max_force_N;
   // Bound k by what the integrator stays stable with at the substep (Colgate et al. 1995).
   const double k_max = MaxCouplingStiffness(model, w_max, h_s);
@@ -121,22 +178,36 @@ void AddCouplingForces(const CouplingSprings& springs, std::span<const Vec3> x, 
                        double* f) {
   for (int32_t k = 0; k < springs.count; ++k) {
     const CouplingSpring& s = springs.springs[k];
-    // The contact point at these positions and how far it is still on the proxy's side.
-    const Vec3 p = s.barycentric[0] * x[s.particle[0]] + s.barycentric[1] * x[s.particle[1]] +
-                   s.barycentric[2] * x[s.particle[2]];
-    const double depth = (p - s.anchor_m).dot(s.normal);
-    if (!(depth > 0.0)) continue;
+    if (s.num_candidates <= 0) continue;
+    const SpringContact c = Contact(s, x);
+    if (!(c.pen_m > 0.0)) continue;
     // Unilateral: pushes the cloth away from the proxy, never pulls.
-    const double magnitude = std::min(s.max_force_N, s.stiffness_N_per_m * depth);
-    const Vec3 force = (-scale * magnitude) * s.normal;
-    for (int c = 0; c < 3; ++c) {
-      if (s.weight[c] == 0.0) continue;
-      double* fc = f + 3 * static_cast<size_t>(s.particle[c]);
-      fc[0] += s.weight[c] * force.x();
-      fc[1] += s.weight[c] * force.y();
-      fc[2] += s.weight[c] * force.z();
+    const double magnitude = std::min(s.max_force_N, s.stiffness_N_per_m * c.pen_m);
+    const Vec3 force = (-scale * magnitude) * c.n;
+    const Triangle& t = s.candidates[c.candidate];
+    for (int i = 0; i < 3; ++i) {
+      const double w = s.free[c.candidate][i] * c.barycentric[i];
+      if (w == 0.0) continue;
+      double* fc = f + 3 * static_cast<size_t>(t[i]);
+      fc[0] += w * force.x();
+      fc[1] += w * force.y();
+      fc[2] += w * force.z();
     }
   }
+}
+
+double CouplingEnergy(const CouplingSprings& springs, std::span<const Vec3> x) {
+  double energy = 0.0;
+  for (int32_t k = 0; k < springs.count; ++k) {
+    const CouplingSpring& s = springs.springs[k];
+    if (s.num_candidates <= 0 || !(s.stiffness_N_per_m > 0.0)) continue;
+    const double pen = Contact(s, x).pen_m;
+    if (!(pen > 0.0)) continue;
+    const double pen_clamp = s.max_force_N / s.stiffness_N_per_m;  // where k pen reaches the clamp
+    energy += pen <= pen_clamp ? 0.5 * s.stiffness_N_per_m * pen * pen
+                               : s.max_force_N * (pen - 0.5 * pen_clamp);
+  }
+  return energy;
 }
 
 }  // namespace felt

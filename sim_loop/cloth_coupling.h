@@ -19,15 +19,21 @@ namespace felt {
 /// coupling_overflows) and dropped.
 inline constexpr int32_t kMaxCouplingSprings = 16;
 
-/// One contact spring of the frame, resolved against the model.
+/// Triangles a contact spring searches for the cloth's nearest point: those of the 3 x 3 grid
+/// cells around the contact triangle's cell (every triangle that shares a vertex with it).
+inline constexpr int32_t kMaxCouplingCandidates = 18;
+
+/// One contact spring of the frame, resolved against the model: the proxy sphere (centre goal_m,
+/// radius_m) pressing on the nearest point of its candidate triangles (ExternalForce).
 struct CouplingSpring {
-  std::array<int32_t, 3> particle = {0, 0, 0};  ///< the triangle's particles
-  Vec3 barycentric = Vec3::Zero();              ///< of the contact point in the triangle
-  Vec3 weight = Vec3::Zero();                   ///< force shares: barycentric, 0 where pinned
-  Vec3 anchor_m = Vec3::Zero();                 ///< world, m
-  Vec3 normal = Vec3::UnitZ();                  ///< unit, from the cloth toward the proxy
-  double stiffness_N_per_m = 0.0;               ///< k_eff (after the stability bound)
-  double max_force_N = 0.0;                     ///< force clamp, N
+  std::array<Triangle, kMaxCouplingCandidates> candidates{};  ///< particles of each candidate
+  std::array<Vec3, kMaxCouplingCandidates> free{};  ///< per corner: 1 if free, 0 if pinned
+  int32_t num_candidates = 0;
+  Vec3 goal_m = Vec3::Zero();     ///< sphere centre (the user's hand), world, m
+  double radius_m = 0.0;          ///< sphere radius, m
+  Vec3 normal = Vec3::UnitZ();    ///< unit, from the cloth toward the proxy's side
+  double stiffness_N_per_m = 0.0;  ///< k_eff (after the stability bound)
+  double max_force_N = 0.0;        ///< force clamp, N
 };
 
 /// The frame's contact springs: storage of kMaxCouplingSprings, count in use.
@@ -73,9 +79,18 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
                        ClothState* state);
 
 /// Adds scale * the contact springs' forces at positions `x` [m, world, n entries] into `f`
-/// (3 n packed doubles, xyz per particle): p = sum b_c x_c (barycentric b), depth = max(0, (p -
-/// anchor) . normal), F = -normal min(max_force_N, k depth), particle c gets w_c F. Real-time safe.
+/// (3 n packed doubles, xyz per particle): per spring, the nearest point c of its candidate
+/// triangles to its goal g (the first of equal ones), sd = |g - c| signed by the side of `normal`,
+/// pen = radius - sd; if pen > 0, F = -n min(max_force_N, k pen) with n the unit direction from c
+/// toward the proxy's side (`normal` where g lies on the cloth), corner i of c's triangle getting
+/// free_i b_i F (ExternalForce). F is minus the gradient of CouplingEnergy. Real-time safe.
 void AddCouplingForces(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
                        double* f);
+
+/// The springs' potential energy at `x` [J]: per spring 1/2 k pen^2 while k pen <= max_force_N,
+/// then max_force_N (pen - max_force_N / (2 k)) (the clamp's linear continuation), 0 for pen <= 0.
+/// Its gradient with respect to the free particles' positions is minus AddCouplingForces' forces
+/// (with scale 1). For tests and energy bookkeeping. Real-time safe.
+double CouplingEnergy(const CouplingSprings& springs, std::span<const Vec3> x);
 
 }  // namespace felt

@@ -138,70 +138,72 @@ void ExpectConverged(const std::vector<Sample>& hold, SnapshotMode mode) {
   EXPECT_LT(drift, 5e-4) << SnapshotModeName(mode);
 }
 
-// Disabled: issue 4's press-and-hold requirement is NOT met on the default curtain. Measured on
-// the committed sim (04ecb69; 2 cm press at the centre particle, 6 leapfrog substeps of 2.78 ms):
-//  - The residual motion is the curtain's own slow sway (~3 Hz, proxy moving ~50 um, force
-//    spread ~10-15 % of 0.04 N), damped only by its air drag (c/m = 0.5 /s): with the coupling
-//    unchanged and 10 x the drag the same press settles to a constant force (0.0402 N, spread
-//    < 0.1 mN, modes newest, blend_forces, interpolate; the test below). A damper on the contact
-//    spring cannot remove it: the contact point is nearly a node of that sway (its 0.75 mm/s
-//    there puts ~1e-7 W into a critical damper, c = 2 sqrt(k m_eff) = 0.15 N s/m, against
-//    ~1e-5 J of sway: a time constant of ~2 minutes).
-//  - There is no undamped 100 Hz ring at a Provot-held press: the ~0.1 m/s seen on the contact
-//    particle is leapfrog's synchronised velocity v = v_half + h/2 a at a constraint-held rest
-//    (h/2 a = 1.39 ms * ~100 m/s^2), constant, not motion. Extrapolated over up to 17 ms (~2 mm)
-//    it gave mode extrapolate 0-1.5 N and ~1 cm drift, also with 10 x drag; the snapshots now
-//    carry the frame's motion instead (proxy/frame_motion.h) and extrapolate behaves as the
-//    other modes (default curtain: 0.038 N, spread 0.010 N over the last second).
-//  - coupling_reduced_frames: at the centre vertex the contact mode has omega h = 1.87 for the
-//    device's 44.4 N/m (world) on a 0.098 g particle, beyond the 0.8 x 1.88 leapfrog bound at 6
-//    substeps. Measured on 04ecb69, k was lowered in ~300 of 330 frames; since 76f70fe such a
-//    frame is cut into more substeps instead (sim_loop/cloth_coupling.h, CouplingSubsteps), and
-//    this assertion holds.
-//  - The 0.2 N floor is not what this cloth gives at 2 cm: it swings away (0.035-0.045 N).
+// Disabled: on the default curtain the press does not come to rest within the test's window.
+// What is left is the curtain's own slow sway, damped only by its air drag (c/m = 0.5 /s): the
+// same press with 10 x the drag settles exactly (the test below). Measured (2 cm press at the
+// centre particle, 14 s hold, since the sim presses the proxy's sphere onto the cloth's nearest
+// point), force spread over the last second (13-14 s) against the 1.7 mN allowed: newest passes,
+// interpolate 1.73 mN, blend_forces 1.88 mN, extrapolate 3.16 mN; drift under 0.5 mm in every
+// mode. The spread shrinks from ~10 mN at 4-5 s; no mode cycles or loses contact.
+// Before that change the same press cycled at 20 Hz (the contact spring hopping between the
+// triangles around the vertex) and mode extrapolate swung 0-1.1 N.
 // Kept compiled to run by hand: --gtest_also_run_disabled_tests --gtest_filter='Coupled*'.
 TEST(CoupledTest, DISABLED_PressAndHoldComesToRestWithoutOscillationOrDrift) {
   for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kNewest,
                             SnapshotMode::kBlendForces, SnapshotMode::kExtrapolate}) {
     PressSetup setup;
     setup.mode = mode;
+    setup.hold_s = 14.0;
     const PressResult run = PressAndHold(setup);
     const std::vector<Sample>& hold = run.hold;
     // The contact spring ran at the device's stiffness (k_eff == k), so at rest the cloth gets
     // exactly the opposite of what the user feels.
-    EXPECT_EQ(run.reduced_frames, 0u) << SnapshotModeName(mode);
+    EXPECT_EQ(run.reduced_late_frames, 0u) << SnapshotModeName(mode);
     ASSERT_FALSE(hold.empty());
     const Sample& last = hold.back();
     // The user feels the curtain pushing back, well inside the device's range.
-    EXPECT_GT(last.force_D_N.z(), 0.2) << SnapshotModeName(mode);
+    EXPECT_GT(last.force_D_N.z(), 0.01) << SnapshotModeName(mode);
     EXPECT_LT(last.force_D_N.norm(), 3.3) << SnapshotModeName(mode);
-    ExpectConverged(hold, mode);
+    const double late = ForceSpread(hold, 13.0, 14.0);
+    EXPECT_LT(late, 0.02 * last.force_D_N.norm() + 1e-3) << SnapshotModeName(mode);
+    double drift = 0.0;
+    for (const Sample& s : hold) {
+      if (s.t_s >= 13.0) drift = std::max(drift, (s.proxy_W_m - last.proxy_W_m).norm());
+    }
+    EXPECT_LT(drift, 5e-4) << SnapshotModeName(mode);
   }
 }
 
 // The coupling itself comes to rest: the same press on a curtain whose air drag damps its own
-// sway (10 x the scene's, c/m = 5 /s), half a cell off the centre vertex so that the device's k
-// is within the contact spring's stability bound (k_eff == k: at rest the cloth gets exactly the
-// opposite of what the user feels). Snapshots are published as the server does, with the frame's
-// motion as velocities (proxy/frame_motion.h), which mode extrapolate moves the cloth on with.
+// sway (10 x the scene's, c/m = 5 /s), half a cell off the centre vertex and right at it.
+// Snapshots are published as the server does, with the frame's motion as velocities
+// (proxy/frame_motion.h), which mode extrapolate moves the cloth on with. At the vertex the
+// proxy's contact hops between the triangles around it; while the sim's contact spring was tied
+// to the one triangle of the frame's last tick, that press cycled at 20 Hz between 0.034 and
+// 0.046 N in every mode (a spring whose attachment jumps with the cloth is not conservative). The
+// sim now presses the proxy's sphere onto the cloth's nearest point (sim_loop/cloth.h,
+// ExternalForce), and both presses settle to a constant force.
 TEST(CoupledTest, PressAndHoldOnAnAirDampedCurtainComesToRest) {
-  for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kNewest,
-                            SnapshotMode::kBlendForces, SnapshotMode::kExtrapolate}) {
-    PressSetup setup;
-    setup.mode = mode;
-    setup.drag_scale = 10.0;
-    setup.offset_W_m = Vec3(0.008, -0.005, 0.0);
-    const PressResult run = PressAndHold(setup);
-    const std::vector<Sample>& hold = run.hold;
-    ASSERT_FALSE(hold.empty());
-    const Sample& last = hold.back();
-    // The curtain pushes back toward the user (it swings away: ~0.035 N at 2 cm; a lost contact
-    // gives 0), well inside the device's range.
-    EXPECT_GT(last.force_D_N.z(), 0.01) << SnapshotModeName(mode);
-    EXPECT_LT(last.force_D_N.norm(), 3.3) << SnapshotModeName(mode);
-    // At rest the contact spring runs at the device's k.
-    EXPECT_EQ(run.reduced_late_frames, 0u) << SnapshotModeName(mode);
-    ExpectConverged(hold, mode);
+  for (const Vec3& offset : {Vec3(0.008, -0.005, 0.0), Vec3(0.0, 0.0, 0.0)}) {
+    for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kNewest,
+                              SnapshotMode::kBlendForces, SnapshotMode::kExtrapolate}) {
+      PressSetup setup;
+      setup.mode = mode;
+      setup.drag_scale = 10.0;
+      setup.offset_W_m = offset;
+      const PressResult run = PressAndHold(setup);
+      const std::vector<Sample>& hold = run.hold;
+      ASSERT_FALSE(hold.empty());
+      const Sample& last = hold.back();
+      SCOPED_TRACE(offset.isZero() ? "at the centre vertex" : "half a cell off it");
+      // The curtain pushes back toward the user (it swings away: ~0.035 N at 2 cm; a lost contact
+      // gives 0), well inside the device's range.
+      EXPECT_GT(last.force_D_N.z(), 0.01) << SnapshotModeName(mode);
+      EXPECT_LT(last.force_D_N.norm(), 3.3) << SnapshotModeName(mode);
+      // At rest the contact spring runs at the device's k.
+      EXPECT_EQ(run.reduced_late_frames, 0u) << SnapshotModeName(mode);
+      ExpectConverged(hold, mode);
+    }
   }
 }
 

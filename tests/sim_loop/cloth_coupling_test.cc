@@ -8,10 +8,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <random>
 #include <vector>
 
 #include "haptic_loop/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in collision_alloc_test.cc
 #include "sim_loop/cloth.h"
+#include "sim_loop/cloth_internal.h"
 #include "tests/sim_loop/cloth_test_util.h"
 
 namespace felt {
@@ -91,18 +93,27 @@ TEST(ClothCouplingTest, SpringPushesTheSheetToWhereItsForceBalancesTheCloth) {
     const double depth = (Centroid(model, state, tri) - press[0].anchor_m).dot(Vec3::UnitY());
     EXPECT_GT(depth, 1e-6);
     EXPECT_LT(depth, 0.02);
-    // At rest the cloth's spring forces on the free particles balance the contact force k depth.
+    // At rest the cloth's spring forces on the free particles balance the contact's forces, which
+    // push along -y (the proxy presses from +y) by k times the sphere's penetration.
     std::vector<Vec3> f(state.x.size(), Vec3::Zero());
     std::vector<Vec3> zero_v(state.x.size(), Vec3::Zero());
     AddSpringForces(model, state.x, zero_v, f);
+    std::vector<Vec3> coupling(state.x.size(), Vec3::Zero());
+    ClothState scratch = MakeClothState(model);
+    BeginCouplingFrame(&scratch.scratch->coupling);
+    AddCouplingSpring(model, press[0], kFrame_s / model.substeps, &scratch);
+    AddCouplingForces(scratch.scratch->coupling, state.x, 1.0, coupling.data()->data());
     Vec3 cloth = Vec3::Zero();
+    Vec3 contact = Vec3::Zero();
     double speed = 0.0;
     for (size_t p = 0; p < f.size(); ++p) {
       if (model.inv_mass_per_kg[p] == 0.0) continue;
       cloth += f[p];
+      contact += coupling[p];
       speed = std::max(speed, state.v[p].norm());
     }
-    const Vec3 contact = -k * depth * Vec3::UnitY();
+    EXPECT_GT(-contact.y(), 0.9 * contact.norm()) << static_cast<int>(kind);
+    EXPECT_LE(contact.norm(), k * depth * (1.0 + 1e-9)) << "no deeper than the centroid";
     EXPECT_LT((cloth + contact).norm(), 1e-2 * contact.norm()) << static_cast<int>(kind);
     EXPECT_LT(speed, 1e-5) << static_cast<int>(kind);
   }
@@ -115,7 +126,8 @@ TEST(ClothCouplingTest, LargeStiffnessIsBoundedCountedAndStable) {
     const int32_t tri = CentreTriangle(model);
     // The bound at the shortest substep a frame may be cut into for a contact.
     const int32_t most = kMaxCouplingSubstepFactor * model.substeps;
-    const double k_max = MaxCouplingStiffness(model, 1.0 / 3.0, kFrame_s / most);
+    // (Weight 1: the nearest point the spring presses on may be a vertex.)
+    const double k_max = MaxCouplingStiffness(model, 1.0, kFrame_s / most);
     ASSERT_TRUE(std::isfinite(k_max) && k_max > 0.0);
     ExternalForce press[1] = {Press(model, tri, 0.02, 1e4 * k_max)};
     ExternalForce bound[1] = {Press(model, tri, 0.02, k_max)};
@@ -157,7 +169,7 @@ TEST(ClothCouplingTest, StiffContactGetsShorterSubstepsNotASofterSpring) {
     const ClothModel model = FlatSheet(kind);
     const int32_t tri = CentreTriangle(model);
     // Twice the bound at the nominal substep: sqrt(2) times the substeps keep the whole k.
-    const double k = 2.0 * MaxCouplingStiffness(model, 1.0 / 3.0);
+    const double k = 2.0 * MaxCouplingStiffness(model, 1.0);
     ExternalForce press[1] = {Press(model, tri, 0.02, k)};
     press[0].max_force_N = 0.05;
     ClothState state = MakeClothState(model);
@@ -181,7 +193,8 @@ TEST(ClothCouplingTest, ReleasesOnceTheClothIsPastTheAnchor) {
     const int32_t tri = CentreTriangle(model);
     // The hand is above the cloth (anchor on the proxy's side): no force, and force_N (the
     // haptic side's average, information only) is not applied either.
-    ExternalForce lifted = Press(model, tri, -0.1, 50.0);
+    // (k within the bound at the nominal substep, so both runs take the same substeps.)
+    ExternalForce lifted = Press(model, tri, -0.1, 0.5 * MaxCouplingStiffness(model, 1.0));
     lifted.force_N = Vec3(0.0, -1.0, 0.0);
     const ExternalForce springs[1] = {lifted};
     ClothState touched = MakeClothState(model);
@@ -191,12 +204,64 @@ TEST(ClothCouplingTest, ReleasesOnceTheClothIsPastTheAnchor) {
       if (model.inv_mass_per_kg[p] > 0.0) touched.v[p] = untouched.v[p] = Vec3(0.0, -0.05, 0.0);
     }
     for (int f = 0; f < 60; ++f) {
-      StepFrame(model, springs, kFrame_s, &touched);
+      EXPECT_EQ(StepFrame(model, springs, kFrame_s, &touched).substeps, model.substeps);
       StepFrame(model, {}, kFrame_s, &untouched);
     }
     EXPECT_EQ(std::memcmp(touched.x.data(), untouched.x.data(), touched.x.size() * sizeof(Vec3)), 0)
         << static_cast<int>(kind);
   }
+}
+
+// The contact force is minus the gradient of CouplingEnergy (central differences), on crumpled
+// sheets with the sphere's goal above faces, edges and vertices, inside the force clamp and past it:
+// the coupling is a potential force, so it cannot pump energy into the cloth.
+TEST(ClothCouplingTest, ForceIsMinusTheGradientOfTheContactEnergy) {
+  const ClothModel model = FlatSheet(IntegratorKind::kLeapfrogVerlet);
+  const int32_t tri = CentreTriangle(model);
+  const Triangle& t = model.triangles[tri];
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.004, 0.004);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int checked = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    ClothState state = MakeClothState(model);
+    for (Vec3& x : state.x) x += Vec3(jitter(rng), jitter(rng), jitter(rng));
+    // A goal over a random point of the centre triangle's neighbourhood, 0-6 mm past the cloth
+    // (radius 4 mm), toward a vertex in a third of the trials.
+    Vec3 b(unit(rng), unit(rng), unit(rng));
+    if (trial % 3 == 0) b = Vec3(1.0, 0.02 * unit(rng), 0.02 * unit(rng));
+    b /= b.sum();
+    const Vec3 p = b[0] * state.x[t[0]] + b[1] * state.x[t[1]] + b[2] * state.x[t[2]];
+    ExternalForce e;
+    e.triangle = tri;
+    e.barycentric = b;
+    e.normal = Vec3::UnitY();
+    e.radius_m = 0.004;
+    e.anchor_m = p - (0.006 * unit(rng)) * Vec3::UnitY();  // the goal, minus radius * normal
+    e.stiffness_N_per_m = 40.0;
+    e.max_force_N = trial % 2 == 0 ? 10.0 : 0.1;  // half the trials past the clamp's knee
+    BeginCouplingFrame(&state.scratch->coupling);
+    AddCouplingSpring(model, e, 1e-4, &state);
+    ASSERT_EQ(state.scratch->coupling.count, 1);
+    std::vector<Vec3> force(state.x.size(), Vec3::Zero());
+    AddCouplingForces(state.scratch->coupling, state.x, 1.0, force.data()->data());
+    const double h = 1e-8;
+    for (int32_t q = 0; q < model.num_particles(); ++q) {
+      if (model.inv_mass_per_kg[q] == 0.0) continue;
+      for (int axis = 0; axis < 3; ++axis) {
+        std::vector<Vec3> plus = state.x, minus = state.x;
+        plus[q][axis] += h;
+        minus[q][axis] -= h;
+        const double gradient = (CouplingEnergy(state.scratch->coupling, plus) -
+                                 CouplingEnergy(state.scratch->coupling, minus)) /
+                                (2.0 * h);
+        EXPECT_NEAR(force[q][axis], -gradient, 1e-6 + 1e-5 * std::abs(gradient))
+            << "trial " << trial << " particle " << q << " axis " << axis;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 10000);
 }
 
 TEST(ClothCouplingTest, StepFrameWithSpringsDoesNotAllocateAndCountsOverflow) {
