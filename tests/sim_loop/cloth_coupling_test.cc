@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -262,6 +263,24 @@ TEST(ClothCouplingTest, ForceIsMinusTheGradientOfTheContactEnergy) {
     }
   }
   EXPECT_GT(checked, 10000);
+}
+
+// A spring with a negative or non-finite radius is refused and counted, never applied.
+TEST(ClothCouplingTest, BadRadiusIsRefusedAndCounted) {
+  const ClothModel model = FlatSheet(IntegratorKind::kLeapfrogVerlet);
+  const int32_t tri = CentreTriangle(model);
+  for (double radius : {-0.001, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    ClothState state = MakeClothState(model);
+    ClothState untouched = MakeClothState(model);
+    ExternalForce e = Press(model, tri, 0.02, 5.0);
+    e.radius_m = radius;
+    const ExternalForce springs[1] = {e};
+    StepFrame(model, springs, kFrame_s, &state);
+    StepFrame(model, {}, kFrame_s, &untouched);
+    EXPECT_EQ(state.counters.invalid_external_forces, 1u) << radius;
+    EXPECT_EQ(std::memcmp(state.x.data(), untouched.x.data(), state.x.size() * sizeof(Vec3)), 0)
+        << radius;
+  }
 }
 
 TEST(ClothCouplingTest, StepFrameWithSpringsDoesNotAllocateAndCountsOverflow) {
