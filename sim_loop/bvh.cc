@@ -246,7 +246,10 @@ struct AabbSweepCounts {
 std::atomic<bool> g_bvh_portable{false};
 
 // Portable passes: MinBox (SSE2 where available) and a lanewise comparison per node.
-AabbSweepCounts SweepAabbPortable(const AabbSweepArgs& a) {
+AabbSweepCounts SweepAabbPortable(const AabbSweepArgs& args) {
+  // A local copy: the byte stores to `changed` may alias anything, and would make the fields be
+  // reloaded through a reference on every iteration.
+  const AabbSweepArgs a = args;
   AabbSweepCounts n;
   for (int32_t v = 0; v < a.num_vertices; ++v) a.vertex_box[v] = VertexBox(a.x[v]);
   for (int32_t s = 0; s < a.num_slots; ++s) {
@@ -282,27 +285,40 @@ AabbSweepCounts SweepAabbPortable(const AabbSweepArgs& a) {
 // a parent of four one VMINPS per child, in MinBox's operand order (same bits as the portable
 // passes, NaN included).
 __attribute__((target("avx2"))) AabbSweepCounts SweepAabbAvx2(const AabbSweepArgs& a) {
-  AabbSweepCounts n;
-  PackedAabb* vb = a.vertex_box;
-  for (int32_t v = 0; v < a.num_vertices; ++v) vb[v] = VertexBox(a.x[v]);
+  // Every field in a local: the byte stores to `changed` may alias anything, so reading the
+  // fields through `a` would reload them on every iteration.
+  int32_t updates = 0;
+  int32_t invalidated = 0;
+  PackedAabb* const vb = a.vertex_box;
+  const Vec3* const x = a.x;
+  const int32_t num_vertices = a.num_vertices;
+  const Triangle* const slot_vertices = a.slot_vertices;
+  const int32_t* const leaf_of_slot = a.leaf_of_slot;
+  const int32_t num_slots = a.num_slots;
+  const int32_t* const first_child = a.first_child;
+  const int32_t* const num_children = a.num_children;
+  const int32_t* const internal_desc = a.internal_desc;
+  const int32_t num_internal = a.num_internal;
+  uint8_t* const changed = a.changed;
   float* const box = a.box[0].lo;  // node i at box + 8 i
-  for (int32_t s = 0; s < a.num_slots; ++s) {
-    const Triangle& tr = a.slot_vertices[s];
+  for (int32_t v = 0; v < num_vertices; ++v) vb[v] = VertexBox(x[v]);
+  for (int32_t s = 0; s < num_slots; ++s) {
+    const Triangle& tr = slot_vertices[s];
     const __m256 fit = _mm256_min_ps(
         _mm256_min_ps(_mm256_load_ps(vb[tr[0]].lo), _mm256_load_ps(vb[tr[1]].lo)),
         _mm256_load_ps(vb[tr[2]].lo));
-    const int32_t node = a.leaf_of_slot[s];
+    const int32_t node = leaf_of_slot[s];
     float* const o = box + 8 * static_cast<ptrdiff_t>(node);
     const __m256 ne = _mm256_cmp_ps(fit, _mm256_load_ps(o), _CMP_NEQ_UQ);
     _mm256_store_ps(o, fit);
     const uint8_t ch = _mm256_movemask_ps(ne) != 0;
-    a.changed[node] = ch;
-    n.updates += ch;
+    changed[node] = ch;
+    updates += ch;
   }
-  for (int32_t i = 0; i < a.num_internal; ++i) {
-    const int32_t node = a.internal_desc[i];
-    const int32_t first = a.first_child[node];
-    const int32_t k = a.num_children[node];
+  for (int32_t i = 0; i < num_internal; ++i) {
+    const int32_t node = internal_desc[i];
+    const int32_t first = first_child[node];
+    const int32_t k = num_children[node];
     const float* const c = box + 8 * static_cast<ptrdiff_t>(first);
     __m256 fit = _mm256_load_ps(c);
     uint8_t need;
@@ -311,24 +327,24 @@ __attribute__((target("avx2"))) AabbSweepCounts SweepAabbAvx2(const AabbSweepArg
       fit = _mm256_min_ps(fit, _mm256_load_ps(c + 16));
       fit = _mm256_min_ps(fit, _mm256_load_ps(c + 24));
       uint32_t flags;
-      std::memcpy(&flags, a.changed + first, sizeof flags);
+      std::memcpy(&flags, changed + first, sizeof flags);
       need = flags != 0;
     } else {
-      need = a.changed[first];
+      need = changed[first];
       for (int32_t j = 1; j < k; ++j) {
         fit = _mm256_min_ps(fit, _mm256_load_ps(c + 8 * j));
-        need |= a.changed[first + j];
+        need |= changed[first + j];
       }
     }
     float* const o = box + 8 * static_cast<ptrdiff_t>(node);
     const __m256 ne = _mm256_cmp_ps(fit, _mm256_load_ps(o), _CMP_NEQ_UQ);
     _mm256_store_ps(o, fit);
     const uint8_t ch = need & static_cast<uint8_t>(_mm256_movemask_ps(ne) != 0);
-    a.changed[node] = ch;
-    n.updates += ch;
-    n.invalidated += need;
+    changed[node] = ch;
+    updates += ch;
+    invalidated += need;
   }
-  return n;
+  return {updates, invalidated};
 }
 
 // True if this CPU runs AVX2 (asked once) and the tests have not asked for the portable passes.
