@@ -378,8 +378,8 @@ void BenchQuery(const Settings& s, const FrameCycle& cyc,
   }
   const long long steal1 = StealTicks();
   if (steal0 >= 0 && steal1 >= 0) {
-    rec->steal_ms = 1000.0 * static_cast<double>(steal1 - steal0) /
-                    static_cast<double>(sysconf(_SC_CLK_TCK));
+    rec->steal_ms =
+        1000.0 * static_cast<double>(steal1 - steal0) / static_cast<double>(sysconf(_SC_CLK_TCK));
   }
   rec->empty_us_max = Max(empty);
   rec->empty_us_p999 = Percentile(empty, 0.999);
@@ -462,8 +462,7 @@ void WriteCsv(const std::string& path, const std::vector<Record>& recs) {
       << Num(r.within_us_median) << ',' << Num(r.within_us_max) << ',' << Num(r.query_us_p999)
       << ',' << Num(r.query_cpu_us_median) << ',' << Num(r.query_cpu_us_max) << ','
       << Num(r.empty_us_max) << ',' << Num(r.empty_us_p999) << ',' << r.slow_ticks << ','
-      << r.slow_ticks_no_switch << ',' << Num(r.steal_ms, 1) << ',' << (r.realtime ? 1 : 0)
-      << '\n';
+      << r.slow_ticks_no_switch << ',' << Num(r.steal_ms, 1) << ',' << (r.realtime ? 1 : 0) << '\n';
   }
 }
 
@@ -474,7 +473,8 @@ void WriteJson(const std::string& path, const std::vector<Record>& recs, const R
   if (!f) throw std::runtime_error("cannot write " + path);
   f << "{\n  \"command\": \"" << info.cmd << "\",\n  \"load_average_start\": \"" << info.load_start
     << "\",\n  \"load_average_end\": \"" << info.load_end << "\",\n  \"query_realtime\": \""
-    << info.realtime << "\",\n  \"cpu_dma_latency_zero\": \"" << info.dma_latency << "\",\n  \"cloth\": \"analytic swinging sagging sheet\",\n"
+    << info.realtime << "\",\n  \"cpu_dma_latency_zero\": \"" << info.dma_latency
+    << "\",\n  \"cloth\": \"analytic swinging sagging sheet\",\n"
     << "  \"proxy_radius_m\": " << kProxyRadius << ",\n  \"inflation_m\": " << kInflation
     << ",\n  \"records\": [\n";
   for (size_t i = 0; i < recs.size(); ++i) {
@@ -543,7 +543,8 @@ void WriteMarkdown(const std::string& path, const std::vector<Record>& recs,
       {4802, {6433, 13.650, 9401, 22.686, 4284, 12.907, 6727, 20.729, 39.998}}};
   f << "# Collision structures: repair and query costs (`felt bench collision`)\n\n"
     << "Produced by `" << info.cmd << "` (Release build); load average (1, 5, 15 min) "
-    << info.load_start << " at the start and " << info.load_end << " at the end. Layout after 001_0f9f1b7fedff7723.txt "
+    << info.load_start << " at the start and " << info.load_end
+    << " at the end. Layout after 001_0f9f1b7fedff7723.txt "
     << "§6.3 Tables 1-3; 001's own figures, measured on its 2007-era hardware with its own "
     << "cloth, are shown next to ours in *italics*. Cloth: an analytic 1 m x 1 m sheet pinned "
     << "along its top edge, swinging about it (0.6 rad, 0.4 Hz) with a breathing belly, a "
@@ -571,9 +572,9 @@ void WriteMarkdown(const std::string& path, const std::vector<Record>& recs,
         << "| ... <= 20 us worst case | wall max " << Num(r128->query_us_max, 1)
         << " us; wall p99.9 " << Num(r128->query_us_p999, 2) << " us; thread-CPU max "
         << Num(r128->query_cpu_us_max, 1) << " us; ticks with a context switch "
-        << Num(100 * r128->preempted_fraction, 2) << "%; slowest 100 re-run: "
-        << Num(r128->query_us_max_rerun, 1) << " us; " << r128->slow_ticks
-        << " ticks over 20 us, " << r128->slow_ticks_no_switch
+        << Num(100 * r128->preempted_fraction, 2)
+        << "%; slowest 100 re-run: " << Num(r128->query_us_max_rerun, 1) << " us; "
+        << r128->slow_ticks << " ticks over 20 us, " << r128->slow_ticks_no_switch
         << " of them with no context switch; an empty clock pair timed just before each query: "
            "max "
         << Num(r128->empty_us_max, 1) << " us, p99.9 " << Num(r128->empty_us_p999, 2)
@@ -585,8 +586,8 @@ void WriteMarkdown(const std::string& path, const std::vector<Record>& recs,
          "CLOCK_THREAD_CPUTIME_ID read just outside the wall pair (so they exclude time the "
          "thread was preempted, and include one steady_clock read). Query phase real-time "
          "settings (the haptic thread's, HapticSpec defaults, on a thread of its own): "
-      << info.realtime << "; /dev/cpu_dma_latency held at 0 during the query phases: "
-      << info.dma_latency
+      << info.realtime
+      << "; /dev/cpu_dma_latency held at 0 during the query phases: " << info.dma_latency
       << ". Before the timed ticks, " << kWarmTicks
       << " untimed ticks warm the structure, the positions and the code; under SCHED_FIFO the "
          "loop rests 1 ms after every 10 ms of work, outside the timed regions (kernel "
@@ -636,9 +637,8 @@ void WriteMarkdown(const std::string& path, const std::vector<Record>& recs,
       }
     }
   };
-  table2(
-      "Table 2: repair (flat bottom-up, exact refit): mean node updates and median ms (wall)",
-      "-bottomup");
+  table2("Table 2: repair (flat bottom-up, exact refit): mean node updates and median ms (wall)",
+         "-bottomup");
   table2("Table 2a: 001 §6.3's bottom-up array repair with its parent queue, exact refit",
          "-queue");
   table2("Table 2b: the same with inflated volumes (d = 5 mm)", "-bottomup-d5mm");
@@ -694,7 +694,7 @@ struct Options {
   bool plot = false;
   bool no_realtime = false;
   int priority = HapticSpec{}.haptic_realtime.fifo_priority;
-  int cpu = -2;  // -2: pin to the CPU the command starts on; -1: no pinning
+  int cpu = -2;             // -2: pin to the CPU the command starts on; -1: no pinning
   bool json_given = false;  // set from the parser: echoed in the reports' command line
   bool csv_given = false;
   bool md_given = false;

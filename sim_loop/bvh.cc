@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -55,8 +55,8 @@ __m128 RoundDown4(__m128 f) {
 PackedAabb VertexBox(const Vec3& v) {
   PackedAabb b;
 #if defined(__SSE2__)
-  const __m128 f = _mm_movelh_ps(_mm_cvtpd_ps(_mm_loadu_pd(v.data())),
-                                 _mm_cvtpd_ps(_mm_load_sd(v.data() + 2)));
+  const __m128 f =
+      _mm_movelh_ps(_mm_cvtpd_ps(_mm_loadu_pd(v.data())), _mm_cvtpd_ps(_mm_load_sd(v.data() + 2)));
   _mm_store_ps(b.lo, RoundDown4(f));
   _mm_store_ps(b.neg_hi, RoundDown4(_mm_xor_ps(f, _mm_set1_ps(-0.0f))));
 #else
@@ -108,7 +108,8 @@ struct AabbOps {
   static PackedAabb Merge(const PackedAabb& x, const PackedAabb& y) { return MinBox(x, y); }
   static bool Contains(const PackedAabb& outer, const PackedAabb& inner) {
     bool in = true;
-    for (int i = 0; i < 4; ++i) in &= (outer.lo[i] <= inner.lo[i]) & (outer.neg_hi[i] <= inner.neg_hi[i]);
+    for (int i = 0; i < 4; ++i)
+      in &= (outer.lo[i] <= inner.lo[i]) & (outer.neg_hi[i] <= inner.neg_hi[i]);
     return in;
   }
   static bool Equal(const PackedAabb& x, const PackedAabb& y) { return DifferBox(x, y) == 0; }
@@ -254,8 +255,8 @@ AabbSweepCounts SweepAabbPortable(const AabbSweepArgs& args) {
   for (int32_t v = 0; v < a.num_vertices; ++v) a.vertex_box[v] = VertexBox(a.x[v]);
   for (int32_t s = 0; s < a.num_slots; ++s) {
     const Triangle& tr = a.slot_vertices[s];
-    const PackedAabb fit = MinBox(MinBox(a.vertex_box[tr[0]], a.vertex_box[tr[1]]),
-                                  a.vertex_box[tr[2]]);
+    const PackedAabb fit =
+        MinBox(MinBox(a.vertex_box[tr[0]], a.vertex_box[tr[1]]), a.vertex_box[tr[2]]);
     const int32_t node = a.leaf_of_slot[s];
     const uint8_t ch = DifferBox(a.box[node], fit);
     a.box[node] = fit;
@@ -304,9 +305,9 @@ __attribute__((target("avx2"))) AabbSweepCounts SweepAabbAvx2(const AabbSweepArg
   for (int32_t v = 0; v < num_vertices; ++v) vb[v] = VertexBox(x[v]);
   for (int32_t s = 0; s < num_slots; ++s) {
     const Triangle& tr = slot_vertices[s];
-    const __m256 fit = _mm256_min_ps(
-        _mm256_min_ps(_mm256_load_ps(vb[tr[0]].lo), _mm256_load_ps(vb[tr[1]].lo)),
-        _mm256_load_ps(vb[tr[2]].lo));
+    const __m256 fit =
+        _mm256_min_ps(_mm256_min_ps(_mm256_load_ps(vb[tr[0]].lo), _mm256_load_ps(vb[tr[1]].lo)),
+                      _mm256_load_ps(vb[tr[2]].lo));
     const int32_t node = leaf_of_slot[s];
     float* const o = box + 8 * static_cast<ptrdiff_t>(node);
     const __m256 ne = _mm256_cmp_ps(fit, _mm256_load_ps(o), _CMP_NEQ_UQ);
@@ -824,7 +825,8 @@ Bvh::Bvh(std::shared_ptr<const std::vector<Triangle>> triangles, std::span<const
   if (options_.volume == BoundingVolume::kAabb) {
     aabb_.resize(static_cast<size_t>(topology_->num_nodes()));
     int32_t num_vertices = 0;
-    for (const Triangle& tr : tris) num_vertices = std::max({num_vertices, tr[0] + 1, tr[1] + 1, tr[2] + 1});
+    for (const Triangle& tr : tris)
+      num_vertices = std::max({num_vertices, tr[0] + 1, tr[1] + 1, tr[2] + 1});
     vertex_box_.resize(static_cast<size_t>(num_vertices));
     BvhImpl<AabbOps>::Partition(*this, x);
   } else {

@@ -95,8 +95,8 @@ struct BvhTopology {
   std::vector<int32_t> leaves_desc;   ///< ids of the leaves in decreasing order (001 §6.3's array)
   std::vector<int32_t> leaf_of_slot;  ///< [triangles] the leaf whose range is that one slot
   std::vector<int32_t> internal_desc;  ///< ids of the internal nodes in decreasing order
-  int32_t num_internal = 0;           ///< nodes with children
-  int32_t depth = 0;                  ///< edges from the root to the deepest leaf
+  int32_t num_internal = 0;            ///< nodes with children
+  int32_t depth = 0;                   ///< edges from the root to the deepest leaf
 
   int32_t num_nodes() const { return static_cast<int32_t>(parent.size()); }
   bool is_leaf(int32_t node) const { return first_child[node] < 0; }
@@ -165,10 +165,10 @@ class Bvh {
   BvhOptions options_;
   std::shared_ptr<const std::vector<Triangle>> triangles_;
   std::shared_ptr<const BvhTopology> topology_;
-  std::vector<int32_t> order_;          // [triangles] leaf slot -> triangle
-  std::vector<PackedAabb> aabb_;        // [nodes] if volume == kAabb
-  std::vector<PackedAabb> vertex_box_;  // [vertices] exact AABB repair scratch: each vertex's box
-  std::vector<BoundingSphere> sphere_;  // [nodes] if volume == kSphere
+  std::vector<int32_t> order_;           // [triangles] leaf slot -> triangle
+  std::vector<PackedAabb> aabb_;         // [nodes] if volume == kAabb
+  std::vector<PackedAabb> vertex_box_;   // [vertices] exact AABB repair scratch: each vertex's box
+  std::vector<BoundingSphere> sphere_;   // [nodes] if volume == kSphere
   std::vector<Triangle> slot_vertices_;  // [triangles] the vertices of order_[slot], by slot
   std::vector<uint8_t> changed_;         // [nodes] kBottomUp: 1 if the last repair changed it
   std::vector<int32_t> queue_;           // [internal nodes] kBottomUpQueue's parent queue

@@ -68,8 +68,8 @@ TEST(CollisionFloatBoxesTest, BoxesContainTheirContentsAtEveryScale) {
   // (offset, size) [m]: unit, 1 km away with 0.1 mm cells, tiny, subnormal in float, near and
   // beyond float's largest value, and far negative.
   const std::vector<std::pair<double, double>> placements = {
-      {0.0, 1.0},       {1e3, 14e-4},    {-1e3, 14e-4}, {0.0, 1e-30}, {0.0, 1e-40},
-      {1e-40, 1e-44},   {3.3e38, 1e36},  {1e39, 1e37},  {-1e39, 1e37}, {-3.4e38, 1e20}};
+      {0.0, 1.0},     {1e3, 14e-4},   {-1e3, 14e-4}, {0.0, 1e-30},  {0.0, 1e-40},
+      {1e-40, 1e-44}, {3.3e38, 1e36}, {1e39, 1e37},  {-1e39, 1e37}, {-3.4e38, 1e20}};
   for (const auto& [offset, size] : placements) {
     for (const TestCloth& base : cloths) {
       const TestCloth c = Placed(base, offset, size);
@@ -141,8 +141,8 @@ TEST(CollisionFloatBoxesTest, QueriesMatchNaiveAtLargeOffsetsAndTinyCells) {
       for (int q = 0; q < 300; ++q) {
         const double r = radii[q % 4];
         const Vec3 p = FeaturePoint(c, r, rng);
-        const std::string where = c.name + " offset " + std::to_string(offset) + " query " +
-                                  std::to_string(q);
+        const std::string where =
+            c.name + " offset " + std::to_string(offset) + " query " + std::to_string(q);
         const WithinResult ref_r = TrianglesWithin(st[0], c.x, p, r, ref_buf);
         nonempty += ref_r.found > 0 ? 1 : 0;
         for (size_t s = 1; s < st.size(); ++s) {
@@ -189,9 +189,8 @@ TEST(CollisionFloatBoxesTest, Avx2AndPortableRepairsGiveTheSameBits) {
         EXPECT_EQ(a.node_updates, b.node_updates) << what;
         EXPECT_EQ(a.parents_refit, b.parents_refit) << what;
         ASSERT_EQ(fast.aabbs().size(), portable.aabbs().size());
-        EXPECT_EQ(std::memcmp(fast.aabbs().data(), portable.aabbs().data(),
-                              fast.aabbs().size_bytes()),
-                  0)
+        EXPECT_EQ(
+            std::memcmp(fast.aabbs().data(), portable.aabbs().data(), fast.aabbs().size_bytes()), 0)
             << what;
       }
     }
