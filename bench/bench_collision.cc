@@ -4,14 +4,17 @@
 //
 // Writes a Markdown report, a CSV and a JSON file (one record per structure and grid), and can run
 // gnuplot on bench/collision.gp for the plot. Helpers (median, percentile) are local to this file.
+#include <sched.h>
 #include <sys/resource.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -19,9 +22,12 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "app/command.h"
+#include "haptic_loop/realtime.h"
+#include "haptic_loop/server_spec.h"
 #include "sim_loop/collision_structure.h"
 #include "sim_loop/mesh.h"
 
@@ -34,6 +40,7 @@ constexpr double kFrameDt = 1.0 / 60.0;   // sim frame, s
 constexpr double kTickDt = 1.0 / 1000.0;  // haptic tick, s
 constexpr double kProxyRadius = 0.005;    // m
 constexpr double kInflation = 0.005;      // m, the inflated variants' margin
+constexpr int64_t kWarmTicks = 2000;      // untimed ticks before a structure's timed ones
 
 // The 1-, 5- and 15-minute load averages, from /proc/loadavg ("?" if unreadable).
 std::string LoadAverage() {
@@ -50,6 +57,8 @@ struct RunInfo {
   std::string cmd;
   std::string load_start;
   std::string load_end;
+  std::string realtime = "off (--no-realtime)";  // RealtimeReport::Summary() of the query threads
+  std::string dma_latency = "not requested";     // /dev/cpu_dma_latency held at 0?
 };
 
 double Us(Clock::duration d) { return std::chrono::duration<double, std::micro>(d).count(); }
@@ -67,6 +76,19 @@ long ContextSwitches() {
   rusage ru;
   getrusage(RUSAGE_THREAD, &ru);
   return ru.ru_nvcsw + ru.ru_nivcsw;
+}
+
+// Time the hypervisor gave this VM's CPUs to others ("steal", /proc/stat's eighth cpu field),
+// in clock ticks summed over all CPUs; -1 if unreadable.
+long long StealTicks() {
+  std::ifstream f("/proc/stat");
+  std::string cpu;
+  long long v[8] = {};
+  if (!(f >> cpu) || cpu != "cpu") return -1;
+  for (long long& x : v) {
+    if (!(f >> x)) return -1;
+  }
+  return v[7];
 }
 
 // Median (the upper one for an even count) of a copy; NaN when empty.
@@ -185,6 +207,15 @@ struct Record {
   int64_t queries = 0;
   double within_us_median = std::nan("");
   double within_us_max = std::nan("");
+  // Evidence about the slow ticks (query phase): an empty steady_clock pair timed just before
+  // each query (the same interruptions hit it), the ticks over 20 us, how many of those saw no
+  // context switch of this thread (getrusage RUSAGE_THREAD), and the machine's steal time.
+  double empty_us_max = std::nan("");
+  double empty_us_p999 = std::nan("");
+  int64_t slow_ticks = 0;
+  int64_t slow_ticks_no_switch = 0;
+  double steal_ms = std::nan("");
+  bool realtime = false;  // the query phase ran under SCHED_FIFO
 };
 
 struct Settings {
@@ -194,6 +225,11 @@ struct Settings {
   double repair_budget_s = 0.4;  // stop repeating after this (with at least min_repairs)
   int32_t min_repairs = 15;
   double naive_budget_tests = 6e7;  // triangle tests the naive reference may spend per grid
+  bool realtime = true;             // time the query phase under the haptic thread's settings
+  RealtimeSettings rt;              // those settings (HapticSpec's defaults, pinned to a CPU)
+  int64_t warm_ticks = kWarmTicks;  // untimed ticks before the timed ones
+  double busy_ms_per_rest = 10.0;   // under SCHED_FIFO: sleep rest_ms after this much work
+  double rest_ms = 1.0;
 };
 
 std::vector<CollisionStructureSpec> RepairSpecs() {
@@ -272,10 +308,37 @@ void BenchQuery(const Settings& s, const FrameCycle& cyc,
   cpu.reserve(static_cast<size_t>(ticks));
   within.reserve(static_cast<size_t>(ticks));
   std::vector<PointContact> buf(256);
+  std::vector<double> empty;
+  empty.reserve(static_cast<size_t>(ticks));
   int64_t frame = -1;
   Vec3 prev = Vec3::Zero();
+  // Warm-up: untimed ticks over the first frames, so the structure's arrays, the positions and
+  // the code are in cache and (with mlockall) every page is resident before the timed ticks.
+  for (int64_t k = 0; k < std::min(ticks, s.warm_ticks); ++k) {
+    const double t = static_cast<double>(k) * kTickDt;
+    const std::vector<Vec3>& x = cyc.At(static_cast<int64_t>(t / kFrameDt));
+    if (k % 17 == 0) Repair(st, x);
+    const Vec3 p = Pointer(cyc.w, x, t);
+    if (k == 0) prev = p;
+    *sink += SweepSphere(st, x, prev, p, kProxyRadius).toi +
+             TrianglesWithin(st, x, p, 2 * kProxyRadius, buf).found;
+    prev = p;
+  }
+  // Under SCHED_FIFO the loop rests rest_ms after every busy_ms_per_rest of work (outside the
+  // timed regions): a back-to-back real-time loop would otherwise hit the kernel's real-time
+  // throttling (95% of each second) and starve the CPU's other threads; the haptic thread in
+  // production is busy a few us per 1 ms tick.
+  const double rest_after_us = s.busy_ms_per_rest * 1000.0;
+  const timespec rest{0, static_cast<long>(s.rest_ms * 1e6)};
+  auto busy_since = Clock::now();
+  const long long steal0 = StealTicks();
   long switches = ContextSwitches();
   for (int64_t k = 0; k < ticks; ++k) {
+    if (rec->realtime && Us(Clock::now() - busy_since) > rest_after_us) {
+      nanosleep(&rest, nullptr);
+      busy_since = Clock::now();
+      switches = ContextSwitches();
+    }
     const double t = static_cast<double>(k) * kTickDt;
     const int64_t f = static_cast<int64_t>(t / kFrameDt);
     const std::vector<Vec3>& x = cyc.At(f);
@@ -287,6 +350,8 @@ void BenchQuery(const Settings& s, const FrameCycle& cyc,
     if (k == 0) prev = p;
     // Wall time: steady_clock immediately around the query. Thread CPU time: read just outside
     // the wall pair, so it also holds one steady_clock read (tens of ns) but no preemption.
+    const auto e0 = Clock::now();
+    const auto e1 = Clock::now();
     const double c0 = ThreadCpuUs();
     const auto t0 = Clock::now();
     const SweepHit hit = SweepSphere(st, x, prev, p, kProxyRadius);
@@ -300,12 +365,24 @@ void BenchQuery(const Settings& s, const FrameCycle& cyc,
     (hit.hit ? contact : free).push_back(us);
     within.push_back(Us(t2 - t1));
     // Ticks during which the thread was not switched out (checked outside the timed region).
+    empty.push_back(Us(e1 - e0));
     const long now_switches = ContextSwitches();
     if (now_switches == switches) unpreempted.push_back(us);
+    if (us > 20.0) {
+      ++rec->slow_ticks;
+      if (now_switches == switches) ++rec->slow_ticks_no_switch;
+    }
     switches = now_switches;
     *sink += hit.toi + wr.found;
     prev = p;
   }
+  const long long steal1 = StealTicks();
+  if (steal0 >= 0 && steal1 >= 0) {
+    rec->steal_ms =
+        1000.0 * static_cast<double>(steal1 - steal0) / static_cast<double>(sysconf(_SC_CLK_TCK));
+  }
+  rec->empty_us_max = Max(empty);
+  rec->empty_us_p999 = Percentile(empty, 0.999);
   rec->queries = ticks;
   rec->query_us_median = Median(all);
   rec->query_us_p99 = Percentile(all, 0.99);
@@ -372,7 +449,8 @@ void WriteCsv(const std::string& path, const std::vector<Record>& recs) {
        "query_us_max_unpreempted,preempted_fraction,query_us_max_rerun,query_contact_us_mean,"
        "query_free_us_mean,"
        "contact_fraction,queries,within_us_median,within_us_max,query_us_p999,query_cpu_us_median,"
-       "query_cpu_us_max\n";
+       "query_cpu_us_max,empty_us_max,empty_us_p999,slow_ticks,slow_ticks_no_switch,steal_ms,"
+       "realtime\n";
   for (const Record& r : recs) {
     f << r.structure << ',' << r.grid << ',' << r.triangles << ',' << Num(r.repair_ms_median, 5)
       << ',' << Num(r.repair_ms_max, 5) << ',' << Num(r.repair_cpu_ms_median, 5) << ','
@@ -382,7 +460,9 @@ void WriteCsv(const std::string& path, const std::vector<Record>& recs) {
       << Num(r.query_us_max_rerun) << ',' << Num(r.query_contact_us_mean) << ','
       << Num(r.query_free_us_mean) << ',' << Num(r.contact_fraction) << ',' << r.queries << ','
       << Num(r.within_us_median) << ',' << Num(r.within_us_max) << ',' << Num(r.query_us_p999)
-      << ',' << Num(r.query_cpu_us_median) << ',' << Num(r.query_cpu_us_max) << '\n';
+      << ',' << Num(r.query_cpu_us_median) << ',' << Num(r.query_cpu_us_max) << ','
+      << Num(r.empty_us_max) << ',' << Num(r.empty_us_p999) << ',' << r.slow_ticks << ','
+      << r.slow_ticks_no_switch << ',' << Num(r.steal_ms, 1) << ',' << (r.realtime ? 1 : 0) << '\n';
   }
 }
 
@@ -392,7 +472,9 @@ void WriteJson(const std::string& path, const std::vector<Record>& recs, const R
   std::ofstream f(path);
   if (!f) throw std::runtime_error("cannot write " + path);
   f << "{\n  \"command\": \"" << info.cmd << "\",\n  \"load_average_start\": \"" << info.load_start
-    << "\",\n  \"load_average_end\": \"" << info.load_end << "\",\n  \"cloth\": \"analytic swinging sagging sheet\",\n"
+    << "\",\n  \"load_average_end\": \"" << info.load_end << "\",\n  \"query_realtime\": \""
+    << info.realtime << "\",\n  \"cpu_dma_latency_zero\": \"" << info.dma_latency
+    << "\",\n  \"cloth\": \"analytic swinging sagging sheet\",\n"
     << "  \"proxy_radius_m\": " << kProxyRadius << ",\n  \"inflation_m\": " << kInflation
     << ",\n  \"records\": [\n";
   for (size_t i = 0; i < recs.size(); ++i) {
@@ -418,7 +500,13 @@ void WriteJson(const std::string& path, const std::vector<Record>& recs, const R
       << ", \"within_us_max\": " << JsonNum(r.within_us_max, 3)
       << ", \"query_us_p999\": " << JsonNum(r.query_us_p999, 3)
       << ", \"query_cpu_us_median\": " << JsonNum(r.query_cpu_us_median, 3)
-      << ", \"query_cpu_us_max\": " << JsonNum(r.query_cpu_us_max, 3) << "}"
+      << ", \"query_cpu_us_max\": " << JsonNum(r.query_cpu_us_max, 3)
+      << ", \"empty_us_max\": " << JsonNum(r.empty_us_max, 3)
+      << ", \"empty_us_p999\": " << JsonNum(r.empty_us_p999, 3)
+      << ", \"slow_ticks\": " << r.slow_ticks
+      << ", \"slow_ticks_no_switch\": " << r.slow_ticks_no_switch
+      << ", \"steal_ms\": " << JsonNum(r.steal_ms, 1)
+      << ", \"realtime\": " << (r.realtime ? "true" : "false") << "}"
       << (i + 1 < recs.size() ? "," : "") << "\n";
   }
   f << "  ]\n}\n";
@@ -455,7 +543,8 @@ void WriteMarkdown(const std::string& path, const std::vector<Record>& recs,
       {4802, {6433, 13.650, 9401, 22.686, 4284, 12.907, 6727, 20.729, 39.998}}};
   f << "# Collision structures: repair and query costs (`felt bench collision`)\n\n"
     << "Produced by `" << info.cmd << "` (Release build); load average (1, 5, 15 min) "
-    << info.load_start << " at the start and " << info.load_end << " at the end. Layout after 001_0f9f1b7fedff7723.txt "
+    << info.load_start << " at the start and " << info.load_end
+    << " at the end. Layout after 001_0f9f1b7fedff7723.txt "
     << "§6.3 Tables 1-3; 001's own figures, measured on its 2007-era hardware with its own "
     << "cloth, are shown next to ours in *italics*. Cloth: an analytic 1 m x 1 m sheet pinned "
     << "along its top edge, swinging about it (0.6 rad, 0.4 Hz) with a breathing belly, a "
@@ -483,13 +572,26 @@ void WriteMarkdown(const std::string& path, const std::vector<Record>& recs,
         << "| ... <= 20 us worst case | wall max " << Num(r128->query_us_max, 1)
         << " us; wall p99.9 " << Num(r128->query_us_p999, 2) << " us; thread-CPU max "
         << Num(r128->query_cpu_us_max, 1) << " us; ticks with a context switch "
-        << Num(100 * r128->preempted_fraction, 2) << "%; slowest 100 re-run: "
-        << Num(r128->query_us_max_rerun, 1) << " us | "
+        << Num(100 * r128->preempted_fraction, 2)
+        << "%; slowest 100 re-run: " << Num(r128->query_us_max_rerun, 1) << " us; "
+        << r128->slow_ticks << " ticks over 20 us, " << r128->slow_ticks_no_switch
+        << " of them with no context switch; an empty clock pair timed just before each query: "
+           "max "
+        << Num(r128->empty_us_max, 1) << " us, p99.9 " << Num(r128->empty_us_p999, 2)
+        << " us; steal " << Num(r128->steal_ms, 1) << " ms during the phase; "
+        << (r128->realtime ? "SCHED_FIFO" : "no real-time scheduling") << " | "
         << (r128->query_us_max <= 20.0 ? "yes" : "wall max no") << " |\n";
     }
     f << "\nWall times are steady_clock around each call; thread-CPU times are "
          "CLOCK_THREAD_CPUTIME_ID read just outside the wall pair (so they exclude time the "
-         "thread was preempted, and include one steady_clock read).\n\n";
+         "thread was preempted, and include one steady_clock read). Query phase real-time "
+         "settings (the haptic thread's, HapticSpec defaults, on a thread of its own): "
+      << info.realtime
+      << "; /dev/cpu_dma_latency held at 0 during the query phases: " << info.dma_latency
+      << ". Before the timed ticks, " << kWarmTicks
+      << " untimed ticks warm the structure, the positions and the code; under SCHED_FIFO the "
+         "loop rests 1 ms after every 10 ms of work, outside the timed regions (kernel "
+         "real-time throttling).\n\n";
   }
 
   f << "## Table 1: bottom-up array repair vs top-down repair (ms per repair)\n\n"
@@ -535,9 +637,8 @@ void WriteMarkdown(const std::string& path, const std::vector<Record>& recs,
       }
     }
   };
-  table2(
-      "Table 2: repair (flat bottom-up, exact refit): mean node updates and median ms (wall)",
-      "-bottomup");
+  table2("Table 2: repair (flat bottom-up, exact refit): mean node updates and median ms (wall)",
+         "-bottomup");
   table2("Table 2a: 001 §6.3's bottom-up array repair with its parent queue, exact refit",
          "-queue");
   table2("Table 2b: the same with inflated volumes (d = 5 mm)", "-bottomup-d5mm");
@@ -591,6 +692,9 @@ struct Options {
   std::string grids;
   bool quick = false;
   bool plot = false;
+  bool no_realtime = false;
+  int priority = HapticSpec{}.haptic_realtime.fifo_priority;
+  int cpu = -2;             // -2: pin to the CPU the command starts on; -1: no pinning
   bool json_given = false;  // set from the parser: echoed in the reports' command line
   bool csv_given = false;
   bool md_given = false;
@@ -607,6 +711,16 @@ int Run(const Options& o) {
     s.repair_budget_s = 0.05;
     s.naive_budget_tests = 2e6;
   }
+  // The query phase runs under the haptic thread's real-time settings (HapticSpec's defaults:
+  // SCHED_FIFO, mlockall, minimal timer slack), pinned to one CPU, with /dev/cpu_dma_latency
+  // held at 0 as the server does (only during the query phases, so the repair timings keep their
+  // conditions; mlockall, process-wide, stays once granted); refusals log a warning and the
+  // phase runs without them.
+  s.realtime = !o.no_realtime;
+  s.rt = HapticSpec{}.haptic_realtime;
+  s.rt.fifo_priority = o.priority;
+  s.rt.spin_us = 0;  // no deadlines here
+  s.rt.cpu = o.cpu == -2 ? sched_getcpu() : o.cpu;
   RunInfo info;
   info.load_start = LoadAverage();
   std::string& cmd = info.cmd;
@@ -617,6 +731,10 @@ int Run(const Options& o) {
   if (o.csv_given) cmd += " --csv " + o.csv;
   if (o.md_given) cmd += " --md " + o.md;
   if (o.plot) cmd += " --plot";
+  if (o.no_realtime) cmd += " --no-realtime";
+  if (o.priority != HapticSpec{}.haptic_realtime.fifo_priority)
+    cmd += " --priority " + std::to_string(o.priority);
+  if (o.cpu != -2) cmd += " --cpu " + std::to_string(o.cpu);
   double sink = 0;
   std::vector<Record> recs;
   for (int32_t g : s.grids) {
@@ -636,9 +754,32 @@ int Run(const Options& o) {
     for (const CollisionStructureSpec& spec : RepairSpecs()) {
       BenchRepair(s, cyc, tris, spec, &rec_for(spec));
     }
-    for (const CollisionStructureSpec& spec : QuerySpecs()) {
-      BenchQuery(s, cyc, tris, spec, &rec_for(spec), &sink);
-    }
+    // The query phase on a thread of its own, under the real-time settings (the main thread,
+    // which times the repairs, stays a normal thread).
+    std::exception_ptr failure;
+    std::thread query_thread([&] {
+      try {
+        bool fifo = false;
+        std::unique_ptr<CpuDmaLatencyHold> dma;
+        if (s.realtime) {
+          dma = std::make_unique<CpuDmaLatencyHold>();
+          info.dma_latency = dma->held() ? "yes" : "refused (" + dma->error() + ")";
+          const RealtimeReport report = ApplyRealtime(s.rt);
+          fifo = report.fifo_granted;
+          info.realtime = report.Summary() + " (priority " + std::to_string(s.rt.fifo_priority) +
+                          ", cpu " + std::to_string(s.rt.cpu) + ")";
+        }
+        for (const CollisionStructureSpec& spec : QuerySpecs()) {
+          Record& r = rec_for(spec);
+          r.realtime = fifo;
+          BenchQuery(s, cyc, tris, spec, &r, &sink);
+        }
+      } catch (...) {
+        failure = std::current_exception();
+      }
+    });
+    query_thread.join();
+    if (failure) std::rethrow_exception(failure);
     for (const CollisionStructureSpec& spec : RepairSpecs()) {
       const Record& r = by_name[CollisionStructureName(spec)];
       std::printf(
@@ -691,6 +832,15 @@ const bool kRegistered = felt::app::RegisterCommand({
                      "comma-separated grid sizes (particles per side); default "
                      "10,20,30,40,50,64,128,256, or 10,20,30 with --quick");
       cmd.add_flag("--quick", o->quick, "small grids, few repeats (seconds; for CI)");
+      cmd.add_flag("--no-realtime", o->no_realtime,
+                   "time the queries on a normal thread (default: the haptic thread's SCHED_FIFO, "
+                   "mlockall, CPU pinning and cpu_dma_latency settings)");
+      cmd.add_option("--priority", o->priority, "SCHED_FIFO priority of the query phase (80)")
+          ->check(CLI::Range(1, 99));
+      cmd.add_option("--cpu", o->cpu,
+                     "pin the query phase to this CPU (default: the CPU the command starts on; "
+                     "-1: no pinning)")
+          ->check(CLI::Range(-1, 4095));
       cmd.add_flag("--plot", o->plot,
                    "run gnuplot on bench/collision.gp to write the PNG next to the CSV");
       return [o, json, csv, md] {

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -12,6 +14,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 namespace felt {
 namespace {
@@ -20,35 +25,116 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Fixed traversal stack: a depth-first walk holds at most (arity - 1) * depth + 1 nodes.
 constexpr int32_t kMaxStack = 256;
 
-// AABB volume operations (van den Bergen 1997 for refitting boxes from children).
+// Outward rounding to float32 (PackedAabb). RoundDown(x) <= x for every double x: the nearest
+// float f of x is within half an ulp of x, and f - max(|f|, 2^-80) 2^-23 lies at least one ulp
+// below f (an ulp of a normal float is at most |f| 2^-23; 2^-103 covers the subnormals and the
+// doubles that round to zero); overflow to +inf is clamped to FLT_MAX first so the result stays
+// finite, -inf stays -inf (below x). Rounding is monotone, so RoundDown(min(a, b)) =
+// min(RoundDown(a), RoundDown(b)): a box built from per-vertex bounds equals the rounded box of
+// the exact one. NaN maps to FLT_MAX - pad (the box then holds nothing and prunes, as before).
+constexpr float kPadFloor = 0x1p-80f;  // |f| below this pads by kPadFloor 2^-23 = 2^-103
+constexpr float kPadRel = 0x1p-23f;    // one float ulp relative to |f|, rounded up
+float RoundDown(double x) {
+  float f = static_cast<float>(x);
+  if (!(f <= std::numeric_limits<float>::max())) f = std::numeric_limits<float>::max();
+  return f - std::max(std::fabs(f), kPadFloor) * kPadRel;
+}
+
+#if defined(__SSE2__)
+// RoundDown on four lanes, the same operations (min(f, FLT_MAX) takes FLT_MAX for NaN, as the
+// scalar test does).
+__m128 RoundDown4(__m128 f) {
+  f = _mm_min_ps(f, _mm_set1_ps(std::numeric_limits<float>::max()));
+  const __m128 abs = _mm_and_ps(f, _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff)));
+  return _mm_sub_ps(f, _mm_mul_ps(_mm_max_ps(abs, _mm_set1_ps(kPadFloor)), _mm_set1_ps(kPadRel)));
+}
+#endif
+
+// The box of one point: lo = RoundDown(v), neg_hi = RoundDown(-v) (= -RoundUp(v)); padding
+// lanes RoundDown(0) in both halves.
+PackedAabb VertexBox(const Vec3& v) {
+  PackedAabb b;
+#if defined(__SSE2__)
+  const __m128 f =
+      _mm_movelh_ps(_mm_cvtpd_ps(_mm_loadu_pd(v.data())), _mm_cvtpd_ps(_mm_load_sd(v.data() + 2)));
+  _mm_store_ps(b.lo, RoundDown4(f));
+  _mm_store_ps(b.neg_hi, RoundDown4(_mm_xor_ps(f, _mm_set1_ps(-0.0f))));
+#else
+  for (int i = 0; i < 3; ++i) {
+    b.lo[i] = RoundDown(v[i]);
+    b.neg_hi[i] = RoundDown(-v[i]);
+  }
+  b.lo[3] = b.neg_hi[3] = RoundDown(0.0);
+#endif
+  return b;
+}
+
+// Lanewise minimum, a < b ? a : b per lane (MINPS's rule, also for NaN): merging two boxes.
+PackedAabb MinBox(const PackedAabb& a, const PackedAabb& b) {
+  PackedAabb m;
+#if defined(__SSE2__)
+  _mm_store_ps(m.lo, _mm_min_ps(_mm_load_ps(a.lo), _mm_load_ps(b.lo)));
+  _mm_store_ps(m.neg_hi, _mm_min_ps(_mm_load_ps(a.neg_hi), _mm_load_ps(b.neg_hi)));
+#else
+  for (int i = 0; i < 4; ++i) {
+    m.lo[i] = a.lo[i] < b.lo[i] ? a.lo[i] : b.lo[i];
+    m.neg_hi[i] = a.neg_hi[i] < b.neg_hi[i] ? a.neg_hi[i] : b.neg_hi[i];
+  }
+#endif
+  return m;
+}
+
+// 1 if any lane differs (NaN differs).
+uint8_t DifferBox(const PackedAabb& a, const PackedAabb& b) {
+#if defined(__SSE2__)
+  const __m128 ne = _mm_or_ps(_mm_cmpneq_ps(_mm_load_ps(a.lo), _mm_load_ps(b.lo)),
+                              _mm_cmpneq_ps(_mm_load_ps(a.neg_hi), _mm_load_ps(b.neg_hi)));
+  return _mm_movemask_ps(ne) != 0;
+#else
+  uint8_t d = 0;
+  for (int i = 0; i < 4; ++i) d |= (a.lo[i] != b.lo[i]) | (a.neg_hi[i] != b.neg_hi[i]);
+  return d;
+#endif
+}
+
+// AABB volume operations (van den Bergen 1997 for refitting boxes from children), on boxes
+// stored as PackedAabb; the query tests convert them to double (exactly) and work as before.
 struct AabbOps {
-  using BV = Aabb;
-  static Aabb Leaf(const Vec3& a, const Vec3& b, const Vec3& c) {
-    return {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)};
+  using BV = PackedAabb;
+  // Leaf box: the per-vertex boxes merged in the order SweepAabbExact's kernels use.
+  static PackedAabb Leaf(const Vec3& a, const Vec3& b, const Vec3& c) {
+    return MinBox(MinBox(VertexBox(a), VertexBox(b)), VertexBox(c));
   }
-  static Aabb Merge(const Aabb& x, const Aabb& y) {
-    return {x.lo.cwiseMin(y.lo), x.hi.cwiseMax(y.hi)};
+  static PackedAabb Merge(const PackedAabb& x, const PackedAabb& y) { return MinBox(x, y); }
+  static bool Contains(const PackedAabb& outer, const PackedAabb& inner) {
+    bool in = true;
+    for (int i = 0; i < 4; ++i)
+      in &= (outer.lo[i] <= inner.lo[i]) & (outer.neg_hi[i] <= inner.neg_hi[i]);
+    return in;
   }
-  static bool Contains(const Aabb& outer, const Aabb& inner) {
-    return (outer.lo.array() <= inner.lo.array()).all() &&
-           (inner.hi.array() <= outer.hi.array()).all();
+  static bool Equal(const PackedAabb& x, const PackedAabb& y) { return DifferBox(x, y) == 0; }
+  static bool Differ(const PackedAabb& x, const PackedAabb& y) { return DifferBox(x, y) != 0; }
+  // Enlarged by d on every side, rounded outward again (-(hi + d) = neg_hi - d).
+  static PackedAabb Inflate(const PackedAabb& x, double d) {
+    PackedAabb o = x;
+    for (int i = 0; i < 3; ++i) {
+      o.lo[i] = RoundDown(static_cast<double>(x.lo[i]) - d);
+      o.neg_hi[i] = RoundDown(static_cast<double>(x.neg_hi[i]) - d);
+    }
+    return o;
   }
-  static bool Equal(const Aabb& x, const Aabb& y) { return x.lo == y.lo && x.hi == y.hi; }
-  // !Equal without branches (bitwise or of the six comparisons; NaN differs, as in Equal).
-  static bool Differ(const Aabb& x, const Aabb& y) {
-    return (x.lo.x() != y.lo.x()) | (x.lo.y() != y.lo.y()) | (x.lo.z() != y.lo.z()) |
-           (x.hi.x() != y.hi.x()) | (x.hi.y() != y.hi.y()) | (x.hi.z() != y.hi.z());
-  }
-  static Aabb Inflate(const Aabb& x, double d) { return {x.lo.array() - d, x.hi.array() + d}; }
   // Is p within `reach` of the box?
-  static bool Near(const Aabb& x, const Vec3& p, double reach) {
+  static bool Near(const PackedAabb& packed, const Vec3& p, double reach) {
+    const Aabb x = packed.ToAabb();
     const Vec3 excess = (x.lo - p).cwiseMax(p - x.hi).cwiseMax(0.0);
     return excess.squaredNorm() <= reach * reach;
   }
   // First t in [0, t_max] at which p0 + t d is within `reach` of the box (the box enlarged by
   // reach on every side, a superset of its Minkowski sum with the sphere), or +inf; slab test,
   // Ericson §5.3.3.
-  static double Entry(const Aabb& x, const Vec3& p0, const Vec3& d, double reach, double t_max) {
+  static double Entry(const PackedAabb& packed, const Vec3& p0, const Vec3& d, double reach,
+                      double t_max) {
+    const Aabb x = packed.ToAabb();
     double t0 = 0.0;
     double t1 = t_max;
     for (int i = 0; i < 3; ++i) {
@@ -135,62 +221,145 @@ struct SphereOps {
   }
 };
 
-// An Aabb in registers for SweepAabbExact: SSE2 pairs (x, y) and singles z where available,
-// plain doubles otherwise. Operand order as in AabbOps (std::min(a, b) = b < a ? b : a, which is
-// _mm_min_pd(b, a); std::max(a, b) = a < b ? b : a, which is _mm_max_pd(b, a)).
-#if defined(__SSE2__)
-struct Box {
-  __m128d lo_xy, lo_z, hi_xy, hi_z;
-
-  static Box Load(const Aabb& b) {
-    return {_mm_loadu_pd(b.lo.data()), _mm_load_sd(b.lo.data() + 2), _mm_loadu_pd(b.hi.data()),
-            _mm_load_sd(b.hi.data() + 2)};
-  }
-  static Box Leaf(const Vec3& a, const Vec3& b, const Vec3& c) {
-    const __m128d a_xy = _mm_loadu_pd(a.data()), a_z = _mm_load_sd(a.data() + 2);
-    const __m128d b_xy = _mm_loadu_pd(b.data()), b_z = _mm_load_sd(b.data() + 2);
-    const __m128d c_xy = _mm_loadu_pd(c.data()), c_z = _mm_load_sd(c.data() + 2);
-    return {_mm_min_pd(c_xy, _mm_min_pd(b_xy, a_xy)), _mm_min_sd(c_z, _mm_min_sd(b_z, a_z)),
-            _mm_max_pd(c_xy, _mm_max_pd(b_xy, a_xy)), _mm_max_sd(c_z, _mm_max_sd(b_z, a_z))};
-  }
-  // This box grows to hold q (AabbOps::Merge(*this, q)).
-  void Merge(const Box& q) {
-    lo_xy = _mm_min_pd(q.lo_xy, lo_xy);
-    lo_z = _mm_min_sd(q.lo_z, lo_z);
-    hi_xy = _mm_max_pd(q.hi_xy, hi_xy);
-    hi_z = _mm_max_sd(q.hi_z, hi_z);
-  }
-  // Writes this box to *o; returns 1 if any coordinate differs from what *o held (NaN differs).
-  uint8_t StoreDiffer(Aabb* o) const {
-    const Box old = Load(*o);
-    const __m128d z = _mm_unpacklo_pd(lo_z, hi_z);
-    const __m128d old_z = _mm_unpacklo_pd(old.lo_z, old.hi_z);
-    const __m128d ne = _mm_or_pd(_mm_or_pd(_mm_cmpneq_pd(lo_xy, old.lo_xy),
-                                           _mm_cmpneq_pd(hi_xy, old.hi_xy)),
-                                 _mm_cmpneq_pd(z, old_z));
-    _mm_storeu_pd(o->lo.data(), lo_xy);
-    _mm_store_sd(o->lo.data() + 2, lo_z);
-    _mm_storeu_pd(o->hi.data(), hi_xy);
-    _mm_store_sd(o->hi.data() + 2, hi_z);
-    return _mm_movemask_pd(ne) != 0;
-  }
+// The leaf and internal passes of the exact AABB repair (SweepAabbExact), on the per-vertex
+// boxes of the current positions: what they read and write.
+struct AabbSweepArgs {
+  const Vec3* x;                  // [vertices] the positions, m
+  int32_t num_vertices;           // how many of them the triangles use
+  PackedAabb* vertex_box;         // [vertices] set to VertexBox of each position
+  const Triangle* slot_vertices;  // [slots] the vertices of each leaf slot's triangle
+  const int32_t* leaf_of_slot;    // [slots]
+  int32_t num_slots;
+  const int32_t* first_child;    // [nodes]
+  const int32_t* num_children;   // [nodes]
+  const int32_t* internal_desc;  // [internal nodes] decreasing ids
+  int32_t num_internal;
+  PackedAabb* box;   // [nodes] the stored boxes, rewritten
+  uint8_t* changed;  // [nodes] 1 if the node's box changed
 };
-#else
-struct Box {
-  Aabb b;
 
-  static Box Load(const Aabb& a) { return {a}; }
-  static Box Leaf(const Vec3& a, const Vec3& b, const Vec3& c) { return {AabbOps::Leaf(a, b, c)}; }
-  void Merge(const Box& q) { b = AabbOps::Merge(b, q.b); }
-  uint8_t StoreDiffer(Aabb* o) const {
-    const uint8_t ch = AabbOps::Differ(*o, b);
-    *o = b;
-    return ch;
-  }
+// Stored boxes that changed, and internal nodes with a changed child (001 §6.3's invalidated).
+struct AabbSweepCounts {
+  int32_t updates = 0;
+  int32_t invalidated = 0;
 };
+
+std::atomic<bool> g_bvh_portable{false};
+
+// Portable passes: MinBox (SSE2 where available) and a lanewise comparison per node.
+AabbSweepCounts SweepAabbPortable(const AabbSweepArgs& args) {
+  // A local copy: the byte stores to `changed` may alias anything, and would make the fields be
+  // reloaded through a reference on every iteration.
+  const AabbSweepArgs a = args;
+  AabbSweepCounts n;
+  for (int32_t v = 0; v < a.num_vertices; ++v) a.vertex_box[v] = VertexBox(a.x[v]);
+  for (int32_t s = 0; s < a.num_slots; ++s) {
+    const Triangle& tr = a.slot_vertices[s];
+    const PackedAabb fit =
+        MinBox(MinBox(a.vertex_box[tr[0]], a.vertex_box[tr[1]]), a.vertex_box[tr[2]]);
+    const int32_t node = a.leaf_of_slot[s];
+    const uint8_t ch = DifferBox(a.box[node], fit);
+    a.box[node] = fit;
+    a.changed[node] = ch;
+    n.updates += ch;
+  }
+  for (int32_t i = 0; i < a.num_internal; ++i) {
+    const int32_t node = a.internal_desc[i];
+    const int32_t first = a.first_child[node];
+    PackedAabb fit = a.box[first];
+    uint8_t need = a.changed[first];
+    for (int32_t j = 1; j < a.num_children[node]; ++j) {
+      fit = MinBox(fit, a.box[first + j]);
+      need |= a.changed[first + j];
+    }
+    const uint8_t ch = need & DifferBox(a.box[node], fit);
+    a.box[node] = fit;
+    a.changed[node] = ch;
+    n.updates += ch;
+    n.invalidated += need;
+  }
+  return n;
+}
+
+#if defined(__x86_64__)
+// The same passes with a box in one AVX register: a leaf is two VMINPS over its vertices' boxes,
+// a parent of four one VMINPS per child, in MinBox's operand order (same bits as the portable
+// passes, NaN included).
+__attribute__((target("avx2"))) AabbSweepCounts SweepAabbAvx2(const AabbSweepArgs& a) {
+  // Every field in a local: the byte stores to `changed` may alias anything, so reading the
+  // fields through `a` would reload them on every iteration.
+  int32_t updates = 0;
+  int32_t invalidated = 0;
+  PackedAabb* const vb = a.vertex_box;
+  const Vec3* const x = a.x;
+  const int32_t num_vertices = a.num_vertices;
+  const Triangle* const slot_vertices = a.slot_vertices;
+  const int32_t* const leaf_of_slot = a.leaf_of_slot;
+  const int32_t num_slots = a.num_slots;
+  const int32_t* const first_child = a.first_child;
+  const int32_t* const num_children = a.num_children;
+  const int32_t* const internal_desc = a.internal_desc;
+  const int32_t num_internal = a.num_internal;
+  uint8_t* const changed = a.changed;
+  float* const box = a.box[0].lo;  // node i at box + 8 i
+  for (int32_t v = 0; v < num_vertices; ++v) vb[v] = VertexBox(x[v]);
+  for (int32_t s = 0; s < num_slots; ++s) {
+    const Triangle& tr = slot_vertices[s];
+    const __m256 fit =
+        _mm256_min_ps(_mm256_min_ps(_mm256_load_ps(vb[tr[0]].lo), _mm256_load_ps(vb[tr[1]].lo)),
+                      _mm256_load_ps(vb[tr[2]].lo));
+    const int32_t node = leaf_of_slot[s];
+    float* const o = box + 8 * static_cast<ptrdiff_t>(node);
+    const __m256 ne = _mm256_cmp_ps(fit, _mm256_load_ps(o), _CMP_NEQ_UQ);
+    _mm256_store_ps(o, fit);
+    const uint8_t ch = _mm256_movemask_ps(ne) != 0;
+    changed[node] = ch;
+    updates += ch;
+  }
+  for (int32_t i = 0; i < num_internal; ++i) {
+    const int32_t node = internal_desc[i];
+    const int32_t first = first_child[node];
+    const int32_t k = num_children[node];
+    const float* const c = box + 8 * static_cast<ptrdiff_t>(first);
+    __m256 fit = _mm256_load_ps(c);
+    uint8_t need;
+    if (k == 4) {  // the common case of a quad tree: no loop, the four flags in one load
+      fit = _mm256_min_ps(fit, _mm256_load_ps(c + 8));
+      fit = _mm256_min_ps(fit, _mm256_load_ps(c + 16));
+      fit = _mm256_min_ps(fit, _mm256_load_ps(c + 24));
+      uint32_t flags;
+      std::memcpy(&flags, changed + first, sizeof flags);
+      need = flags != 0;
+    } else {
+      need = changed[first];
+      for (int32_t j = 1; j < k; ++j) {
+        fit = _mm256_min_ps(fit, _mm256_load_ps(c + 8 * j));
+        need |= changed[first + j];
+      }
+    }
+    float* const o = box + 8 * static_cast<ptrdiff_t>(node);
+    const __m256 ne = _mm256_cmp_ps(fit, _mm256_load_ps(o), _CMP_NEQ_UQ);
+    _mm256_store_ps(o, fit);
+    const uint8_t ch = need & static_cast<uint8_t>(_mm256_movemask_ps(ne) != 0);
+    changed[node] = ch;
+    updates += ch;
+    invalidated += need;
+  }
+  return {updates, invalidated};
+}
+
+// True if this CPU runs AVX2 (asked once) and the tests have not asked for the portable passes.
+bool CpuHasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2") != 0;
+  return has && !g_bvh_portable.load(std::memory_order_relaxed);
+}
 #endif
 
 }  // namespace
+
+void SetBvhPortableForTesting(bool portable) {
+  g_bvh_portable.store(portable, std::memory_order_relaxed);
+}
 
 BvhTopology BvhTopology::Make(int32_t num_triangles, int32_t arity) {
   if (arity != 2 && arity != 4) {
@@ -245,14 +414,14 @@ struct BvhImpl {
   using BV = typename Ops::BV;
 
   static std::vector<BV>& Bounds(Bvh& h) {
-    if constexpr (std::is_same_v<BV, Aabb>) {
+    if constexpr (std::is_same_v<BV, PackedAabb>) {
       return h.aabb_;
     } else {
       return h.sphere_;
     }
   }
   static const std::vector<BV>& Bounds(const Bvh& h) {
-    if constexpr (std::is_same_v<BV, Aabb>) {
+    if constexpr (std::is_same_v<BV, PackedAabb>) {
       return h.aabb_;
     } else {
       return h.sphere_;
@@ -347,55 +516,35 @@ struct BvhImpl {
     return stats;
   }
 
-  // Sweep for exact AABB trees over one snapshot, the case the sim runs every frame: per leaf
-  // nine loads, the min/max of three vertices, one branch-free comparison with the stored box and
-  // one store; per parent the same over its children's boxes. Same volumes and counters as
-  // Sweep<false, false>: min/max keep the operand order of AabbOps::Leaf and AabbOps::Merge
-  // (std::min(a, b) = b < a ? b : a, Eigen's cwiseMin on scalars), so the boxes are the same.
+  // Sweep for exact AABB trees over one snapshot, the case the sim runs every frame: one pass
+  // over the positions makes each vertex's rounded-outward float box (VertexBox), then a leaf is
+  // the lanewise minimum of its three vertices' boxes and a parent that of its children's
+  // (PackedAabb stores -hi, so min merges both bounds), each compared with the stored box and
+  // stored. AVX2 where the CPU has it, else the portable passes: the same bits. Same volumes and
+  // counters as Sweep<false, false> (whose AabbOps::Leaf and Merge are those minimums).
   static RepairStats SweepAabbExact(Bvh& h, std::span<const Vec3> x) {
     const BvhTopology& t = *h.topology_;
-    Aabb* bv = h.aabb_.data();
-    uint8_t* changed = h.changed_.data();
-    const int32_t num_slots = static_cast<int32_t>(h.slot_vertices_.size());
-    const Triangle* sv = h.slot_vertices_.data();
-    const int32_t* leaf_of_slot = t.leaf_of_slot.data();
-    const Vec3* p = x.data();
-    int32_t updates = 0;
-    // Leaves. The positions may be cold (in the benchmark they come from a long cycle of
-    // frames): request every cache line of x first, in address order, so that the misses overlap
-    // instead of stalling the indexed loads below one at a time.
-    const char* bytes = reinterpret_cast<const char*>(p);
-    const size_t num_bytes = x.size_bytes();
-    for (size_t off = 0; off < num_bytes; off += 64) __builtin_prefetch(bytes + off);
-    for (int32_t s = 0; s < num_slots; ++s) {
-      const Box box = Box::Leaf(p[sv[s][0]], p[sv[s][1]], p[sv[s][2]]);
-      const int32_t node = leaf_of_slot[s];
-      const uint8_t ch = box.StoreDiffer(&bv[node]);
-      changed[node] = ch;
-      updates += ch;
-    }
-    // Internal nodes, deepest first.
-    const int32_t* first_child = t.first_child.data();
-    const int32_t* num_children = t.num_children.data();
-    int32_t invalidated = 0;
-    for (const int32_t node : t.internal_desc) {
-      const int32_t first = first_child[node];
-      const int32_t k = num_children[node];
-      Box box = Box::Load(bv[first]);
-      uint8_t need = changed[first];
-      for (int32_t j = 1; j < k; ++j) {
-        box.Merge(Box::Load(bv[first + j]));
-        need |= changed[first + j];
-      }
-      const uint8_t ch = need & box.StoreDiffer(&bv[node]);
-      changed[node] = ch;
-      updates += ch;
-      invalidated += need;
-    }
+    const AabbSweepArgs args{x.data(),
+                             static_cast<int32_t>(std::min(h.vertex_box_.size(), x.size())),
+                             h.vertex_box_.data(),
+                             h.slot_vertices_.data(),
+                             t.leaf_of_slot.data(),
+                             static_cast<int32_t>(h.slot_vertices_.size()),
+                             t.first_child.data(),
+                             t.num_children.data(),
+                             t.internal_desc.data(),
+                             static_cast<int32_t>(t.internal_desc.size()),
+                             h.aabb_.data(),
+                             h.changed_.data()};
+#if defined(__x86_64__)
+    const AabbSweepCounts n = CpuHasAvx2() ? SweepAabbAvx2(args) : SweepAabbPortable(args);
+#else
+    const AabbSweepCounts n = SweepAabbPortable(args);
+#endif
     RepairStats stats;
-    stats.leaves_refit = num_slots;
-    stats.parents_refit = invalidated;
-    stats.node_updates = updates;
+    stats.leaves_refit = args.num_slots;
+    stats.parents_refit = n.invalidated;
+    stats.node_updates = n.updates;
     return stats;
   }
 
@@ -516,7 +665,7 @@ struct BvhImpl {
     switch (h.options_.repair) {
       case BvhRepair::kBottomUp:
         if (swept) return Sweep<false, true>(h, x0, x1);
-        if constexpr (std::is_same_v<BV, Aabb>) {
+        if constexpr (std::is_same_v<BV, PackedAabb>) {
           if (h.options_.inflation_m == 0.0) return SweepAabbExact(h, x0);
         }
         return Sweep<false, false>(h, x0, x1);
@@ -675,6 +824,10 @@ Bvh::Bvh(std::shared_ptr<const std::vector<Triangle>> triangles, std::span<const
   queue_.resize(static_cast<size_t>(std::max(topology_->num_internal, 1)));
   if (options_.volume == BoundingVolume::kAabb) {
     aabb_.resize(static_cast<size_t>(topology_->num_nodes()));
+    int32_t num_vertices = 0;
+    for (const Triangle& tr : tris)
+      num_vertices = std::max({num_vertices, tr[0] + 1, tr[1] + 1, tr[2] + 1});
+    vertex_box_.resize(static_cast<size_t>(num_vertices));
     BvhImpl<AabbOps>::Partition(*this, x);
   } else {
     sphere_.resize(static_cast<size_t>(topology_->num_nodes()));

@@ -46,7 +46,8 @@ struct BvhOptions {
   BvhRepair repair = BvhRepair::kBottomUp;
   /// Inflation margin d [m] >= 0 (000 slide 27, Mezger et al. 2003; 004): a volume is stored
   /// enlarged by d and recomputed only when what it must contain escapes it. 0 = exact refit:
-  /// every volume equals the tight fit of its contents after each repair.
+  /// every volume equals the tight fit of its contents after each repair (for AABBs, the tight
+  /// fit of the contents' float32 bounds rounded outward: see PackedAabb).
   double inflation_m = 0.0;
 };
 
@@ -55,6 +56,27 @@ struct Aabb {
   Vec3 lo = Vec3::Zero();
   Vec3 hi = Vec3::Zero();
 };
+
+/// How a Bvh stores an axis-aligned box [m]: float32 bounds rounded outward from the double
+/// coordinates (lo never above, hi never below the exact value), so the box always contains
+/// what it bounds and a query, which tests the triangles themselves in double, answers exactly as
+/// with double boxes; only the pruning is looser, by about 1e-7 of the coordinates' magnitude.
+/// The upper bound is stored negated so that merging boxes is one elementwise minimum over the
+/// eight lanes (lane 3 of each half is padding, equal in every box). 32 bytes, one AVX register.
+struct alignas(32) PackedAabb {
+  float lo[4] = {0, 0, 0, 0};      ///< lower bound x, y, z [m], rounded down; lane 3 padding
+  float neg_hi[4] = {0, 0, 0, 0};  ///< minus the upper bound x, y, z [m], rounded down; lane 3
+
+  /// The box in double (exact: every float is a double).
+  Aabb ToAabb() const {
+    const auto d = [](float f) { return static_cast<double>(f); };
+    return {Vec3(d(lo[0]), d(lo[1]), d(lo[2])), Vec3(-d(neg_hi[0]), -d(neg_hi[1]), -d(neg_hi[2]))};
+  }
+};
+
+/// Test hook: true makes Bvh's exact AABB repair use its portable loop instead of the AVX2 one
+/// (the two give the same bits). Not thread-safe; tests only.
+void SetBvhPortableForTesting(bool portable);
 
 /// A sphere, world frame, m.
 struct BoundingSphere {
@@ -73,8 +95,8 @@ struct BvhTopology {
   std::vector<int32_t> leaves_desc;   ///< ids of the leaves in decreasing order (001 §6.3's array)
   std::vector<int32_t> leaf_of_slot;  ///< [triangles] the leaf whose range is that one slot
   std::vector<int32_t> internal_desc;  ///< ids of the internal nodes in decreasing order
-  int32_t num_internal = 0;           ///< nodes with children
-  int32_t depth = 0;                  ///< edges from the root to the deepest leaf
+  int32_t num_internal = 0;            ///< nodes with children
+  int32_t depth = 0;                   ///< edges from the root to the deepest leaf
 
   int32_t num_nodes() const { return static_cast<int32_t>(parent.size()); }
   bool is_leaf(int32_t node) const { return first_child[node] < 0; }
@@ -100,8 +122,11 @@ class Bvh {
   const std::vector<Triangle>& triangles() const { return *triangles_; }
   const BvhTopology& topology() const { return *topology_; }
   int32_t num_nodes() const { return topology_->num_nodes(); }
-  /// [nodes] the node volumes (AABB trees; empty for sphere trees).
-  std::span<const Aabb> aabbs() const { return aabb_; }
+  /// [nodes] the node volumes as stored, float32 rounded outward (AABB trees; empty for sphere
+  /// trees); aabb(node) converts one to double.
+  std::span<const PackedAabb> aabbs() const { return aabb_; }
+  /// The box of `node` in double [m] (AABB trees only).
+  Aabb aabb(int32_t node) const { return aabb_[static_cast<size_t>(node)].ToAabb(); }
   /// [nodes] the node volumes (sphere trees; empty for AABB trees).
   std::span<const BoundingSphere> spheres() const { return sphere_; }
   /// [triangles] the triangle held by each leaf slot (topology().begin of a leaf indexes it).
@@ -140,9 +165,10 @@ class Bvh {
   BvhOptions options_;
   std::shared_ptr<const std::vector<Triangle>> triangles_;
   std::shared_ptr<const BvhTopology> topology_;
-  std::vector<int32_t> order_;          // [triangles] leaf slot -> triangle
-  std::vector<Aabb> aabb_;              // [nodes] if volume == kAabb
-  std::vector<BoundingSphere> sphere_;  // [nodes] if volume == kSphere
+  std::vector<int32_t> order_;           // [triangles] leaf slot -> triangle
+  std::vector<PackedAabb> aabb_;         // [nodes] if volume == kAabb
+  std::vector<PackedAabb> vertex_box_;   // [vertices] exact AABB repair scratch: each vertex's box
+  std::vector<BoundingSphere> sphere_;   // [nodes] if volume == kSphere
   std::vector<Triangle> slot_vertices_;  // [triangles] the vertices of order_[slot], by slot
   std::vector<uint8_t> changed_;         // [nodes] kBottomUp: 1 if the last repair changed it
   std::vector<int32_t> queue_;           // [internal nodes] kBottomUpQueue's parent queue

@@ -67,13 +67,14 @@ bool VolumesNest(const Bvh& h, std::span<const Vec3> x) {
       for (int32_t v : h.triangles()[h.order()[t.begin[i]]]) pts.push_back(x[v]);
     }
     if (!h.aabbs().empty()) {
-      const Aabb& b = h.aabbs()[i];
+      // Float boxes are rounded outward: they must contain their contents with no tolerance.
+      const Aabb b = h.aabb(i);
       for (const Vec3& p : pts) {
-        if (((p - b.lo).array() < -eps).any() || ((b.hi - p).array() < -eps).any()) return false;
+        if (((p - b.lo).array() < 0.0).any() || ((b.hi - p).array() < 0.0).any()) return false;
       }
       for (int32_t k = 0; k < t.num_children[i]; ++k) {
-        const Aabb& c = h.aabbs()[t.first_child[i] + k];
-        if (((c.lo - b.lo).array() < -eps).any() || ((b.hi - c.hi).array() < -eps).any()) {
+        const Aabb c = h.aabb(t.first_child[i] + k);
+        if (((c.lo - b.lo).array() < 0.0).any() || ((b.hi - c.hi).array() < 0.0).any()) {
           return false;
         }
       }
@@ -96,7 +97,8 @@ bool SameVolumes(const Bvh& a, const Bvh& b) {
     return false;
   }
   for (size_t i = 0; i < a.aabbs().size(); ++i) {
-    if (a.aabbs()[i].lo != b.aabbs()[i].lo || a.aabbs()[i].hi != b.aabbs()[i].hi) return false;
+    const int32_t n = static_cast<int32_t>(i);
+    if (a.aabb(n).lo != b.aabb(n).lo || a.aabb(n).hi != b.aabb(n).hi) return false;
   }
   for (size_t i = 0; i < a.spheres().size(); ++i) {
     if (a.spheres()[i].center != b.spheres()[i].center ||
