@@ -425,8 +425,11 @@ TEST(ProxyTest, ContactEndedWithinTheFrameDrainsTheAveragedImpulse) {
   EXPECT_NEAR((applied + sum_W / ticks).norm(), 0.0, 1e-12);
 }
 
-// A scripted run over moving cloth in `mode` (snapshots prebuilt), returning every force.
-std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint64_t* allocations) {
+// A scripted run over moving cloth in `mode` (snapshots prebuilt), returning every force. With
+// `obstacles`, one obstacle of each kind lies on the path (a sphere bulging through the cloth)
+// or beside it, and *touched_obstacle tells whether the proxy touched one.
+std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint64_t* allocations,
+                                 bool obstacles = false, bool* touched_obstacle = nullptr) {
   const TestMesh base = FlatSheet(0.2, 21);
   std::vector<ClothSnapshot> frames;
   for (int f = 0; f < 8; ++f) {
@@ -446,6 +449,14 @@ std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint
   ProxySpec p = Spec(mode, true);
   p.friction_static = 0.3;
   p.friction_dynamic = 0.2;
+  if (obstacles) {
+    ObstacleSpec sphere, box, capsule, plane;
+    sphere.shape = SphereSpec{Vec3(0.02, 0.01, 0.0), 0.014};
+    box.shape = BoxSpec{Vec3(0.035, -0.05, -0.05), Vec3(0.06, 0.05, 0.004)};
+    capsule.shape = CapsuleSpec{Vec3(-0.05, -0.03, 0.0), Vec3(0.05, -0.03, 0.0), 0.012};
+    plane.shape = PlaneSpec{Vec3(0, 0, -0.03), Vec3::UnitZ()};
+    p.obstacles = {sphere, box, capsule, plane};
+  }
   ProxyState st = MakeProxyState(p);
   std::vector<ExternalForce> drained(64);
   std::vector<Vec3> forces;
@@ -465,6 +476,11 @@ std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint
           ProxyTick(d, p, frames[f], &frames[f - 1], k * 1e-3,
                     DeviceSample{goal, Vec3(0.24 * std::cos(3.0 * t), 0.0, -0.3)}, 1e-3, &st);
       forces.push_back(r.force_D_N);
+      for (int32_t i = 0; i < st.body.num_contacts; ++i) {
+        if (touched_obstacle != nullptr && st.body.contacts[i].triangle < 0) {
+          *touched_obstacle = true;
+        }
+      }
     }
     st.reaction.DrainInto(drained);
   }
@@ -483,6 +499,30 @@ TEST(ProxyTest, TickDoesNotAllocateInAnyMode) {
     double max_force = 0.0;
     for (const Vec3& f : forces) max_force = std::max(max_force, f.norm());
     EXPECT_GT(max_force, 0.5) << SnapshotModeName(mode) << ": the script must touch the cloth";
+  }
+}
+
+TEST(ProxyTest, TickWithObstaclesDoesNotAllocateInAnyMode) {
+  for (SnapshotMode mode : kAllModes) {
+    uint64_t allocations = 1;
+    bool touched = false;
+    ScriptedForces(mode, true, &allocations, /*obstacles=*/true, &touched);
+    EXPECT_EQ(allocations, 0u) << SnapshotModeName(mode);
+    EXPECT_TRUE(touched) << SnapshotModeName(mode) << ": the script must touch an obstacle";
+  }
+}
+
+TEST(ProxyTest, RepeatRunsWithObstaclesAreBitIdentical) {
+  for (SnapshotMode mode : kAllModes) {
+    uint64_t unused = 0;
+    const std::vector<Vec3> a = ScriptedForces(mode, false, &unused, true);
+    const std::vector<Vec3> b = ScriptedForces(mode, false, &unused, true);
+    const std::vector<Vec3> none = ScriptedForces(mode, false, &unused, false);
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec3)), 0)
+        << SnapshotModeName(mode);
+    EXPECT_NE(std::memcmp(a.data(), none.data(), a.size() * sizeof(Vec3)), 0)
+        << SnapshotModeName(mode) << ": the obstacles must change the run";
   }
 }
 
