@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <vector>
 
@@ -524,6 +526,33 @@ TEST(ProxyTest, RepeatRunsWithObstaclesAreBitIdentical) {
     EXPECT_NE(std::memcmp(a.data(), none.data(), a.size() * sizeof(Vec3)), 0)
         << SnapshotModeName(mode) << ": the obstacles must change the run";
   }
+}
+
+// Pins mode blend_forces' output on the scripted run (the values the implementation at 9e050fe
+// gave; any change of its forces shows here): sums over the 112 ticks and two ticks in contact.
+TEST(ProxyTest, BlendForcesOutputIsPinned) {
+  uint64_t unused = 0;
+  const std::vector<Vec3> f = ScriptedForces(SnapshotMode::kBlendForces, false, &unused);
+  ASSERT_EQ(f.size(), 112u);
+  Vec3 sum = Vec3::Zero();
+  double sum_norm = 0.0;
+  for (const Vec3& v : f) {
+    sum += v;
+    sum_norm += v.norm();
+  }
+  if (std::getenv("FELT_PRINT_PIN") != nullptr) {
+    std::printf("sum %a %a %a norm %a f52 %a %a %a f109 %a %a %a\n", sum.x(), sum.y(), sum.z(),
+                sum_norm, f[52].x(), f[52].y(), f[52].z(), f[109].x(), f[109].y(), f[109].z());
+  }
+  const Vec3 kSum(-0x1.119320660d4fp+1, 0x1.4p+3, 0x1.af1ea3f0abf2cp-2);
+  const Vec3 kF52(-0x1.0a34efcdeafbfp-1, 0x0p+0, 0x1.9d4e028a63b7fp-1);
+  const Vec3 kF109(-0x1.23c4cbc4fde24p-2, 0x0p+0, 0x1.3e076762db9a2p+0);
+  EXPECT_NEAR((sum - kSum).norm(), 0.0, 1e-12 * (1.0 + kSum.norm()));
+  EXPECT_NEAR(sum_norm, 0x1.bc434ba01276fp+5, 1e-12 * (1.0 + 0x1.bc434ba01276fp+5));
+  EXPECT_NEAR((f[52] - kF52).norm(), 0.0, 1e-12 * (1.0 + kF52.norm()));
+  EXPECT_NEAR((f[109] - kF109).norm(), 0.0, 1e-12 * (1.0 + kF109.norm()));
+  EXPECT_GT(kF52.norm(), 0.1);  // pinned ticks in contact
+  EXPECT_GT(kF109.norm(), 0.1);
 }
 
 TEST(ProxyTest, RepeatRunsAreBitIdentical) {
