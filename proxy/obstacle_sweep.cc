@@ -184,9 +184,8 @@ SweepContact SweepSphereObstacle(const Vec3& p0, const Vec3& p1, double r,
     hit = SegmentEntersBall(p0, p1, sphere->center_m, sphere->radius_m + r, &t);
   } else if (const auto* box = std::get_if<BoxSpec>(&obstacle.shape)) {
     hit = SegmentEntersRoundedBox(p0, p1, box->min_m, box->max_m, r, &t);
-  } else {
-    const auto& capsule = std::get<CapsuleSpec>(obstacle.shape);
-    hit = SegmentEntersCapsule(p0, p1, capsule.a_m, capsule.b_m, capsule.radius_m + r, &t);
+  } else if (const auto* capsule = std::get_if<CapsuleSpec>(&obstacle.shape)) {
+    hit = SegmentEntersCapsule(p0, p1, capsule->a_m, capsule->b_m, capsule->radius_m + r, &t);
   }
   if (!hit) return out;
   // The contact: the obstacle's nearest point to the centre at toi, and its outward normal.
