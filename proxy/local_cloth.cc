@@ -24,23 +24,6 @@ bool MayReach(const LocalTriangle& t, const Vec3& p0, const Vec3& p1, double r) 
   return SegmentPointDistance2(p0, p1, t.center) <= (reach + slack) * (reach + slack);
 }
 
-// A sweep's motion prepared once for the per-triangle cull: the segment's box grown by r and the
-// slack (a triangle whose bounding sphere misses the box cannot reach the segment either, so
-// MayReach would reject it too: the box is a cheaper, equivalent first test).
-struct SweepCull {
-  Vec3 lo, hi;  // the segment's bounding box grown by r + slack, m
-  SweepCull(const Vec3& p0, const Vec3& p1, double r) {
-    const double grow = r + CullSlack(p0, p1, r);
-    lo = p0.cwiseMin(p1).array() - grow;
-    hi = p0.cwiseMax(p1).array() + grow;
-  }
-  // False when the triangle's bounding sphere lies wholly outside the grown box.
-  bool MayOverlap(const LocalTriangle& t) const {
-    return (t.center.array() + t.radius_m >= lo.array()).all() &&
-           (t.center.array() - t.radius_m <= hi.array()).all();
-  }
-};
-
 // Keeps the earliest contact (lowest toi, then lowest triangle index), as SweepAccumulator does.
 void Keep(int32_t tri, const SweepContact& sc, SweepHit* best) {
   if (!sc.hit) return;
@@ -58,15 +41,6 @@ Vec3 ClothView::Normal(int32_t i) const {
 
 void ClothView::Corners(int32_t t, Vec3* a, Vec3* b, Vec3* c) const {
   const Triangle& tri = (*to->triangles)[t];
-  if (from == to && alpha == 0.0 && tau_s == 0.0) {
-    // The snapshot itself: Position's x + 0 (x - x) + 0 v is x + 0 for the finite velocities a
-    // snapshot holds (adding +0 only turns -0 into +0), without reading x twice and v.
-    const std::vector<Vec3>& x = to->x;
-    *a = x[tri[0]].array() + 0.0;
-    *b = x[tri[1]].array() + 0.0;
-    *c = x[tri[2]].array() + 0.0;
-    return;
-  }
   *a = Position(tri[0]);
   *b = Position(tri[1]);
   *c = Position(tri[2]);
@@ -128,10 +102,9 @@ SweepHit LocalCloth::Sweep(const Vec3& p0, const Vec3& p1, double r) const {
   // Overflow: the structure's own exact query on the snapshot it was repaired for.
   if (fallback_) return SweepSphere(query_->structure, query_->x, p0, p1, r);
   SweepHit best;
-  const SweepCull cull(p0, p1, r);
   for (size_t k = 0; k < size_; ++k) {
     const LocalTriangle& t = tris_[k];
-    if (!cull.MayOverlap(t) || !MayReach(t, p0, p1, r)) continue;
+    if (!MayReach(t, p0, p1, r)) continue;
     Keep(t.triangle, SweepSphereTriangle(p0, p1, r, t.a, t.b, t.c), &best);
   }
   return best;
@@ -140,11 +113,10 @@ SweepHit LocalCloth::Sweep(const Vec3& p0, const Vec3& p1, double r) const {
 SweepHit LocalCloth::SweepMoving(const Vec3& c0, const Vec3& c1, double r,
                                  std::span<const int32_t> skip) const {
   SweepHit best;
-  const SweepCull cull(c0, c1, r);
   for (size_t k = 0; k < size_; ++k) {
     const LocalTriangle& t = tris_[k];
-    if (!cull.MayOverlap(t) || !MayReach(t, c0, c1, r)) continue;
     if (std::find(skip.begin(), skip.end(), t.triangle) != skip.end()) continue;
+    if (!MayReach(t, c0, c1, r)) continue;
     Keep(t.triangle, MovingTriangleSphereContact(c0, c1, r, t.a0, t.b0, t.c0, t.a, t.b, t.c),
          &best);
   }
