@@ -140,7 +140,7 @@ struct SideTracker {
       const bool interior = cp.barycentric.minCoeff() > 1e-6;
       popped = interior && s != 0 && side != 0 && s != side;
     }
-    if (body.num_contacts > 0) {
+    if (body.num_contacts > 0 && body.contacts[0].triangle >= 0) {  // < 0: an obstacle
       triangle = body.contacts[0].triangle;
       Vec3 a, b, c;
       view.Corners(triangle, &a, &b, &c);

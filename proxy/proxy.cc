@@ -5,6 +5,7 @@
 #include <cmath>
 #include <span>
 
+#include "proxy/obstacle_sweep.h"
 #include "sim_loop/geometry.h"
 
 namespace felt {
@@ -64,15 +65,36 @@ struct Pass {
   bool feasible = true;
 };
 
+// The first contact on the cloth (not an obstacle), or -1.
+int32_t FirstClothContact(const GodObject& body) {
+  for (int32_t i = 0; i < body.num_contacts; ++i) {
+    if (!IsObstacleContactId(body.contacts[i].triangle)) return i;
+  }
+  return -1;
+}
+
 // Re-evaluates remembered contacts at the proxy's (carried) position on this tick's cloth: a
-// contact stays a constraint while its triangle is gathered and still touches the sphere; its
-// plane becomes the exact tangent plane at the current closest point.
-int32_t SeedContacts(const LocalCloth& cloth, const GodObject& body, double r,
+// contact stays a constraint while its triangle is gathered (or its obstacle declared) and still
+// touches the sphere; its plane becomes the exact tangent plane at the current closest point.
+int32_t SeedContacts(const LocalCloth& cloth, std::span<const ObstacleSpec> obstacles,
+                     const GodObject& body, double r,
                      std::array<ProxyContact, kMaxConstraintPlanes>* out) {
   int32_t n = 0;
   const double touch = r * (1.0 + 1e-6) + 1e-12;
   for (int32_t i = 0; i < body.num_contacts; ++i) {
     const ProxyContact& old = body.contacts[i];
+    if (IsObstacleContactId(old.triangle)) {
+      // An obstacle: its closest point and outward normal now (the obstacle does not move).
+      const int32_t k = ObstacleIndexOf(old.triangle);
+      if (k >= static_cast<int32_t>(obstacles.size())) continue;
+      const ObstaclePoint op = ClosestObstaclePoint(obstacles[k], body.p_W_m);
+      if (op.distance_m > touch) continue;
+      ProxyContact c = old;
+      c.point_W_m = op.point_W_m;
+      c.normal_W = op.normal_W;
+      (*out)[n++] = c;
+      continue;
+    }
     Vec3 a, b, c3;
     if (!cloth.Corners(old.triangle, &a, &b, &c3)) continue;
     const TrianglePoint cp = ClosestPointOnTriangle(body.p_W_m, a, b, c3);
@@ -91,8 +113,9 @@ int32_t SeedContacts(const LocalCloth& cloth, const GodObject& body, double r,
 // Ruspini 1997 §3: from `start`, sweep toward the closest point to `goal` on the free side of the
 // active planes; at each first contact add its plane (at most three) and solve again; drop planes
 // the solution leaves (the goal moved to their free side). Bounded by max_iterations.
-Pass RunPass(const LocalCloth& cloth, const Vec3& start, std::span<const ProxyContact> seeds,
-             const Vec3& goal, double r, int32_t max_iterations) {
+Pass RunPass(const LocalCloth& cloth, std::span<const ObstacleSpec> obstacles, const Vec3& start,
+             std::span<const ProxyContact> seeds, const Vec3& goal, double r,
+             int32_t max_iterations) {
   Pass pass;
   pass.p = start;
   for (const ProxyContact& s : seeds) pass.contacts[pass.n++] = s;
@@ -123,7 +146,16 @@ Pass RunPass(const LocalCloth& cloth, const Vec3& start, std::span<const ProxyCo
     }
     // Sweep toward it: free motion ends the pass; a contact adds its plane and repeats.
     ++pass.iterations;
-    const SweepHit hit = cloth.Sweep(pass.p, target, r);
+    SweepHit hit = cloth.Sweep(pass.p, target, r);
+    // The obstacles are constraint sources beside the triangles: the earlier contact wins (ties:
+    // the cloth, which lies on top of an obstacle it rests on). Ericson §5.5.7.
+    if (!obstacles.empty()) {
+      int32_t k = -1;
+      const SweepContact oc = SweepSphereObstacles(pass.p, target, r, obstacles, &k);
+      if (oc.hit && (!hit.hit || oc.toi < hit.toi)) {
+        hit = SweepHit{true, oc.toi, ObstacleContactId(k), oc.point, oc.normal, Vec3::Zero()};
+      }
+    }
     if (!hit.hit) {
       pass.p = target;
       pass.converged = true;
@@ -154,6 +186,7 @@ Pass RunPass(const LocalCloth& cloth, const Vec3& start, std::span<const ProxyCo
 // The interpolated vertex normal at a contact (Morgenbesser & Srinivasan 1996: Phong-style normal
 // interpolation), turned to the proxy's side; the contact normal where the cloth has none.
 Vec3 ShadingNormal(const ClothView& view, const ProxyContact& c) {
+  if (IsObstacleContactId(c.triangle)) return c.normal_W;  // an obstacle is not shaded
   const Triangle& tri = (*view.to->triangles)[c.triangle];
   Vec3 n = c.barycentric(0) * view.Normal(tri[0]) + c.barycentric(1) * view.Normal(tri[1]) +
            c.barycentric(2) * view.Normal(tri[2]);
@@ -164,12 +197,15 @@ Vec3 ShadingNormal(const ClothView& view, const ProxyContact& c) {
 }
 
 // Splits the force on the cloth over the contacts by their normals (the planes' multipliers:
-// F = sum f_i n_i, f_i >= 0), the remainder going to the first contact so the total is exact.
+// F = sum f_i n_i, f_i >= 0), the remainder going to the first cloth contact so the total is
+// exact. The shares of obstacle contacts are computed alike and then not applied (the static
+// obstacle takes them).
 void SplitOverContacts(const GodObject& body, const Vec3& force_on_cloth_W,
                        std::array<Vec3, kMaxConstraintPlanes>* parts) {
   const int32_t n = body.num_contacts;
   for (auto& p : *parts) p.setZero();
   if (n <= 0) return;
+  const int32_t first = std::max(0, FirstClothContact(body));
   if (n == 1) {
     (*parts)[0] = force_on_cloth_W;
     return;
@@ -192,7 +228,7 @@ void SplitOverContacts(const GodObject& body, const Vec3& force_on_cloth_W,
     (*parts)[a] = fa * body.contacts[a].normal_W;
     assigned += (*parts)[a];
   }
-  (*parts)[0] += force_on_cloth_W - assigned;
+  (*parts)[first] += force_on_cloth_W - assigned;
 }
 
 // What one body did in a tick.
@@ -212,6 +248,11 @@ BodyTick TickBody(const ClothSnapshot& query, double inflation_m, const ClothVie
     body->p_W_m = goal;
     body->num_contacts = 0;
     body->placed = true;
+    // A goal inside an obstacle: the proxy starts on its surface instead (in declaration order).
+    for (const ObstacleSpec& o : opts.obstacles) {
+      const ObstaclePoint op = ClosestObstaclePoint(o, body->p_W_m);
+      if (op.distance_m < r) body->p_W_m = op.point_W_m + r * op.normal_W;
+    }
   }
   // Carry a proxy in contact with its contact triangle to this tick's cloth.
   const Vec3 p_prev = body->p_W_m;
@@ -253,6 +294,13 @@ BodyTick TickBody(const ClothSnapshot& query, double inflation_m, const ClothVie
       out.caught = true;
     }
   }
+  // The static obstacles stop the carry and the catch: the cloth may press the proxy toward an
+  // obstacle, but the proxy never enters one (it stays at the first contact on its way).
+  if (!opts.obstacles.empty()) {
+    int32_t k = -1;
+    const SweepContact oc = SweepSphereObstacles(p_prev, body->p_W_m, r, opts.obstacles, &k);
+    if (oc.hit) body->p_W_m = p_prev + oc.toi * (body->p_W_m - p_prev);
+  }
   out.step = UpdateGodObject(*local, now, goal, opts, body);
   return out;
 }
@@ -277,10 +325,11 @@ int32_t SideOfTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& 
 }
 
 void CarryGodObject(const ClothView& /*before*/, const ClothView& now, GodObject* body) {
-  if (body->num_contacts <= 0) return;
-  // The first contact anchors the proxy: same barycentric point, same offset in the triangle's
-  // frame (which holds the side and the radius), on the new cloth.
-  const ProxyContact& c = body->contacts[0];
+  const int32_t first = FirstClothContact(*body);
+  if (first < 0) return;
+  // The first cloth contact anchors the proxy: same barycentric point, same offset in the
+  // triangle's frame (which holds the side and the radius), on the new cloth.
+  const ProxyContact& c = body->contacts[first];
   Vec3 a, b, cc;
   now.Corners(c.triangle, &a, &b, &cc);
   const Vec3 point = c.barycentric(0) * a + c.barycentric(1) * b + c.barycentric(2) * cc;
@@ -293,11 +342,12 @@ GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, co
   const double r = options.radius_m;
   const Vec3 p_old = body->p_W_m;
   std::array<ProxyContact, kMaxConstraintPlanes> seeds;
-  const int32_t num_seeds = SeedContacts(cloth, *body, r, &seeds);
+  const std::span<const ObstacleSpec> obstacles = options.obstacles;
+  const int32_t num_seeds = SeedContacts(cloth, obstacles, *body, r, &seeds);
   const std::span<const ProxyContact> seed_span(seeds.data(), num_seeds);
 
   // Pass 1: the plain god-object update toward the goal.
-  Pass pass = RunPass(cloth, p_old, seed_span, goal_W, r, options.max_iterations);
+  Pass pass = RunPass(cloth, obstacles, p_old, seed_span, goal_W, r, options.max_iterations);
   step.iterations += pass.iterations;
   step.converged = step.converged && pass.converged;
   step.feasible = step.feasible && pass.feasible;
@@ -316,7 +366,7 @@ GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, co
     const PlaneSolveResult sub =
         SolveClosestFeasible(goal_W, std::span<const ConstraintPlane>(shaded.data(), pass.n));
     if (sub.feasible) goal = sub.point;
-    pass = RunPass(cloth, p_old, seed_span, goal, r, options.max_iterations);
+    pass = RunPass(cloth, obstacles, p_old, seed_span, goal, r, options.max_iterations);
     step.iterations += pass.iterations;
     step.converged = step.converged && pass.converged;
     step.feasible = step.feasible && pass.feasible;
@@ -342,7 +392,7 @@ GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, co
       const double mu_hold = body->slipping ? mu_d : options.friction_static;
       slipping = tl > mu_hold * depth;
       const Vec3 target = slipping ? Vec3(p_free + t * (mu_d * depth / tl)) : Vec3(p_free + t);
-      pass = RunPass(cloth, p_old, seed_span, target, r, options.max_iterations);
+      pass = RunPass(cloth, obstacles, p_old, seed_span, target, r, options.max_iterations);
       step.iterations += pass.iterations;
       step.converged = step.converged && pass.converged;
       step.feasible = step.feasible && pass.feasible;
@@ -400,6 +450,7 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   opts.force_shading = proxy.force_shading;
   opts.friction_static = proxy.friction_static;
   opts.friction_dynamic = proxy.friction_dynamic;
+  opts.obstacles = proxy.obstacles;
 
   // The cloth of this tick and of the previous tick, by mode.
   ClothView now = ClothView::Of(newest);
@@ -520,6 +571,7 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
     SplitOverContacts(body, on_cloth_W, &parts);
     for (int32_t i = 0; i < body.num_contacts; ++i) {
       const ProxyContact& c = body.contacts[i];
+      if (IsObstacleContactId(c.triangle)) continue;  // the static obstacle takes its share
       state->reaction.AddForce(c.triangle, tris[c.triangle], c.barycentric, parts[i], tick_dt_s);
     }
   };
@@ -534,8 +586,10 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   // proxy's (proxy - goal) . n when the proxy rests on the cloth, so at rest the cloth gets -F_W,
   // and the force is a potential's gradient however the contact wanders between triangles (tying
   // it to this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
-  if (state->body.num_contacts > 0) {
-    const ProxyContact& c = state->body.contacts[0];
+  // Obstacle contacts (negative ids) put nothing on the cloth: the spring is the first cloth one.
+  const int32_t spring_contact = FirstClothContact(state->body);
+  if (spring_contact >= 0) {
+    const ProxyContact& c = state->body.contacts[spring_contact];
     state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
                                      goal - opts.radius_m * c.normal_W,
                                      device.stiffness_N_per_m / (device.scale * device.scale),

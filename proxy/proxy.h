@@ -25,6 +25,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 
 #include "proxy/local_cloth.h"
 #include "proxy/plane_constraints.h"
@@ -40,9 +41,12 @@ struct DeviceSample {
   Vec3 v_D_m_per_s = Vec3::Zero();  ///< its velocity, device frame, m/s (for damping)
 };
 
-/// One constraint of the proxy: a point of the cloth the proxy sphere touches.
+/// One constraint of the proxy: a point of the cloth (or of an obstacle) the proxy sphere touches.
 struct ProxyContact {
-  int32_t triangle = -1;            ///< index into the snapshot's triangles
+  /// Index into the snapshot's triangles (>= 0), or for a static obstacle of the scene the
+  /// negative id ObstacleContactId(k) = -1 - k of ProxySpec::obstacles[k] (proxy/obstacle_sweep.h;
+  /// barycentric and local_m are then unused, and the contact puts no force on the cloth).
+  int32_t triangle = -1;
   Vec3 barycentric = Vec3::Zero();  ///< of the touched point in the triangle
   Vec3 point_W_m = Vec3::Zero();    ///< the touched point, world, m
   Vec3 normal_W = Vec3::Zero();     ///< unit, from the cloth toward the proxy centre, world
@@ -127,6 +131,9 @@ struct GodObjectOptions {
   bool force_shading = false;     ///< Morgenbesser & Srinivasan 1996, two passes
   double friction_static = 0.0;   ///< mu_s
   double friction_dynamic = 0.0;  ///< mu_d
+  /// Static obstacles (world, m), constraint sources beside the cloth's triangles; must outlive
+  /// the update. Empty: none tested.
+  std::span<const ObstacleSpec> obstacles;
 };
 
 /// What one god-object update did.
@@ -137,15 +144,16 @@ struct GodObjectStep {
 };
 
 /// The god-object update of one proxy toward `goal_W` [m] against `cloth` (gathered for this
-/// tick; `view` gives the vertex normals for shading), from body->p_W_m, with Ruspini 1997's
-/// constraint iteration, optional force shading and friction. body->contacts are rewritten.
+/// tick; `view` gives the vertex normals for shading) and options.obstacles, from body->p_W_m,
+/// with Ruspini 1997's constraint iteration, optional force shading and friction. Cloth and
+/// obstacle contacts share the up-to-three planes of one solve. body->contacts are rewritten.
 /// Real-time safe.
 GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, const Vec3& goal_W,
                               const GodObjectOptions& options, GodObject* body);
 
-/// Moves `body` with its first contact triangle from cloth `before` to cloth `now` (barycentric
-/// point plus the offset in the triangle's frame: side and radius kept). No-op for a free body.
-/// Real-time safe.
+/// Moves `body` with its first cloth contact's triangle from cloth `before` to cloth `now`
+/// (barycentric point plus the offset in the triangle's frame: side and radius kept). No-op for a
+/// body with no cloth contact (obstacles are static). Real-time safe.
 void CarryGodObject(const ClothView& before, const ClothView& now, GodObject* body);
 
 /// Which side of the cloth a point is on near a triangle: the sign (+1, -1) of

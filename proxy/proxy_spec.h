@@ -15,7 +15,9 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <string>
+#include <vector>
 
+#include "sim_loop/cloth_spec.h"
 #include "sim_loop/collision_structure.h"
 #include "sim_loop/mesh.h"
 
@@ -66,6 +68,10 @@ struct ProxySpec {
   int32_t candidate_capacity = 1024;
   CollisionStructureSpec
       structure;  ///< what the sim builds into each snapshot (default bvh-sphere-4)
+  /// The scene's static obstacles ([[obstacles]], the same ones the cloth is kept out of; world,
+  /// m): the proxy cannot enter them either (proxy/obstacle_sweep.h). Not a [proxy] key: the
+  /// server copies SimSpec's (ParseServerSpec). Empty: nothing is tested, at no cost.
+  std::vector<ObstacleSpec> obstacles;
 };
 
 }  // namespace felt

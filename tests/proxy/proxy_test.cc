@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <vector>
 
@@ -425,8 +427,11 @@ TEST(ProxyTest, ContactEndedWithinTheFrameDrainsTheAveragedImpulse) {
   EXPECT_NEAR((applied + sum_W / ticks).norm(), 0.0, 1e-12);
 }
 
-// A scripted run over moving cloth in `mode` (snapshots prebuilt), returning every force.
-std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint64_t* allocations) {
+// A scripted run over moving cloth in `mode` (snapshots prebuilt), returning every force. With
+// `obstacles`, one obstacle of each kind lies on the path (a sphere bulging through the cloth)
+// or beside it, and *touched_obstacle tells whether the proxy touched one.
+std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint64_t* allocations,
+                                 bool obstacles = false, bool* touched_obstacle = nullptr) {
   const TestMesh base = FlatSheet(0.2, 21);
   std::vector<ClothSnapshot> frames;
   for (int f = 0; f < 8; ++f) {
@@ -446,6 +451,14 @@ std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint
   ProxySpec p = Spec(mode, true);
   p.friction_static = 0.3;
   p.friction_dynamic = 0.2;
+  if (obstacles) {
+    ObstacleSpec sphere, box, capsule, plane;
+    sphere.shape = SphereSpec{Vec3(0.02, 0.01, 0.0), 0.014};
+    box.shape = BoxSpec{Vec3(0.035, -0.05, -0.05), Vec3(0.06, 0.05, 0.004)};
+    capsule.shape = CapsuleSpec{Vec3(-0.05, -0.03, 0.0), Vec3(0.05, -0.03, 0.0), 0.012};
+    plane.shape = PlaneSpec{Vec3(0, 0, -0.03), Vec3::UnitZ()};
+    p.obstacles = {sphere, box, capsule, plane};
+  }
   ProxyState st = MakeProxyState(p);
   std::vector<ExternalForce> drained(64);
   std::vector<Vec3> forces;
@@ -465,6 +478,11 @@ std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint
           ProxyTick(d, p, frames[f], &frames[f - 1], k * 1e-3,
                     DeviceSample{goal, Vec3(0.24 * std::cos(3.0 * t), 0.0, -0.3)}, 1e-3, &st);
       forces.push_back(r.force_D_N);
+      for (int32_t i = 0; i < st.body.num_contacts; ++i) {
+        if (touched_obstacle != nullptr && st.body.contacts[i].triangle < 0) {
+          *touched_obstacle = true;
+        }
+      }
     }
     st.reaction.DrainInto(drained);
   }
@@ -484,6 +502,57 @@ TEST(ProxyTest, TickDoesNotAllocateInAnyMode) {
     for (const Vec3& f : forces) max_force = std::max(max_force, f.norm());
     EXPECT_GT(max_force, 0.5) << SnapshotModeName(mode) << ": the script must touch the cloth";
   }
+}
+
+TEST(ProxyTest, TickWithObstaclesDoesNotAllocateInAnyMode) {
+  for (SnapshotMode mode : kAllModes) {
+    uint64_t allocations = 1;
+    bool touched = false;
+    ScriptedForces(mode, true, &allocations, /*obstacles=*/true, &touched);
+    EXPECT_EQ(allocations, 0u) << SnapshotModeName(mode);
+    EXPECT_TRUE(touched) << SnapshotModeName(mode) << ": the script must touch an obstacle";
+  }
+}
+
+TEST(ProxyTest, RepeatRunsWithObstaclesAreBitIdentical) {
+  for (SnapshotMode mode : kAllModes) {
+    uint64_t unused = 0;
+    const std::vector<Vec3> a = ScriptedForces(mode, false, &unused, true);
+    const std::vector<Vec3> b = ScriptedForces(mode, false, &unused, true);
+    const std::vector<Vec3> none = ScriptedForces(mode, false, &unused, false);
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec3)), 0)
+        << SnapshotModeName(mode);
+    EXPECT_NE(std::memcmp(a.data(), none.data(), a.size() * sizeof(Vec3)), 0)
+        << SnapshotModeName(mode) << ": the obstacles must change the run";
+  }
+}
+
+// Pins mode blend_forces' output on the scripted run (the values the implementation at 9e050fe
+// gave; any change of its forces shows here): sums over the 112 ticks and two ticks in contact.
+TEST(ProxyTest, BlendForcesOutputIsPinned) {
+  uint64_t unused = 0;
+  const std::vector<Vec3> f = ScriptedForces(SnapshotMode::kBlendForces, false, &unused);
+  ASSERT_EQ(f.size(), 112u);
+  Vec3 sum = Vec3::Zero();
+  double sum_norm = 0.0;
+  for (const Vec3& v : f) {
+    sum += v;
+    sum_norm += v.norm();
+  }
+  if (std::getenv("FELT_PRINT_PIN") != nullptr) {
+    std::printf("sum %a %a %a norm %a f52 %a %a %a f109 %a %a %a\n", sum.x(), sum.y(), sum.z(),
+                sum_norm, f[52].x(), f[52].y(), f[52].z(), f[109].x(), f[109].y(), f[109].z());
+  }
+  const Vec3 kSum(-0x1.119320660d4fp+1, 0x1.4p+3, 0x1.af1ea3f0abf2cp-2);
+  const Vec3 kF52(-0x1.0a34efcdeafbfp-1, 0x0p+0, 0x1.9d4e028a63b7fp-1);
+  const Vec3 kF109(-0x1.23c4cbc4fde24p-2, 0x0p+0, 0x1.3e076762db9a2p+0);
+  EXPECT_NEAR((sum - kSum).norm(), 0.0, 1e-12 * (1.0 + kSum.norm()));
+  EXPECT_NEAR(sum_norm, 0x1.bc434ba01276fp+5, 1e-12 * (1.0 + 0x1.bc434ba01276fp+5));
+  EXPECT_NEAR((f[52] - kF52).norm(), 0.0, 1e-12 * (1.0 + kF52.norm()));
+  EXPECT_NEAR((f[109] - kF109).norm(), 0.0, 1e-12 * (1.0 + kF109.norm()));
+  EXPECT_GT(kF52.norm(), 0.1);  // pinned ticks in contact
+  EXPECT_GT(kF109.norm(), 0.1);
 }
 
 TEST(ProxyTest, RepeatRunsAreBitIdentical) {
