@@ -580,20 +580,26 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   state->reaction.AddTime(tick_dt_s);
   // The contact of this tick as a spring the sim evaluates at its substep rate (virtual coupling,
   // Colgate, Stanley & Brown 1995). The device spring F_D = k (proxy_D - device_D) is, in the
-  // world, F_W = (k / scale^2) (proxy_W - goal_W) (proxy_spec.h). The sim presses a sphere of the
-  // proxy's radius centred at the goal (anchor + radius normal) onto the nearest point of the
-  // cloth around the contact triangle, re-found at every force evaluation: its penetration is the
-  // proxy's (proxy - goal) . n when the proxy rests on the cloth, so at rest the cloth gets -F_W,
-  // and the force is a potential's gradient however the contact wanders between triangles (tying
+  // world, F_W = (k / scale^2) (proxy_W - goal_W) (proxy_spec.h). The sim presses a sphere onto the
+  // nearest point of the cloth around the contact triangle, re-found at every force evaluation:
+  // its penetration is |proxy - goal| when the proxy rests on the cloth, so at rest the cloth gets
+  // -F_W, and the force is a potential's gradient however the contact wanders between triangles (tying
   // it to this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
   // Obstacle contacts (negative ids) put nothing on the cloth: the spring is the first cloth one.
   const int32_t spring_contact = FirstClothContact(state->body);
   if (spring_contact >= 0) {
     const ProxyContact& c = state->body.contacts[spring_contact];
+    // The sim's sphere: centred on the proxy, its radius grown by how far the hand is past it,
+    // |proxy - goal| (along the contact normal for a frictionless contact), so at rest its
+    // penetration is that depth. Both are continuous in time (a sphere at the goal itself, deep
+    // behind the cloth in a fast swipe, found its nearest point sideways; one tied to the contact
+    // normal moved whenever the contact hopped between triangles).
+    const Vec3& proxy_c = state->body.p_W_m;
+    const double reach_m = opts.radius_m + (proxy_c - goal).norm();
     state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
-                                     goal - opts.radius_m * c.normal_W,
+                                     proxy_c - reach_m * c.normal_W,
                                      device.stiffness_N_per_m / (device.scale * device.scale),
-                                     device.max_force_N / device.scale, opts.radius_m);
+                                     device.max_force_N / device.scale, reach_m);
   } else {
     state->reaction.ClearContactSpring();
   }

@@ -43,9 +43,9 @@ class ReactionAccumulator {
   /// Records the proxy's contact at this tick as the frame's contact spring (replacing the one of
   /// an earlier tick): triangle, barycentric point, unit normal from the cloth toward the proxy
   /// [world], anchor [m, world: where the contact point sits when the proxy is at the user's
-  /// hand], stiffness [N/m, world], force clamp [N, world] and the proxy's radius [m, world: the
-  /// sim presses a sphere of that radius centred at anchor + radius normal, the hand, onto the
-  /// cloth's nearest point; ExternalForce]. Real-time safe.
+  /// hand], stiffness [N/m, world], force clamp [N, world] and a sphere radius [m, world: the sim
+  /// presses a sphere of that radius centred at anchor + radius normal onto the cloth's nearest
+  /// point; ExternalForce]. Real-time safe.
   void SetContactSpring(int32_t triangle, const Vec3& barycentric, const Vec3& normal_W,
                         const Vec3& anchor_W_m, double stiffness_N_per_m, double max_force_N,
                         double radius_m = 0.0);
