@@ -13,6 +13,7 @@
 #include "sim_loop/cloth.h"
 #include "sim_loop/scene_file.h"
 #include "sim_loop/snapshot.h"
+#include "tests/proxy/proxy_test_util.h"
 
 namespace felt {
 namespace {
@@ -64,45 +65,26 @@ PressResult PressAndHold(const PressSetup& setup) {
       << "the curtain went non-finite before any contact: a cloth-sim problem (sim_loop/cloth*)";
   if (state.counters.nan_events != 0) return {};
   PressResult result;
-  ClothSnapshot prev = MakeClothSnapshot(model, state, proxy.structure);
-  ClothSnapshot next = MakeClothSnapshot(model, state, proxy.structure);
   ProxyState ps = MakeProxyState(proxy);
-  std::vector<ExternalForce> external(512);
-  std::vector<Vec3> frame_start_x(state.x.size());
-  std::vector<Vec3> frame_v(state.x.size());
   // The centre particle is where the user presses, from the +z side.
   const int32_t centre = GridIndex(model.width, model.width / 2, model.height / 2);
   const Vec3 target_W = state.x[centre] + setup.offset_W_m + Vec3(0.0, 0.0, -depth_m);
   const Vec3 start_W = state.x[centre] + setup.offset_W_m + Vec3(0.0, 0.0, 0.05);
   std::vector<Sample>& hold = result.hold;
   uint64_t reduced_at_1s = 0;
-  uint64_t frame = 1;
-  double t = 0.0;
-  int64_t tick = 0;
-  const double total = 0.5 + hold_s;
-  while (t < total) {
-    // A sim frame: apply the last frame's reaction (the contact spring while in contact, else the
-    // averaged impulses), step, publish.
-    if (t < 1.5) reduced_at_1s = state.counters.coupling_reduced_frames;
-    const int32_t n = ps.reaction.DrainInto(external);
-    frame_start_x = state.x;
-    StepFrame(model, std::span<const ExternalForce>(external.data(), n), frame_dt, &state);
-    std::swap(prev, next);
-    // Published as the server does: velocities = the frame's motion (proxy/frame_motion.h).
-    FillSnapshotWithFrameMotion(state, frame_start_x, frame_dt, frame++, frame_v, &next);
-    // The haptic ticks of this frame.
-    const double frame_end = t + frame_dt;
-    double since = 0.0;
-    while (t < frame_end - 1e-9) {
-      const double s = std::min(1.0, t / 0.5);
-      const Vec3 goal_W = start_W + (s * s * (3.0 - 2.0 * s)) * (target_W - start_W);
-      const DeviceSample sample{WorldToDevice(device, goal_W), Vec3::Zero()};
-      const ProxyTickResult r = ProxyTick(device, proxy, next, &prev, since, sample, 1e-3, &ps);
-      if (t >= 0.5) hold.push_back({t - 0.5, r.force_D_N, r.proxy_W_m});
-      t = (++tick) * 1e-3;
-      since += 1e-3;
-    }
-  }
+  testing::RunLockstep(
+      model, &state, device, proxy, &ps, 0.5 + hold_s,
+      [&](double t) {
+        const double s = std::min(1.0, t / 0.5);
+        const Vec3 goal_W = start_W + (s * s * (3.0 - 2.0 * s)) * (target_W - start_W);
+        return DeviceSample{WorldToDevice(device, goal_W), Vec3::Zero()};
+      },
+      [&](double t, double, const ProxyTickResult& r, const ClothSnapshot&, const ClothSnapshot&) {
+        if (t >= 0.5) hold.push_back({t - 0.5, r.force_D_N, r.proxy_W_m});
+      },
+      [&](double t) {
+        if (t < 1.5) reduced_at_1s = state.counters.coupling_reduced_frames;
+      });
   EXPECT_EQ(state.counters.nan_events, 0u) << "the coupled cloth went non-finite";
   EXPECT_EQ(state.counters.coupling_overflows, 0u);
   result.reduced_frames = state.counters.coupling_reduced_frames;

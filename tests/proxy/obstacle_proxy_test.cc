@@ -20,25 +20,15 @@
 namespace felt {
 namespace {
 
+using testing::Box;
 using testing::GridMesh;
+using testing::Plane;
 using testing::Snap;
 using testing::Spec;
+using testing::Table;
 using testing::TestMesh;
 using testing::TickAt;
 using testing::UnitDevice;
-
-ObstacleSpec PlaneAt(const Vec3& point, const Vec3& normal) {
-  ObstacleSpec o;
-  o.shape = PlaneSpec{point, normal};
-  return o;
-}
-ObstacleSpec BoxOf(const Vec3& lo, const Vec3& hi) {
-  ObstacleSpec o;
-  o.shape = BoxSpec{lo, hi};
-  return o;
-}
-// The table of scenes/tablecloth.toml: top at y = 0.
-ObstacleSpec TableBox() { return BoxOf(Vec3(-0.3, -0.75, -0.2), Vec3(0.3, 0.0, 0.2)); }
 
 // A small sheet far from every obstacle of these tests (the proxy needs a snapshot to run on).
 TestMesh FarSheet() {
@@ -60,9 +50,9 @@ TEST(ObstacleProxyTest, PressOntoEachObstacleGivesStiffnessTimesDepthAlongNormal
   capsule.shape = CapsuleSpec{Vec3(-0.1, 0, 0.2), Vec3(0.1, 0, 0.2), 0.03};
   const Vec3 tilted = Vec3(0.3, 1.0, -0.2).normalized();
   const Case cases[] = {
-      {PlaneAt(Vec3(0, -0.01, 0), tilted), Vec3(0, -0.01, 0), tilted},
+      {Plane(Vec3(0, -0.01, 0), tilted), Vec3(0, -0.01, 0), tilted},
       {sphere, Vec3(0.1, 0.05, 0.0), Vec3::UnitY()},
-      {TableBox(), Vec3(0.02, 0.0, 0.01), Vec3::UnitY()},
+      {Table(), Vec3(0.02, 0.0, 0.01), Vec3::UnitY()},
       {capsule, Vec3(0.05, 0.0, 0.23), Vec3::UnitZ()},
   };
   const ClothSnapshot s = Snap(FarSheet());
@@ -98,8 +88,8 @@ TEST(ObstacleProxyTest, FivePerSecondPointerThroughObstaclesNeverTunnels) {
   rod.shape = CapsuleSpec{Vec3(-0.1, 0, 0), Vec3(0.1, 0, 0), 0.0002};
   ObstacleSpec ball;
   ball.shape = SphereSpec{Vec3(0.0, 0.0, 0.0), 0.0004};
-  const ObstacleSpec thin[] = {BoxOf(Vec3(-0.1, -0.00025, -0.1), Vec3(0.1, 0.00025, 0.1)), rod,
-                               ball, PlaneAt(Vec3::Zero(), Vec3::UnitY())};
+  const ObstacleSpec thin[] = {Box(Vec3(-0.1, -0.00025, -0.1), Vec3(0.1, 0.00025, 0.1)), rod, ball,
+                               Plane(Vec3::Zero(), Vec3::UnitY())};
   const ClothSnapshot s = Snap(FarSheet());
   const DeviceSpec d = UnitDevice(r);
   for (size_t i = 0; i < std::size(thin); ++i) {
@@ -133,8 +123,8 @@ TEST(ObstacleProxyTest, ClothFoldAgainstTwoObstacleWallsResolvesThreePlanesInOne
   const ClothSnapshot s = Snap(sheet);
   const DeviceSpec d = UnitDevice(0.004);
   ProxySpec p = Spec();
-  p.obstacles = {PlaneAt(Vec3::Zero(), Vec3::UnitY()),
-                 BoxOf(Vec3(-0.2, -0.2, -0.2), Vec3(0.0, 0.2, 0.2))};
+  p.obstacles = {Plane(Vec3::Zero(), Vec3::UnitY()),
+                 Box(Vec3(-0.2, -0.2, -0.2), Vec3(0.0, 0.2, 0.2))};
   ProxyState st = MakeProxyState(p);
   TickAt(d, p, s, Vec3(0.03, 0.035, 0.04), &st);
   st.reaction.Clear();
@@ -162,7 +152,7 @@ TEST(ObstacleProxyTest, PointerPinchingAStillSheetOnATableRestsOnTheSheet) {
   const ClothSnapshot s = Snap(sheet);
   const DeviceSpec d = UnitDevice(0.004);
   ProxySpec p = Spec(SnapshotMode::kNewest, true);
-  p.obstacles = {TableBox()};
+  p.obstacles = {Table()};
   ProxyState st = MakeProxyState(p);
   TickAt(d, p, s, Vec3(0.013, 0.05, 0.007), &st);
   const ProxyTickResult r = TickAt(d, p, s, Vec3(0.013, -0.02, 0.007), &st);
@@ -182,7 +172,7 @@ TEST(ObstacleProxyTest, GoalStartingInsideAnObstacleStartsTheProxyOnItsSurface) 
   const ClothSnapshot s = Snap(FarSheet());
   const DeviceSpec d = UnitDevice(0.004);
   ProxySpec p = Spec();
-  p.obstacles = {TableBox()};
+  p.obstacles = {Table()};
   ProxyState st = MakeProxyState(p);
   const ProxyTickResult r = TickAt(d, p, s, Vec3(0.1, -0.01, 0.0), &st);
   EXPECT_NEAR((r.proxy_W_m - Vec3(0.1, 0.004, 0.0)).norm(), 0.0, 1e-15);
@@ -247,74 +237,61 @@ PinchRun Pinch(SnapshotMode mode, double stiffness_N_per_m) {
   const double frame_dt = 1.0 / 60.0;
   for (int f = 0; f < 60; ++f) StepFrame(model, {}, frame_dt, &state);
   PinchRun run;
-  ClothSnapshot prev = MakeClothSnapshot(model, state, proxy.structure);
-  ClothSnapshot next = MakeClothSnapshot(model, state, proxy.structure);
   ProxyState ps = MakeProxyState(proxy);
-  std::vector<ExternalForce> external(512);
-  std::vector<Vec3> frame_start_x(state.x.size());
-  std::vector<Vec3> frame_v(state.x.size());
   const Vec3 top(0.003, 0.05, 0.002);
   const Vec3 pressed(0.003, -0.02, 0.002);
   int32_t side_triangle = -1;
   int32_t side = 0;
-  uint64_t frame = 1;
   int64_t tick = 0;
-  double t = 0.0;
-  while (t < 2.0) {
-    const int32_t n = ps.reaction.DrainInto(external);
-    frame_start_x = state.x;
-    StepFrame(model, std::span<const ExternalForce>(external.data(), n), frame_dt, &state);
-    std::swap(prev, next);
-    FillSnapshotWithFrameMotion(state, frame_start_x, frame_dt, frame++, frame_v, &next);
-    const double frame_end = t + frame_dt;
-    double since = 0.0;
-    while (t < frame_end - 1e-9) {
-      const double s = std::min(1.0, t / 0.5);
-      const Vec3 goal = top + (s * s * (3.0 - 2.0 * s)) * (pressed - top);
-      const ProxyTickResult r =
-          ProxyTick(device, proxy, next, &prev, since, DeviceSample{goal, Vec3::Zero()}, 1e-3, &ps);
-      run.forces.push_back(r.force_D_N);
-      // Never inside the table.
-      run.min_table_gap_m =
-          std::min(run.min_table_gap_m,
-                   ClosestObstaclePoint(table, r.proxy_W_m).distance_m - device.radius_m);
-      // Never inside the cloth of the tick (the mode's: newest, or one frame late interpolated).
-      const double alpha = std::clamp(since / frame_dt, 0.0, 1.0);
-      const ClothView view = mode == SnapshotMode::kInterpolate && !r.on_newest
-                                 ? ClothView{&prev, &next, alpha, 0.0}
-                                 : ClothView::Of(next);
-      double best = 1e300;
-      for (int32_t k = 0; k < next.num_triangles(); ++k) {
-        Vec3 a, b, c;
-        view.Corners(k, &a, &b, &c);
-        best = std::min(best, ClosestPointOnTriangle(r.proxy_W_m, a, b, c).distance_sq);
-      }
-      run.min_cloth_gap_m = std::min(run.min_cloth_gap_m, std::sqrt(best) - device.radius_m);
-      // Never on the other side of the triangle it last touched while over that triangle
-      // (bench_haptic.cc's pop-through).
-      if (side_triangle >= 0) {
-        Vec3 a, b, c;
-        view.Corners(side_triangle, &a, &b, &c);
-        const bool interior =
-            ClosestPointOnTriangle(r.proxy_W_m, a, b, c).barycentric.minCoeff() > 1e-6;
-        const int32_t now_side = SideOfTriangle(r.proxy_W_m, a, b, c);
-        if (interior && now_side != 0 && side != 0 && now_side != side) ++run.pop_through;
-      }
-      side_triangle = -1;
-      if (ps.body.num_contacts > 0 && ps.body.contacts[0].triangle >= 0) {
-        side_triangle = ps.body.contacts[0].triangle;
-        Vec3 a, b, c;
-        view.Corners(side_triangle, &a, &b, &c);
-        side = SideOfTriangle(r.proxy_W_m, a, b, c);
-      }
-      if (tick == 1999) {
-        run.pressed_force = r.force_D_N;
-        run.pressed_contact = ps.body.num_contacts > 0 ? ps.body.contacts[0].triangle : -999;
-      }
-      t = (++tick) * 1e-3;
-      since += 1e-3;
-    }
-  }
+  testing::RunLockstep(
+      model, &state, device, proxy, &ps, 2.0,
+      [&](double t) {
+        const double s = std::min(1.0, t / 0.5);
+        return DeviceSample{top + (s * s * (3.0 - 2.0 * s)) * (pressed - top), Vec3::Zero()};
+      },
+      [&](double, double since, const ProxyTickResult& r, const ClothSnapshot& prev,
+          const ClothSnapshot& next) {
+        run.forces.push_back(r.force_D_N);
+        // Never inside the table.
+        run.min_table_gap_m =
+            std::min(run.min_table_gap_m,
+                     ClosestObstaclePoint(table, r.proxy_W_m).distance_m - device.radius_m);
+        // Never inside the cloth of the tick (the mode's: newest, or one frame late interpolated).
+        const double alpha = std::clamp(since / frame_dt, 0.0, 1.0);
+        const ClothView view = mode == SnapshotMode::kInterpolate && !r.on_newest
+                                   ? ClothView{&prev, &next, alpha, 0.0}
+                                   : ClothView::Of(next);
+        double best = 1e300;
+        for (int32_t k = 0; k < next.num_triangles(); ++k) {
+          Vec3 a, b, c;
+          view.Corners(k, &a, &b, &c);
+          best = std::min(best, ClosestPointOnTriangle(r.proxy_W_m, a, b, c).distance_sq);
+        }
+        run.min_cloth_gap_m = std::min(run.min_cloth_gap_m, std::sqrt(best) - device.radius_m);
+        // Never on the other side of the triangle it last touched while over that triangle
+        // (bench_haptic.cc's pop-through).
+        if (side_triangle >= 0) {
+          Vec3 a, b, c;
+          view.Corners(side_triangle, &a, &b, &c);
+          const bool interior =
+              ClosestPointOnTriangle(r.proxy_W_m, a, b, c).barycentric.minCoeff() > 1e-6;
+          const int32_t now_side = SideOfTriangle(r.proxy_W_m, a, b, c);
+          if (interior && now_side != 0 && side != 0 && now_side != side) ++run.pop_through;
+        }
+        side_triangle = -1;
+        if (ps.body.num_contacts > 0 && ps.body.contacts[0].triangle >= 0) {
+          side_triangle = ps.body.contacts[0].triangle;
+          Vec3 a, b, c;
+          view.Corners(side_triangle, &a, &b, &c);
+          side = SideOfTriangle(r.proxy_W_m, a, b, c);
+        }
+        if (tick == 1999) {
+          run.pressed_force = r.force_D_N;
+          run.pressed_contact = ps.body.num_contacts > 0 ? ps.body.contacts[0].triangle : -999;
+        }
+        ++tick;
+      },
+      [](double) {});
   EXPECT_EQ(state.counters.nan_events, 0u) << "the coupled cloth went non-finite";
   return run;
 }

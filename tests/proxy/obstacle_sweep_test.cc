@@ -7,32 +7,16 @@
 #include <cmath>
 #include <random>
 
+#include "tests/proxy/proxy_test_util.h"
+
 namespace felt {
 namespace {
 
-ObstacleSpec Plane(const Vec3& point, const Vec3& normal) {
-  ObstacleSpec o;
-  o.shape = PlaneSpec{point, normal.normalized()};
-  return o;
-}
-ObstacleSpec Sphere(const Vec3& c, double R) {
-  ObstacleSpec o;
-  o.shape = SphereSpec{c, R};
-  return o;
-}
-ObstacleSpec Box(const Vec3& lo, const Vec3& hi) {
-  ObstacleSpec o;
-  o.shape = BoxSpec{lo, hi};
-  return o;
-}
-ObstacleSpec Capsule(const Vec3& a, const Vec3& b, double R) {
-  ObstacleSpec o;
-  o.shape = CapsuleSpec{a, b, R};
-  return o;
-}
-
-// The table of scenes/tablecloth.toml.
-ObstacleSpec Table() { return Box(Vec3(-0.3, -0.75, -0.2), Vec3(0.3, 0.0, 0.2)); }
+using testing::Box;
+using testing::Capsule;
+using testing::Plane;
+using testing::Sphere;
+using testing::Table;
 
 void ExpectVecNear(const Vec3& a, const Vec3& b, double tol) {
   EXPECT_NEAR((a - b).norm(), 0.0, tol) << "got " << a.transpose() << ", want " << b.transpose();

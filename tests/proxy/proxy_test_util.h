@@ -1,16 +1,46 @@
 #pragma once
 // Meshes and snapshots for the proxy tests: small analytic cloths (flat sheets, creases, a
-// corner, a cap draped over a sphere) whose answers are known in closed form.
+// corner, a cap draped over a sphere) whose answers are known in closed form; obstacle specs; and
+// a lock-step driver of one proxy against the real cloth.
 
 #include <cmath>
 #include <functional>
 #include <memory>
 #include <vector>
 
+#include "proxy/frame_motion.h"
 #include "proxy/proxy.h"
+#include "sim_loop/cloth.h"
 #include "sim_loop/snapshot.h"
 
 namespace felt::testing {
+
+/// A plane obstacle through `point` [m] with outward `normal` (normalised here).
+inline ObstacleSpec Plane(const Vec3& point, const Vec3& normal) {
+  ObstacleSpec o;
+  o.shape = PlaneSpec{point, normal.normalized()};
+  return o;
+}
+/// A sphere obstacle, centre [m] and radius [m].
+inline ObstacleSpec Sphere(const Vec3& c, double R) {
+  ObstacleSpec o;
+  o.shape = SphereSpec{c, R};
+  return o;
+}
+/// An axis-aligned box obstacle between corners lo and hi [m].
+inline ObstacleSpec Box(const Vec3& lo, const Vec3& hi) {
+  ObstacleSpec o;
+  o.shape = BoxSpec{lo, hi};
+  return o;
+}
+/// A capsule obstacle: segment a-b [m], radius [m].
+inline ObstacleSpec Capsule(const Vec3& a, const Vec3& b, double R) {
+  ObstacleSpec o;
+  o.shape = CapsuleSpec{a, b, R};
+  return o;
+}
+/// The table of scenes/tablecloth.toml: a box with its top at y = 0.
+inline ObstacleSpec Table() { return Box(Vec3(-0.3, -0.75, -0.2), Vec3(0.3, 0.0, 0.2)); }
 
 /// A mesh: positions [m] and triangles.
 struct TestMesh {
@@ -84,6 +114,43 @@ inline double Angle(const Vec3& a, const Vec3& b) {
   const double nb = b.norm();
   if (na == 0.0 || nb == 0.0) return 0.0;
   return std::acos(std::clamp(a.dot(b) / (na * nb), -1.0, 1.0));
+}
+
+/// Drives one proxy against the real cloth in lock-step virtual time, as the server does: each
+/// 60 Hz frame first runs `on_frame(t)`, then steps the cloth with the reaction the proxy drained
+/// (the contact spring while in contact), then publishes a snapshot whose velocities are the
+/// frame's motion (proxy/frame_motion.h); then the frame's 1 kHz ticks run until `seconds` [s]:
+/// `sample(t)` gives the device sample at tick time t [s], `on_tick(t, since_s, result, prev,
+/// next)` sees each tick (since_s: time since the newest snapshot, s). Allocates (test code).
+template <typename Sample, typename OnTick, typename OnFrame>
+void RunLockstep(const ClothModel& model, ClothState* state, const DeviceSpec& device,
+                 const ProxySpec& proxy, ProxyState* ps, double seconds, Sample&& sample,
+                 OnTick&& on_tick, OnFrame&& on_frame) {
+  const double frame_dt = 1.0 / 60.0;
+  ClothSnapshot prev = MakeClothSnapshot(model, *state, proxy.structure);
+  ClothSnapshot next = MakeClothSnapshot(model, *state, proxy.structure);
+  std::vector<ExternalForce> external(512);
+  std::vector<Vec3> frame_start_x(state->x.size());
+  std::vector<Vec3> frame_v(state->x.size());
+  uint64_t frame = 1;
+  int64_t tick = 0;
+  double t = 0.0;
+  while (t < seconds) {
+    on_frame(t);
+    const int32_t n = ps->reaction.DrainInto(external);
+    frame_start_x = state->x;
+    StepFrame(model, std::span<const ExternalForce>(external.data(), n), frame_dt, state);
+    std::swap(prev, next);
+    FillSnapshotWithFrameMotion(*state, frame_start_x, frame_dt, frame++, frame_v, &next);
+    const double frame_end = t + frame_dt;
+    double since = 0.0;
+    while (t < frame_end - 1e-9) {
+      const ProxyTickResult r = ProxyTick(device, proxy, next, &prev, since, sample(t), 1e-3, ps);
+      on_tick(t, since, r, prev, next);
+      t = static_cast<double>(++tick) * 1e-3;
+      since += 1e-3;
+    }
+  }
 }
 
 }  // namespace felt::testing
