@@ -239,10 +239,8 @@ void Server::HapticTick(int64_t now_ns, double dt_s) {
   } else if (staged_pending_) {
     StageReactions();  // retry the push of a batch that found the queue full
   }
-  const ClothSnapshot& newest_snapshot =
-      newest_copy_ >= 0 && SnapshotModeNeedsPrevious(spec_.proxy.snapshot_mode)
-          ? copies_[newest_copy_]
-          : slot.snapshot;
+  // In the modes that keep the previous snapshot the newest lives in a copy; else in the slot.
+  const ClothSnapshot& newest_snapshot = newest_copy_ >= 0 ? copies_[newest_copy_] : slot.snapshot;
   const ClothSnapshot* previous = previous_copy_ >= 0 ? &copies_[previous_copy_] : nullptr;
   const int64_t age_ns = now_ns - slot.publish_ns;
   haptic_stats_->RecordSnapshotAge(age_ns);

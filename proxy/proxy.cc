@@ -491,7 +491,8 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
 
   // A previous tick that fell back to its newest snapshot (below) left the proxy on that cloth:
   // the one now called prev after an arrival.
-  const bool interpolated = mode == SnapshotMode::kInterpolate || mode == SnapshotMode::kExtrapolate;
+  const bool interpolated =
+      mode == SnapshotMode::kInterpolate || mode == SnapshotMode::kExtrapolate;
   if (interpolated && state->last_on_newest && !first) {
     before_view = arrived ? ClothView::Of(*prev) : ClothView::Of(newest);
     moved = true;
@@ -581,10 +582,9 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   // The contact of this tick as a spring the sim evaluates at its substep rate (virtual coupling,
   // Colgate, Stanley & Brown 1995). The device spring F_D = k (proxy_D - device_D) is, in the
   // world, F_W = (k / scale^2) (proxy_W - goal_W) (proxy_spec.h). The sim presses a sphere onto the
-  // nearest point of the cloth around the contact triangle, re-found at every force evaluation:
-  // its penetration is |proxy - goal| when the proxy rests on the cloth, so at rest the cloth gets
-  // -F_W, and the force is a potential's gradient however the contact wanders between triangles (tying
-  // it to this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
+  // nearest point of the cloth around the contact triangle, re-found at every force evaluation, so
+  // the force is a potential's gradient however the contact wanders between triangles (tying it to
+  // this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
   // Obstacle contacts (negative ids) put nothing on the cloth: the spring is the first cloth one.
   const int32_t spring_contact = FirstClothContact(state->body);
   if (spring_contact >= 0) {

@@ -29,20 +29,30 @@ double CriticalOmegaH(const ClothModel& model) {
   return kSymplecticEulerLimit;
 }
 
-// The largest weight a contact spring may put on one free particle: the nearest point it presses
-// on can be a vertex, so 1 unless every particle around its triangle is pinned.
-double MaxFreeWeight(const ClothModel& model, const ExternalForce& e) {
-  // The spring presses on the nearest point of the triangles around e.triangle, which may be a
-  // vertex (weight 1): 1 if any particle of those cells is free, else 0 (all pinned).
+// Calls visit(triangle) for each triangle a spring on `triangle` searches: those of the 3 x 3 grid
+// cells around its cell (two per cell, MakeGridTriangles' order), every triangle sharing a vertex
+// with it. At most kMaxCouplingCandidates.
+template <typename Visit>
+void ForEachCandidate(const ClothModel& model, int32_t triangle, Visit&& visit) {
   const int32_t cells_per_row = model.width - 1;
-  const int32_t cell = e.triangle / 2;
+  const int32_t cell = triangle / 2;
   const int32_t row = cell / cells_per_row, col = cell % cells_per_row;
-  for (int32_t r = std::max(0, row - 1); r <= std::min(model.height - 1, row + 2); ++r) {
-    for (int32_t c = std::max(0, col - 1); c <= std::min(model.width - 1, col + 2); ++c) {
-      if (model.inv_mass_per_kg[GridIndex(model.width, c, r)] > 0.0) return 1.0;
+  for (int32_t r = std::max(0, row - 1); r <= std::min(model.height - 2, row + 1); ++r) {
+    for (int32_t c = std::max(0, col - 1); c <= std::min(cells_per_row - 1, col + 1); ++c) {
+      visit(model.triangles[2 * (r * cells_per_row + c)]);
+      visit(model.triangles[2 * (r * cells_per_row + c) + 1]);
     }
   }
-  return 0.0;
+}
+
+// The largest weight a contact spring may put on one free particle: the nearest point it presses
+// on can be a vertex, so 1 unless every particle of its candidates is pinned (then 0).
+double MaxFreeWeight(const ClothModel& model, const ExternalForce& e) {
+  bool any_free = false;
+  ForEachCandidate(model, e.triangle, [&](const Triangle& t) {
+    for (int32_t p : t) any_free = any_free || model.inv_mass_per_kg[p] > 0.0;
+  });
+  return any_free ? 1.0 : 0.0;
 }
 
 // True if `e` is a contact spring AddCouplingSpring accepts.
@@ -51,8 +61,8 @@ bool ValidSpring(const ClothModel& model, const ExternalForce& e) {
   return e.stiffness_N_per_m > 0.0 && e.triangle >= 0 &&
          e.triangle < static_cast<int32_t>(model.triangles.size()) && e.barycentric.allFinite() &&
          std::isfinite(e.stiffness_N_per_m) && e.anchor_m.allFinite() && e.normal.allFinite() &&
-         n_len > 0.0 && e.max_force_N >= 0.0 && !std::isnan(e.max_force_N) &&
-         e.radius_m >= 0.0 && std::isfinite(e.radius_m);
+         n_len > 0.0 && e.max_force_N >= 0.0 && !std::isnan(e.max_force_N) && e.radius_m >= 0.0 &&
+         std::isfinite(e.radius_m);
 }
 
 // Where a spring's sphere meets the cloth at positions x: the nearest point of its candidates to
@@ -81,10 +91,11 @@ SpringContact Contact(const CouplingSpring& s, std::span<const Vec3> x) {
   const Vec3 d = s.goal_m - best.point;
   const double dist = std::sqrt(best.distance_sq);
   // The signed distance of the goal: positive on the proxy's side of the cloth, negative past it.
-  double sd = d.dot(s.normal);
+  const double along = d.dot(s.normal);
+  double sd = along;
   out.n = s.normal;
   if (dist > 1e-12) {
-    const bool past = d.dot(s.normal) < 0.0;
+    const bool past = along < 0.0;
     out.n = past ? Vec3(-d / dist) : Vec3(d / dist);
     sd = past ? -dist : dist;
   }
@@ -141,26 +152,20 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
     ++state->counters.coupling_overflows;
     return;
   }
-  // The candidates: the triangles of the 3 x 3 cells around the contact triangle's cell (two per
-  // cell, MakeGridTriangles' order); pinned particles take no share.
+  // The candidates (ForEachCandidate); pinned particles take no share.
   CouplingSpring& s = cs.springs[cs.count++];
-  const int32_t cells_per_row = model.width - 1;
-  const int32_t cell = e.triangle / 2;
-  const int32_t row = cell / cells_per_row, col = cell % cells_per_row;
   s.num_candidates = 0;
-  for (int32_t r = std::max(0, row - 1); r <= std::min(model.height - 2, row + 1); ++r) {
-    for (int32_t c = std::max(0, col - 1); c <= std::min(cells_per_row - 1, col + 1); ++c) {
-      for (int32_t half = 0; half < 2; ++half) {
-        const Triangle& t = model.triangles[2 * (r * cells_per_row + c) + half];
-        s.candidates[s.num_candidates] = t;
-        for (int k = 0; k < 3; ++k) {
-          s.free[s.num_candidates][k] = model.inv_mass_per_kg[t[k]] > 0.0 ? 1.0 : 0.0;
-        }
-        ++s.num_candidates;
-      }
+  bool any_free = false;
+  ForEachCandidate(model, e.triangle, [&](const Triangle& t) {
+    s.candidates[s.num_candidates] = t;
+    for (int k = 0; k < 3; ++k) {
+      const bool free = model.inv_mass_per_kg[t[k]] > 0.0;
+      s.free[s.num_candidates][k] = free ? 1.0 : 0.0;
+      any_free = any_free || free;
     }
-  }
-  const double w_max = MaxFreeWeight(model, e);
+    ++s.num_candidates;
+  });
+  const double w_max = any_free ? 1.0 : 0.0;  // MaxFreeWeight, from the flags just made
   s.normal = e.normal / e.normal.norm();
   s.radius_m = e.radius_m;
   s.goal_m = e.anchor_m + e.radius_m * s.normal;

@@ -29,9 +29,9 @@ struct CouplingSpring {
   std::array<Triangle, kMaxCouplingCandidates> candidates{};  ///< particles of each candidate
   std::array<Vec3, kMaxCouplingCandidates> free{};  ///< per corner: 1 if free, 0 if pinned
   int32_t num_candidates = 0;
-  Vec3 goal_m = Vec3::Zero();     ///< sphere centre (the user's hand), world, m
-  double radius_m = 0.0;          ///< sphere radius, m
-  Vec3 normal = Vec3::UnitZ();    ///< unit, from the cloth toward the proxy's side
+  Vec3 goal_m = Vec3::Zero();      ///< sphere centre (the user's hand), world, m
+  double radius_m = 0.0;           ///< sphere radius, m
+  Vec3 normal = Vec3::UnitZ();     ///< unit, from the cloth toward the proxy's side
   double stiffness_N_per_m = 0.0;  ///< k_eff (after the stability bound)
   double max_force_N = 0.0;        ///< force clamp, N
 };

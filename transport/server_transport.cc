@@ -23,7 +23,8 @@ namespace felt::transport {
 namespace {
 
 constexpr int kTakeBatch = 16;  // samples per dds_take; more are taken in the next round
-constexpr int64_t kHopUnitNs = 100;  // hop histograms: exact 0.1 us bins to 25.6 us, then < 0.8 % wide
+constexpr int64_t kHopUnitNs =
+    100;  // hop histograms: exact 0.1 us bins to 25.6 us, then < 0.8 % wide
 
 // The percentiles of one hop histogram in us. Not real-time: copies the bins (~20 KB).
 HopSummary SummarizeHops(const Histogram& hops) {

@@ -114,8 +114,8 @@ TEST(BenchSmoke, LoopsOneSecondWritesTheIssueKeys) {
               kSource + "/scenes/curtain.toml --trace " + kSource + "/recordings/poke_hold.trace");
   ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
   const std::string text = ReadFile(json);
-  ExpectKeys(text, {"empty", "server", "lateness_us", "p50", "p99", "p999", "max", "overruns",
-                    "ticks"});
+  ExpectKeys(text,
+             {"empty", "server", "lateness_us", "p50", "p99", "p999", "max", "overruns", "ticks"});
   EXPECT_NE(outcome.output.find("empty loop vs server"), std::string::npos) << outcome.output;
   // One empty-loop setting only: the server's.
   EXPECT_NE(outcome.output.find("fifo_spin"), std::string::npos) << outcome.output;

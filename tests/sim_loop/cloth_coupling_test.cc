@@ -214,8 +214,8 @@ TEST(ClothCouplingTest, ReleasesOnceTheClothIsPastTheAnchor) {
 }
 
 // The contact force is minus the gradient of CouplingEnergy (central differences), on crumpled
-// sheets with the sphere's goal above faces, edges and vertices, inside the force clamp and past it:
-// the coupling is a potential force, so it cannot pump energy into the cloth.
+// sheets with the sphere's goal above faces, edges and vertices, inside the force clamp and past
+// it: the coupling is a potential force, so it cannot pump energy into the cloth.
 TEST(ClothCouplingTest, ForceIsMinusTheGradientOfTheContactEnergy) {
   const ClothModel model = FlatSheet(IntegratorKind::kLeapfrogVerlet);
   const int32_t tri = CentreTriangle(model);
