@@ -109,28 +109,57 @@ double ForceSpread(const std::vector<Sample>& s, double a, double b) {
 // second's spread no larger than the second second's).
 void ExpectConverged(const std::vector<Sample>& hold, SnapshotMode mode) {
   const Sample& last = hold.back();
-  const double late = ForceSpread(hold, 4.0, 5.0);
+  const double end = last.t_s;
+  const double late = ForceSpread(hold, end - 1.0, end + 1.0);
   const double early = ForceSpread(hold, 1.0, 2.0);
   EXPECT_LT(late, 0.02 * last.force_D_N.norm() + 1e-3) << SnapshotModeName(mode);
   EXPECT_LE(late, early + 1e-6) << SnapshotModeName(mode);
   double drift = 0.0;
   for (const Sample& s : hold) {
-    if (s.t_s >= 4.0) drift = std::max(drift, (s.proxy_W_m - last.proxy_W_m).norm());
+    if (s.t_s >= end - 1.0) drift = std::max(drift, (s.proxy_W_m - last.proxy_W_m).norm());
   }
   EXPECT_LT(drift, 5e-4) << SnapshotModeName(mode);
 }
 
-// Disabled: on the default curtain the press does not come to rest within the test's window.
-// What is left is the curtain's own slow sway, damped only by its air drag (c/m = 0.5 /s): the
-// same press with 10 x the drag settles exactly (the test below). Measured (2 cm press at the
-// centre particle, 14 s hold, since the sim presses the proxy's sphere onto the cloth's nearest
-// point), force spread over the last second (13-14 s) against the 1.7 mN allowed: newest and
-// blend_forces pass, interpolate 2.27 mN, extrapolate 3.21 mN; drift under 0.5 mm in every mode.
-// The spread shrinks from ~10 mN at 4-5 s; no mode cycles or loses contact.
-// Before that change the same press cycled at 20 Hz (the contact spring hopping between the
-// triangles around the vertex) and mode extrapolate swung 0-1.1 N.
+// The press on the default curtain itself (air drag c/m = 0.5 /s, nothing else damps its sway),
+// half a cell off the centre vertex, held 12 s: the force settles as the untouched curtain does.
+// Measured over a 20 s hold (force spread per 1 s window at 0-1, 4-5, 8-9, 12-13 and 18-19 s, mN):
+// interpolate 85, 7.0, 1.8, 0.57, 0.08; newest and extrapolate within 20 % of these from 4 s on.
+// The untouched curtain's centre particle moves 35 um within 6-7 s and 0.4 um within 18-19 s: the
+// hold decays at the cloth's own rate, halving about every 2 s.
+TEST(CoupledTest, PressAndHoldOnTheDefaultCurtainComesToRest) {
+  for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kNewest,
+                            SnapshotMode::kBlendForces, SnapshotMode::kExtrapolate}) {
+    PressSetup setup;
+    setup.mode = mode;
+    setup.hold_s = 12.0;
+    setup.offset_W_m = Vec3(0.008, -0.005, 0.0);
+    const PressResult run = PressAndHold(setup);
+    const std::vector<Sample>& hold = run.hold;
+    ASSERT_FALSE(hold.empty());
+    const Sample& last = hold.back();
+    EXPECT_GT(last.force_D_N.z(), 0.01) << SnapshotModeName(mode);
+    EXPECT_LT(last.force_D_N.norm(), 3.3) << SnapshotModeName(mode);
+    EXPECT_EQ(run.reduced_late_frames, 0u) << SnapshotModeName(mode);
+    ExpectConverged(hold, mode);
+  }
+}
+
+// Disabled: pressed exactly at the centre vertex of the default curtain, the hold does not come
+// fully to rest: a broadband jitter stays (no dominant frequency between 0.25 and 60 Hz), measured
+// over 20-30 s of a 30 s hold (2 cm press): force std 0.25 mN newest, 0.15 interpolate, 0.18
+// blend_forces, 0.47 extrapolate (0.4-1.4 % of the 33 mN force); spread per second 1-1.6 mN, 4 mN
+// extrapolate, against the 1.7 mN allowed; the proxy moves 2-3.5 um (std, world z). It is the
+// vertex: half a cell off it (the test above), or at it with a quarter of the device's stiffness,
+// the hold decays to 0.07 mN at 18 s in every mode; with 10 x the air drag it settles exactly at
+// the vertex too (the test below). Pressed into a vertex, the cloth forms a funnel, and the sim's
+// sphere pushes on the one nearest point of it, which changes faces as the funnel moves: the
+// force is conservative but its gradient jumps between faces, which the explicit substeps
+// integrate with an energy error the curtain's light drag does not remove. Shading off makes it
+// worse (std 2-3 x). Before the sim pressed a sphere onto the nearest point, the same press
+// cycled at 20 Hz and mode extrapolate swung 0-1.1 N.
 // Kept compiled to run by hand: --gtest_also_run_disabled_tests --gtest_filter='Coupled*'.
-TEST(CoupledTest, DISABLED_PressAndHoldComesToRestWithoutOscillationOrDrift) {
+TEST(CoupledTest, DISABLED_PressAtTheVertexOfTheDefaultCurtainComesToRest) {
   for (SnapshotMode mode : {SnapshotMode::kInterpolate, SnapshotMode::kNewest,
                             SnapshotMode::kBlendForces, SnapshotMode::kExtrapolate}) {
     PressSetup setup;
@@ -138,21 +167,12 @@ TEST(CoupledTest, DISABLED_PressAndHoldComesToRestWithoutOscillationOrDrift) {
     setup.hold_s = 14.0;
     const PressResult run = PressAndHold(setup);
     const std::vector<Sample>& hold = run.hold;
-    // The contact spring ran at the device's stiffness (k_eff == k), so at rest the cloth gets
-    // exactly the opposite of what the user feels.
     EXPECT_EQ(run.reduced_late_frames, 0u) << SnapshotModeName(mode);
     ASSERT_FALSE(hold.empty());
     const Sample& last = hold.back();
-    // The user feels the curtain pushing back, well inside the device's range.
     EXPECT_GT(last.force_D_N.z(), 0.01) << SnapshotModeName(mode);
     EXPECT_LT(last.force_D_N.norm(), 3.3) << SnapshotModeName(mode);
-    const double late = ForceSpread(hold, 13.0, 14.0);
-    EXPECT_LT(late, 0.02 * last.force_D_N.norm() + 1e-3) << SnapshotModeName(mode);
-    double drift = 0.0;
-    for (const Sample& s : hold) {
-      if (s.t_s >= 13.0) drift = std::max(drift, (s.proxy_W_m - last.proxy_W_m).norm());
-    }
-    EXPECT_LT(drift, 5e-4) << SnapshotModeName(mode);
+    ExpectConverged(hold, mode);
   }
 }
 
