@@ -146,11 +146,15 @@ void Server::SimThread() {
   const int64_t spin_ns = options_.apply_realtime ? int64_t{rt.spin_us} * 1000 : 0;
   PeriodicLoop loop(period_ns, std::min(spin_ns, period_ns / 2));
   loop.Start(MonotonicNowNs() + period_ns);
-  // Each frame integrates the time since the previous one: one period, more after skipped ones
-  // (StepFrame clamps it to max_frame_dt_s).
+  // Each frame integrates one period, also after an overrun: the skipped periods are counted
+  // (sim.skipped_periods) and their time is dropped, so the cloth runs slow for a moment instead
+  // of falling further behind. Integrating the missed time as well (more substeps in the next
+  // frame) made a frame that overran once cost twice as much, which overran again: at 64 x 64
+  // (8.5 ms frames) 4.8 % of the frames of a 10-minute run overran, p99 22 ms (bench/results/
+  // loops.md), the real-time "spiral of death" (Fiedler 2004, "Fix your timestep!").
   while (!stop_.load(std::memory_order_relaxed)) {
     const TickInfo tick = loop.WaitNext();
-    SimFrame(sim_dt_s_ * static_cast<double>(1 + tick.periods_skipped), 0);
+    SimFrame(sim_dt_s_, 0);
     sim_stats_->RecordTick(tick, MonotonicNowNs() - tick.wake_ns);
   }
 }
@@ -345,6 +349,7 @@ void Server::SimFrame(double frame_dt_s, int64_t publish_ns) {
                               frame_motion_v_, &slot.snapshot);
   slot.publish_ns = publish_ns == 0 ? MonotonicNowNs() : publish_ns;
   snapshots_->Publish();
+  sim_time_s_.store(cloth_.time_s, std::memory_order_relaxed);
   sim_frames_.store(sim_frame_counter_, std::memory_order_release);
 }
 

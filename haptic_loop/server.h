@@ -195,6 +195,8 @@ class Server {
   const ClothState& cloth() const { return cloth_; }
   /// The cloth's sim frames stepped so far (sim thread's count; any thread).
   uint64_t sim_frames() const { return sim_frames_.load(std::memory_order_acquire); }
+  /// Sim time of the newest frame [s]: frames x 1 / frame_rate_hz (skipped periods are dropped).
+  double sim_time_s() const { return sim_time_s_.load(std::memory_order_acquire); }
   /// Total reaction impulse the sim has applied to the cloth, N s (any thread).
   double applied_impulse_N_s() const { return applied_impulse_N_s_.load(); }
 
@@ -261,6 +263,7 @@ class Server {
   std::atomic<uint64_t> reaction_batches_applied_{0};
   std::atomic<uint64_t> reaction_queue_full_{0};
   std::atomic<uint64_t> sim_frames_{0};
+  std::atomic<double> sim_time_s_{0.0};
   std::atomic<uint64_t> cloth_nan_events_{0};
   std::atomic<double> applied_impulse_N_s_{0.0};
   std::atomic<int64_t> stall_request_ns_{0};
@@ -270,7 +273,7 @@ class Server {
   bool running_ = false;
   RealtimeReport haptic_report_;
   std::unique_ptr<CpuDmaLatencyHold> dma_hold_;  // between Start and Stop, when requested
-  std::atomic<bool> dma_held_{false};             // the hold was granted (kept after Stop)
+  std::atomic<bool> dma_held_{false};            // the hold was granted (kept after Stop)
   RealtimeReport sim_report_;
   std::atomic<bool> haptic_ready_{false};
   std::atomic<bool> sim_ready_{false};

@@ -145,6 +145,10 @@ TEST(ServerThreads, InjectedSimStallIsFlaggedWhileTheHapticLoopRuns) {
   // The blocked frame overran and its periods were skipped (recorded once the loop woke again).
   EXPECT_GE(server.Report()->sim.overruns, 1u);
   EXPECT_GE(server.Report()->sim.skipped_periods, 10u);
+  // Every frame, the one after the stall included, integrated one nominal period: the stalled
+  // time was dropped, not integrated in the next frame (which would make it overrun again).
+  const double frame_dt = 1.0 / ThreadedSpec().sim.integration.frame_rate_hz;
+  EXPECT_NEAR(server.sim_time_s(), static_cast<double>(server.sim_frames()) * frame_dt, 1e-9);
 }
 
 TEST(ServerThreads, StopIsIdempotentAndDestructionStops) {
