@@ -231,6 +231,49 @@ void SplitOverContacts(const GodObject& body, const Vec3& force_on_cloth_W,
   (*parts)[first] += force_on_cloth_W - assigned;
 }
 
+// How far the hand presses the cloth itself: the part of goal - proxy [m, world] the cloth's
+// contacts take, limited to how far the proxy could follow a yielding cloth before an obstacle
+// stops it. The coupling spring (and the reaction) must not give the cloth more: the energy
+// 1/2 k depth^2 the sim's sphere stores is released into the cloth when the cloth slips away
+// from under it, while the real proxy would drop onto the obstacle instead.
+struct ClothPress {
+  double full_m = 0.0;   ///< the cloth contacts' share of |goal - proxy|, m
+  double depth_m = 0.0;  ///< full_m limited by the obstacles, m
+};
+
+ClothPress PressOnCloth(const GodObject& body, const Vec3& goal, double r,
+                        std::span<const ObstacleSpec> obstacles) {
+  ClothPress out;
+  Vec3 push = goal - body.p_W_m;
+  // With an obstacle among the contacts only the cloth contacts' share presses the cloth: the
+  // split of goal - proxy over the contacts by their planes' multipliers (Ruspini, Kolarov &
+  // Khatib 1997 §3: F = sum f_i n_i; SplitOverContacts), obstacle shares left out.
+  bool with_obstacle = false;
+  for (int32_t i = 0; i < body.num_contacts; ++i) {
+    with_obstacle = with_obstacle || IsObstacleContactId(body.contacts[i].triangle);
+  }
+  if (with_obstacle) {
+    std::array<Vec3, kMaxConstraintPlanes> parts;
+    SplitOverContacts(body, push, &parts);
+    push.setZero();
+    for (int32_t i = 0; i < body.num_contacts; ++i) {
+      if (!IsObstacleContactId(body.contacts[i].triangle)) push += parts[i];
+    }
+  }
+  out.full_m = push.norm();
+  out.depth_m = out.full_m;
+  // The room to follow the cloth: the first obstacle contact of the proxy sphere swept along the
+  // push (exact sphere-obstacle sweep, Ericson 2005 §5.5.7; a proxy resting on an obstacle slides
+  // along it freely). A proxy pressing a cloth that lies on a table follows it only the cloth's
+  // margin down; one rounding the cloth's edge just above the table, hardly at all.
+  if (!obstacles.empty() && out.full_m > 0.0) {
+    int32_t k = -1;
+    const SweepContact oc = SweepSphereObstacles(body.p_W_m, body.p_W_m + push, r, obstacles, &k);
+    if (oc.hit) out.depth_m = oc.toi * out.full_m;
+  }
+  return out;
+}
+
 // What one body did in a tick.
 struct BodyTick {
   GodObjectStep step;
@@ -565,9 +608,14 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
 
   // Two-way coupling: each proxy's share of -F_W goes to the cloth at its contacts.
   const std::vector<Triangle>& tris = *newest.triangles;
-  auto add_reaction = [&](const GodObject& body, const Vec3& f_D, double weight) {
+  // Each gets only what the cloth itself takes before an obstacle does (PressOnCloth), as the
+  // contact spring below.
+  const ClothPress press = PressOnCloth(state->body, goal, opts.radius_m, opts.obstacles);
+  auto add_reaction = [&](const GodObject& body, const ClothPress& p, const Vec3& f_D,
+                          double weight) {
     if (body.num_contacts <= 0 || weight <= 0.0) return;
-    const Vec3 on_cloth_W = -(R * (weight * clamp * f_D)) / device.scale;
+    Vec3 on_cloth_W = -(R * (weight * clamp * f_D)) / device.scale;
+    if (p.depth_m < p.full_m) on_cloth_W *= p.depth_m / p.full_m;
     std::array<Vec3, kMaxConstraintPlanes> parts;
     SplitOverContacts(body, on_cloth_W, &parts);
     for (int32_t i = 0; i < body.num_contacts; ++i) {
@@ -576,8 +624,12 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
       state->reaction.AddForce(c.triangle, tris[c.triangle], c.barycentric, parts[i], tick_dt_s);
     }
   };
-  add_reaction(state->body, f_main_D, w_main);
-  if (mode == SnapshotMode::kBlendForces) add_reaction(state->body_prev, f_prev_D, w_prev);
+  add_reaction(state->body, press, f_main_D, w_main);
+  if (mode == SnapshotMode::kBlendForces) {
+    add_reaction(state->body_prev,
+                 PressOnCloth(state->body_prev, goal, opts.radius_m, opts.obstacles), f_prev_D,
+                 w_prev);
+  }
   state->reaction.AddTime(tick_dt_s);
   // The contact of this tick as a spring the sim evaluates at its substep rate (virtual coupling,
   // Colgate, Stanley & Brown 1995). The device spring F_D = k (proxy_D - device_D) is, in the
@@ -589,13 +641,14 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   const int32_t spring_contact = FirstClothContact(state->body);
   if (spring_contact >= 0) {
     const ProxyContact& c = state->body.contacts[spring_contact];
-    // The sim's sphere: centred on the proxy, its radius grown by how far the hand is past it,
-    // |proxy - goal| (along the contact normal for a frictionless contact), so at rest its
-    // penetration is that depth. Both are continuous in time (a sphere at the goal itself, deep
-    // behind the cloth in a fast swipe, found its nearest point sideways; one tied to the contact
-    // normal moved whenever the contact hopped between triangles).
+    // The sim's sphere: centred on the proxy, its radius grown by how far the hand presses the
+    // cloth itself (PressOnCloth: |proxy - goal| without obstacles; along the contact normal for a
+    // frictionless contact), so at rest its penetration is that depth. Both are continuous in time
+    // (a sphere at the goal itself, deep behind the cloth in a fast swipe, found its nearest point
+    // sideways; one tied to the contact normal moved whenever the contact hopped between
+    // triangles).
     const Vec3& proxy_c = state->body.p_W_m;
-    const double reach_m = opts.radius_m + (proxy_c - goal).norm();
+    const double reach_m = opts.radius_m + press.depth_m;
     state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
                                      proxy_c - reach_m * c.normal_W,
                                      device.stiffness_N_per_m / (device.scale * device.scale),

@@ -64,11 +64,14 @@ int32_t ReactionAccumulator::DrainInto(std::span<ExternalForce> out) {
       const Entry& entry = entries_[e];
       const Vec3 f = entry.impulse_N_s * inv_t;
       if (static_cast<size_t>(written) < out.size()) {
-        ExternalForce& ef = out[written++];
+        // A whole new entry: a slot the caller reuses may still hold an earlier frame's contact
+        // spring (stiffness_N_per_m > 0), which the sim would apply instead of this force.
+        ExternalForce ef;
         ef.triangle = entry.triangle;
         ef.barycentric = Vec3::Zero();
         ef.barycentric(entry.corner) = 1.0;
         ef.force_N = f;
+        out[written++] = ef;
       } else {
         out[written - 1].force_N += f;
       }

@@ -111,5 +111,29 @@ TEST(ReactionTest, OverflowKeepsTheTotal) {
   EXPECT_NEAR((out[0].force_N - 5 * Vec3(1, 2, 3)).norm(), 0.0, 1e-12);
 }
 
+// A frame whose contact ended before its last tick drains plain averaged forces. Into a slot
+// that held the previous frame's contact spring (the server and RunLockstep reuse their buffers)
+// it must write a plain force: a stale stiffness made the sim press the old sphere for a whole
+// frame after the proxy had left (tests/proxy/table_slide_test.cc).
+TEST(ReactionTest, PlainForceDrainedIntoASpringSlotIsPlain) {
+  ReactionAccumulator acc;
+  acc.SetContactSpring(4, Vec3(0.2, 0.3, 0.5), Vec3::UnitY(), Vec3(0, -0.02, 0), 400.0, 3.3, 0.03);
+  acc.AddTime(0.001);
+  std::vector<ExternalForce> out(2);
+  ASSERT_EQ(acc.DrainInto(out), 1);
+  ASSERT_GT(out[0].stiffness_N_per_m, 0.0);
+  acc.AddForce(7, {10, 11, 12}, Vec3(1, 0, 0), Vec3(0, -1, 0), 0.001);
+  acc.AddTime(0.001);
+  ASSERT_EQ(acc.DrainInto(out), 1);
+  const ExternalForce plain;
+  EXPECT_EQ(out[0].triangle, 7);
+  EXPECT_EQ(out[0].force_N, Vec3(0, -1, 0));
+  EXPECT_EQ(out[0].stiffness_N_per_m, 0.0);
+  EXPECT_EQ(out[0].radius_m, plain.radius_m);
+  EXPECT_EQ(out[0].anchor_m, plain.anchor_m);
+  EXPECT_EQ(out[0].normal, plain.normal);
+  EXPECT_EQ(out[0].max_force_N, plain.max_force_N);
+}
+
 }  // namespace
 }  // namespace felt
