@@ -15,6 +15,7 @@
 #include "sim_loop/cloth.h"
 #include "sim_loop/scene_file.h"
 #include "tests/proxy/proxy_test_util.h"
+#include "tests/test_env.h"
 
 namespace felt {
 namespace {
@@ -180,7 +181,9 @@ SlideRun Slide(const std::string& scene, SnapshotMode mode, double stiffness_N_p
 void ExpectSlideStaysOutside(const std::string& scene) {
   for (SnapshotMode mode : {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
                             SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate}) {
+    // Under a sanitizer, the stiffest only (tests/test_env.h): the same code paths.
     for (double k : {100.0, 200.0, 400.0}) {
+      if (testing::Sanitized() && k != 400.0) continue;
       const SlideRun run = Slide(scene, mode, k);
       SCOPED_TRACE(std::string(SnapshotModeName(mode)) + " k=" + std::to_string(k));
       EXPECT_TRUE(run.finite);
