@@ -14,6 +14,7 @@
 #include "haptic_loop/pointer_source.h"
 #include "haptic_loop/server.h"
 #include "tests/haptic_loop/server_test_util.h"
+#include "tests/test_env.h"
 
 namespace felt {
 namespace {
@@ -80,7 +81,7 @@ TEST(ServerThreads, RatesStatsAndHandoffsOverOneSecond) {
   // Rates within loose bounds (the loops start one period after Start()). Never more than the
   // nominal rate (missed periods are skipped, not bunched); under a sanitizer (make test-asan /
   // test-tsan set FELT_SANITIZER) a tick or frame can outlast its period, so fewer are allowed.
-  const bool sanitized = std::getenv("FELT_SANITIZER") != nullptr;
+  const bool sanitized = testing::Sanitized();
   // The lower bounds are loose on purpose: CI is a shared 2-core VM running two tests at once.
   const double haptic_min = sanitized ? 0.4 : 0.6;
   const double sim_min = sanitized ? 0.2 : 0.5;
