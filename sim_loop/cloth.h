@@ -79,11 +79,10 @@ struct PinAttachment {
 /// evaluated at every force evaluation of the step (every substep and integrator stage) at the
 /// positions being evaluated (virtual coupling, Colgate, Stanley & Brown 1995, on the god-object
 /// contact of Ruspini, Kolarov & Khatib 1997): the proxy sphere of radius_m centred at g = anchor_m
-/// + radius_m normal penetrates the cloth by pen = radius_m - d, where d is g's distance to the
+/// + radius_m normal penetrates the cloth by pen = radius_m - sd, where sd is g's distance to the
 /// nearest point c of the triangles around `triangle` (those of the 3 x 3 grid cells around its
-/// cell; unsigned: the cloth is thin and open). The cloth
-/// gets F = -n min(max_force_N, k_eff pen), n the unit direction from c toward g (`normal` if
-/// c = g),
+/// cell), negative when g is past the cloth (normal says which side is the proxy's). The cloth
+/// gets F = -n min(max_force_N, k_eff pen), n the unit direction from c toward the proxy's side,
 /// split over c's triangle by its barycentric weights (pinned particles get nothing): the
 /// gradient of the potential 1/2 k_eff pen^2, so the coupling is conservative however the cloth
 /// moves under it; `barycentric` only names where the haptic side found the contact, and force_N

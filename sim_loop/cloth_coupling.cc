@@ -66,8 +66,8 @@ bool ValidSpring(const ClothModel& model, const ExternalForce& e) {
 }
 
 // Where a spring's sphere meets the cloth at positions x: the nearest point of its candidates to
-// the goal, the unit direction n from that point toward the goal (`normal` if they coincide), and
-// the penetration radius - distance (Ericson 2005 §5.1.5 for the nearest point of each triangle).
+// the goal, the unit direction n from that point toward the proxy's side, and the penetration
+// radius - signed distance (Ericson 2005 §5.1.5 for the nearest point of each triangle).
 struct SpringContact {
   int32_t candidate = 0;
   Vec3 barycentric = Vec3::Zero();
@@ -90,14 +90,16 @@ SpringContact Contact(const CouplingSpring& s, std::span<const Vec3> x) {
   out.barycentric = best.barycentric;
   const Vec3 d = s.goal_m - best.point;
   const double dist = std::sqrt(best.distance_sq);
-  // The plain (unsigned) distance: the cloth is thin and open, and a distance signed by the side
-  // of `normal` flips from +dist to -dist wherever the nearest point is level with the centre
-  // (past the sheet's edge, over a fold), a jump of 2 k R dist in the energy released into the
-  // cloth (a sheet pressed at its edge was thrown at metres per second). A cloth that crosses the
-  // centre within a frame is pushed on through, and the proxy, carried with its contact triangle
-  // (proxy/proxy.h), follows it to the side it had: the next frame's sphere is on that side again.
-  out.n = dist > 1e-12 ? Vec3(d / dist) : s.normal;
-  out.pen_m = s.radius_m - dist;
+  // The signed distance of the goal: positive on the proxy's side of the cloth, negative past it.
+  const double along = d.dot(s.normal);
+  double sd = along;
+  out.n = s.normal;
+  if (dist > 1e-12) {
+    const bool past = along < 0.0;
+    out.n = past ? Vec3(-d / dist) : Vec3(d / dist);
+    sd = past ? -dist : dist;
+  }
+  out.pen_m = s.radius_m - sd;
   return out;
 }
 

@@ -80,9 +80,9 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
 
 /// Adds scale * the contact springs' forces at positions `x` [m, world, n entries] into `f`
 /// (3 n packed doubles, xyz per particle): per spring, the nearest point c of its candidate
-/// triangles to its goal g (the first of equal ones), pen = radius - |g - c|; if pen > 0,
-/// F = -n min(max_force_N, k pen) with n the unit direction from c toward g (`normal` where g lies
-/// on the cloth), corner i of c's triangle getting
+/// triangles to its goal g (the first of equal ones), sd = |g - c| signed by the side of `normal`,
+/// pen = radius - sd; if pen > 0, F = -n min(max_force_N, k pen) with n the unit direction from c
+/// toward the proxy's side (`normal` where g lies on the cloth), corner i of c's triangle getting
 /// free_i b_i F (ExternalForce). F is minus the gradient of CouplingEnergy. Real-time safe.
 void AddCouplingForces(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
                        double* f);
