@@ -95,7 +95,7 @@ SpringContact Contact(const CouplingSpring& s, std::span<const Vec3> x) {
   // a fold) the sign flips with |g - c| > 0, a jump of 2 k R |g - c| in the energy. The plain
   // (unsigned) distance was tried and reverted: a cloth that crosses the centre within a frame is
   // then pushed on through the proxy (felt compare on poke_hold: the interpolate reference hit the
-  // 3.3 N clamp on 50 ticks, blend_forces and extrapolate lost a third of their contacts).
+  // 3.3 N clamp on 50 ticks, blend_forces and extrapolate lost about 40 % of their contact ticks).
   const double along = d.dot(s.normal);
   double sd = along;
   out.n = s.normal;
