@@ -192,26 +192,6 @@ TEST(ObstacleProxyTest, ServerSceneGivesTheProxyTheSceneObstacles) {
 
 // ---- The real cloth pinched against a table, coupled both ways in lock-step. ----
 
-// A 0.2 m sheet dropped from 1 cm onto the table of scenes/tablecloth.toml (margin 2 mm).
-constexpr const char* kPinchScene = R"(
-[cloth]
-width = 21
-height = 21
-spacing_m = 0.01
-mass_kg = 0.008
-origin_m = [-0.1, 0.01, -0.1]
-u_axis = [1.0, 0.0, 0.0]
-v_axis = [0.0, 0.0, 1.0]
-drag_N_s_per_m = 4e-5
-
-[[obstacles]]
-type = "box"
-min_m = [-0.3, -0.75, -0.2]
-max_m = [0.3, 0.0, 0.2]
-friction = 0.5
-margin_m = 0.002
-)";
-
 // What one pinch run recorded.
 struct PinchRun {
   std::vector<Vec3> forces;           ///< every tick's force, device frame
@@ -225,7 +205,7 @@ struct PinchRun {
 // Runs the sheet at 60 Hz and the proxy at 1 kHz: settle 1 s, come down from 5 cm above the
 // sheet's centre to 2 cm below the tabletop over 0.5 s, hold 1.5 s.
 PinchRun Pinch(SnapshotMode mode, double stiffness_N_per_m) {
-  const SimSpec spec = ParseSimSpec(ParseSceneText(kPinchScene, "pinch.toml"));
+  const SimSpec spec = ParseSimSpec(ParseSceneText(testing::SpringlessSheet(), "pinch.toml"));
   const ClothModel model = BuildClothModel(spec);
   ClothState state = MakeClothState(model);
   DeviceSpec device = UnitDevice(0.004);

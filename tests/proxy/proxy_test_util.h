@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "proxy/frame_motion.h"
@@ -151,6 +152,47 @@ void RunLockstep(const ClothModel& model, ClothState* state, const DeviceSpec& d
       since += 1e-3;
     }
   }
+}
+
+/// A 0.2 m sheet (x, z in [-0.1, 0.1]) with the springs of scenes/tablecloth.toml, dropped from
+/// 1 cm onto that scene's table (top y = 0, x in [-0.3, 0.3]; friction 0.5, margin 2 mm): the
+/// table is bare beyond x = 0.1.
+inline constexpr const char* kSheetOnTable = R"(
+[cloth]
+width = 21
+height = 21
+spacing_m = 0.01
+mass_kg = 0.008
+origin_m = [-0.1, 0.01, -0.1]
+u_axis = [1.0, 0.0, 0.0]
+v_axis = [0.0, 0.0, 1.0]
+drag_N_s_per_m = 4e-5
+
+[cloth.structural]
+stiffness_N_per_m = 1.0
+damping_N_s_per_m = 0.0002
+
+[cloth.shear]
+stiffness_N_per_m = 0.5
+damping_N_s_per_m = 0.0001
+
+[cloth.bend]
+stiffness_N_per_m = 0.1
+damping_N_s_per_m = 2e-05
+
+[[obstacles]]
+type = "box"
+min_m = [-0.3, -0.75, -0.2]
+max_m = [0.3, 0.0, 0.2]
+friction = 0.5
+margin_m = 0.002
+)";
+
+/// The same sheet without springs, held together by Provot's constraints alone (the sheet of
+/// ObstacleProxyTest's pinch runs).
+inline std::string SpringlessSheet() {
+  const std::string text = kSheetOnTable;
+  return text.substr(0, text.find("[cloth.structural]")) + text.substr(text.find("[[obstacles]]"));
 }
 
 }  // namespace felt::testing

@@ -20,47 +20,6 @@
 namespace felt {
 namespace {
 
-// A 0.2 m sheet (x, z in [-0.1, 0.1]) with the springs of scenes/tablecloth.toml, dropped from
-// 1 cm onto that scene's table (top y = 0, x in [-0.3, 0.3]; friction 0.5, margin 2 mm): the
-// table is bare beyond x = 0.1.
-constexpr const char* kSheetOnTable = R"(
-[cloth]
-width = 21
-height = 21
-spacing_m = 0.01
-mass_kg = 0.008
-origin_m = [-0.1, 0.01, -0.1]
-u_axis = [1.0, 0.0, 0.0]
-v_axis = [0.0, 0.0, 1.0]
-drag_N_s_per_m = 4e-5
-
-[cloth.structural]
-stiffness_N_per_m = 1.0
-damping_N_s_per_m = 0.0002
-
-[cloth.shear]
-stiffness_N_per_m = 0.5
-damping_N_s_per_m = 0.0001
-
-[cloth.bend]
-stiffness_N_per_m = 0.1
-damping_N_s_per_m = 2e-05
-
-[[obstacles]]
-type = "box"
-min_m = [-0.3, -0.75, -0.2]
-max_m = [0.3, 0.0, 0.2]
-friction = 0.5
-margin_m = 0.002
-)";
-
-// The same sheet without springs, held together by Provot's constraints alone (the sheet of
-// ObstacleProxyTest's pinch runs).
-std::string SpringlessSheet() {
-  const std::string text = kSheetOnTable;
-  return text.substr(0, text.find("[cloth.structural]")) + text.substr(text.find("[[obstacles]]"));
-}
-
 // The worst of one run.
 struct SlideRun {
   double min_cloth_gap_m = 1e300;  ///< least (distance to the tick's cloth - r), every proxy body
@@ -202,7 +161,7 @@ void ExpectSlideStaysOutside(const std::string& scene) {
 // sheet: the proxy ended up to 4.0 mm inside the cloth (newest 3.85 mm, blend_forces 3.85 mm,
 // interpolate 3.77 mm, extrapolate 3.99 mm at k = 100-400) and the sheet rose up to 0.78 m.
 TEST(TableSlideTest, PressedProxySlidOffTheSheetOntoTheTableStaysOutsideClothAndTable) {
-  ExpectSlideStaysOutside(kSheetOnTable);
+  ExpectSlideStaysOutside(testing::kSheetOnTable);
 }
 
 // Disabled: the same run on the sheet without springs (Provot's constraints alone, one substep
@@ -215,7 +174,7 @@ TEST(TableSlideTest, PressedProxySlidOffTheSheetOntoTheTableStaysOutsideClothAnd
 // without), so it is not the coupling's pen depth; not investigated further.
 // Kept compiled to run by hand: --gtest_also_run_disabled_tests --gtest_filter='TableSlide*'.
 TEST(TableSlideTest, DISABLED_SpringlessSheetIsNotThrown) {
-  ExpectSlideStaysOutside(SpringlessSheet());
+  ExpectSlideStaysOutside(testing::SpringlessSheet());
 }
 
 }  // namespace
