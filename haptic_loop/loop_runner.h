@@ -57,7 +57,15 @@ RealtimeReport RunLoop(const LoopRunOptions& options, LoopStats* stats, Body&& b
   // The ticks: wait, run the body, record.
   while (options.stop == nullptr || !options.stop->load(std::memory_order_relaxed)) {
     const TickInfo tick = loop.WaitNext();
-    if (tick.deadline_ns >= end_ns) break;
+    if (tick.deadline_ns >= end_ns) {
+      // A stall over the end: the boundaries it skipped that were due before the end are skipped
+      // periods of this run (boundary k is due at start + k period; those below `due` count).
+      const uint64_t first_skipped = tick.period_index - tick.periods_skipped;
+      const uint64_t due =
+          static_cast<uint64_t>((end_ns - start_ns + options.period_ns - 1) / options.period_ns);
+      stats->RecordEndOfRun(tick, due > first_skipped ? due - first_skipped : 0);
+      break;
+    }
     body(tick);
     stats->RecordTick(tick, MonotonicNowNs() - tick.wake_ns);
   }

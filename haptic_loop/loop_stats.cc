@@ -180,6 +180,13 @@ void LoopStats::RecordTick(const TickInfo& tick, int64_t compute_ns) {
   ticks_.store(ticks_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
 }
 
+void LoopStats::RecordEndOfRun(const TickInfo& tick, uint64_t skipped_before_end) {
+  if (!tick.overrun) return;
+  overruns_.store(overruns_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+  skipped_periods_.store(skipped_periods_.load(std::memory_order_relaxed) + skipped_before_end,
+                         std::memory_order_release);
+}
+
 void LoopStats::RecordSnapshotAge(int64_t age_ns) { snapshot_age_.Record(age_ns); }
 
 void LoopStats::Snapshot(LoopStatsSnapshot* out) const {

@@ -131,6 +131,11 @@ class LoopStats {
   /// Records a tick from PeriodicLoop::WaitNext() and its work time `compute_ns`. Loop thread
   /// only. Real-time safe.
   void RecordTick(const TickInfo& tick, int64_t compute_ns);
+  /// Records the wake-up that ended a timed run (its deadline at or past the end, so no tick
+  /// runs): its overrun, if the last tick's work overran, and `skipped_before_end` skipped
+  /// periods (those of its skipped boundaries that were due before the end). Loop thread only.
+  /// Real-time safe.
+  void RecordEndOfRun(const TickInfo& tick, uint64_t skipped_before_end);
   /// Records the age of the snapshot used this tick (now minus the snapshot's publication time).
   /// Loop thread only. Real-time safe.
   void RecordSnapshotAge(int64_t age_ns);
