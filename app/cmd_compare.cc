@@ -18,7 +18,7 @@
 #include "recordings/trace.h"
 #include "sim_loop/scene_file.h"
 
-namespace felt::app {
+namespace felt::app::cmd_compare {
 namespace {
 
 struct CompareArgs {
@@ -175,4 +175,4 @@ const bool kRegistered = RegisterCommand(
      Setup});
 
 }  // namespace
-}  // namespace felt::app
+}  // namespace felt::app::cmd_compare

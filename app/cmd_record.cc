@@ -18,7 +18,7 @@
 #include "transport/clock.h"
 #include "transport/recorder.h"
 
-namespace felt::app {
+namespace felt::app::cmd_record {
 namespace {
 
 // Set by the signal handler; lock-free, so async-signal-safe.
@@ -129,4 +129,4 @@ const bool kRegistered = RegisterCommand(
     {"", "record", "record a device's pointer samples (and forces) from DDS into a trace", Setup});
 
 }  // namespace
-}  // namespace felt::app
+}  // namespace felt::app::cmd_record

@@ -20,7 +20,7 @@
 #include "recordings/trace.h"
 #include "transport/replayer.h"
 
-namespace felt::app {
+namespace felt::app::cmd_replay {
 namespace {
 
 // Set by the signal handler; lock-free, so async-signal-safe.
@@ -134,4 +134,4 @@ const bool kRegistered = RegisterCommand(
      "publish a pointer trace over DDS at its recorded timing; report latency, lost, late", Setup});
 
 }  // namespace
-}  // namespace felt::app
+}  // namespace felt::app::cmd_replay

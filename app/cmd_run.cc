@@ -28,7 +28,7 @@
 #include "sim_loop/integrator_names.h"
 #include "sim_loop/scene_file.h"
 
-namespace felt::app {
+namespace felt::app::cmd_run {
 namespace {
 
 constexpr double kMaxDuration_s = 86400.0;  // one day of frames: the per-frame samples stay small
@@ -279,4 +279,4 @@ const bool kRegistered = RegisterCommand(
     {"", "run", "run a scene headless in real time and print frame statistics", SetupRun});
 
 }  // namespace
-}  // namespace felt::app
+}  // namespace felt::app::cmd_run

@@ -30,7 +30,7 @@
 #include "transport/server_transport.h"
 #include "transport/transport_scene.h"
 
-namespace felt::app {
+namespace felt::app::cmd_serve {
 namespace {
 
 // Set by the signal handler; lock-free, so async-signal-safe.
@@ -207,4 +207,4 @@ const bool kRegistered = RegisterCommand(
      Setup});
 
 }  // namespace
-}  // namespace felt::app
+}  // namespace felt::app::cmd_serve

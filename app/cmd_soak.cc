@@ -44,7 +44,7 @@
 #include "sim_loop/scene_file.h"
 #include "transport/clock.h"
 
-namespace felt::app {
+namespace felt::app::cmd_soak {
 namespace {
 
 // Set by the signal handler; lock-free, so async-signal-safe.
@@ -877,4 +877,4 @@ const bool kRegistered = RegisterCommand(
      Setup});
 
 }  // namespace
-}  // namespace felt::app
+}  // namespace felt::app::cmd_soak

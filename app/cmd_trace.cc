@@ -14,7 +14,7 @@
 #include "recordings/import.h"
 #include "recordings/trace.h"
 
-namespace felt::app {
+namespace felt::app::cmd_trace {
 namespace {
 
 // "x,y,z" as three finite numbers; throws std::invalid_argument naming the option.
@@ -123,4 +123,4 @@ const bool kRegisteredGenerate = RegisterCommand(
      SetupGenerate});
 
 }  // namespace
-}  // namespace felt::app
+}  // namespace felt::app::cmd_trace

@@ -20,7 +20,7 @@
 #include "haptic_loop/json_writer.h"
 #include "sim_loop/cloth.h"
 
-namespace felt::bench {
+namespace felt::bench::bench_cloth {
 namespace {
 
 constexpr double kStretchTarget = 1.10;
@@ -243,4 +243,4 @@ const bool kRegistered = app::RegisterCommand(
      Setup});
 
 }  // namespace
-}  // namespace felt::bench
+}  // namespace felt::bench::bench_cloth

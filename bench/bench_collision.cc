@@ -31,7 +31,7 @@
 #include "sim_loop/collision_structure.h"
 #include "sim_loop/mesh.h"
 
-namespace felt::bench {
+namespace felt::bench::bench_collision {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -853,4 +853,4 @@ const bool kRegistered = felt::app::RegisterCommand({
 });
 
 }  // namespace
-}  // namespace felt::bench
+}  // namespace felt::bench::bench_collision

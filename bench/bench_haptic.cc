@@ -37,7 +37,7 @@
 #include "sim_loop/scene_file.h"
 #include "sim_loop/snapshot.h"
 
-namespace felt::bench {
+namespace felt::bench::bench_haptic {
 namespace {
 
 constexpr double kTickS = 1e-3;
@@ -249,7 +249,8 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
       ++ms.ticks;
       if (i > 0) ms.max_jump_N = std::max(ms.max_jump_N, (r.force_D_N - last_force[m]).norm());
       last_force[m] = r.force_D_N;
-      const ClothView view = r.on_newest ? ClothView::Of(next) : ModeView(kModes[m], next, prev, since);
+      const ClothView view =
+          r.on_newest ? ClothView::Of(next) : ModeView(kModes[m], next, prev, since);
       if (trackers[m].Check(view, states[m].body)) {
         ++ms.pop_through;
       }
@@ -422,4 +423,4 @@ const bool kRegistered = app::RegisterCommand(app::CommandEntry{
     }});
 
 }  // namespace
-}  // namespace felt::bench
+}  // namespace felt::bench::bench_haptic

@@ -39,7 +39,7 @@
 #include "sim_loop/integrator_names.h"
 #include "sim_loop/scene_file.h"
 
-namespace felt::bench {
+namespace felt::bench::bench_integrators {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -610,4 +610,4 @@ const bool kRegistered = app::RegisterCommand(
      "speed against error of the eight integrators on the curtain (32 x 32, 64 x 64)", Setup});
 
 }  // namespace
-}  // namespace felt::bench
+}  // namespace felt::bench::bench_integrators

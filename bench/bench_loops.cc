@@ -30,7 +30,7 @@
 #include "recordings/trace.h"
 #include "sim_loop/scene_file.h"
 
-namespace felt::bench {
+namespace felt::bench::bench_loops {
 namespace {
 
 constexpr int64_t kPeriodNs = 1'000'000;  // 1 kHz
@@ -348,4 +348,4 @@ const bool kRegistered = felt::app::RegisterCommand(
     {"bench", "loops", "lateness of the 1 kHz loop: empty (machine floor) and server", Setup});
 
 }  // namespace
-}  // namespace felt::bench
+}  // namespace felt::bench::bench_loops

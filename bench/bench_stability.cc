@@ -22,7 +22,7 @@
 #include "haptic_loop/json_writer.h"
 #include "sim_loop/cloth.h"
 
-namespace felt::bench {
+namespace felt::bench::bench_stability {
 namespace {
 
 constexpr double kFrame_s = 1.0 / 60.0;
@@ -495,4 +495,4 @@ const bool kRegistered = app::RegisterCommand(
     {"bench", "stability", "the hard cases of the cloth (issue 2) as a pass/fail table", Setup});
 
 }  // namespace
-}  // namespace felt::bench
+}  // namespace felt::bench::bench_stability

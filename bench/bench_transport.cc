@@ -43,7 +43,7 @@
 #include "transport/raw_roundtrip.h"
 #include "transport/server_transport.h"
 
-namespace felt::bench {
+namespace felt::bench::bench_transport {
 namespace {
 
 using transport::ReceiveMode;
@@ -179,7 +179,6 @@ HopResult MeasureHops(const transport::DdsSettings& dds, ReceiveMode mode, doubl
   result.stats = server.Stats();
   return result;
 }
-
 
 // ---- End to end -------------------------------------------------------------------------------
 
@@ -343,7 +342,8 @@ struct E2eResult {
 E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& scene,
                           const std::string& trace, double seconds, bool fifo) {
   ServerSpec spec = ParseServerSpec(LoadSceneDocument(scene));
-  if (spec.devices.empty()) throw std::runtime_error("bench transport: " + scene + " has no device");
+  if (spec.devices.empty())
+    throw std::runtime_error("bench transport: " + scene + " has no device");
   spec.devices.resize(1);
   const std::string suffix = "/bench_e2e_" + std::to_string(getpid());
   transport::ServerTransportConfig config;
@@ -597,4 +597,4 @@ const bool kRegistered = app::RegisterCommand({
 });
 
 }  // namespace
-}  // namespace felt::bench
+}  // namespace felt::bench::bench_transport

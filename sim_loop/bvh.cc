@@ -11,6 +11,8 @@
 #include <string>
 #include <type_traits>
 
+#include "sim_loop/cpu_features.h"
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -348,11 +350,8 @@ __attribute__((target("avx2"))) AabbSweepCounts SweepAabbAvx2(const AabbSweepArg
   return {updates, invalidated};
 }
 
-// True if this CPU runs AVX2 (asked once) and the tests have not asked for the portable passes.
-bool CpuHasAvx2() {
-  static const bool has = __builtin_cpu_supports("avx2") != 0;
-  return has && !g_bvh_portable.load(std::memory_order_relaxed);
-}
+// True if this CPU runs AVX2 and the tests have not asked for the portable passes.
+bool BvhUsesAvx2() { return CpuHasAvx2() && !g_bvh_portable.load(std::memory_order_relaxed); }
 #endif
 
 }  // namespace
@@ -537,7 +536,7 @@ struct BvhImpl {
                              h.aabb_.data(),
                              h.changed_.data()};
 #if defined(__x86_64__)
-    const AabbSweepCounts n = CpuHasAvx2() ? SweepAabbAvx2(args) : SweepAabbPortable(args);
+    const AabbSweepCounts n = BvhUsesAvx2() ? SweepAabbAvx2(args) : SweepAabbPortable(args);
 #else
     const AabbSweepCounts n = SweepAabbPortable(args);
 #endif

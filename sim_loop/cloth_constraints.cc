@@ -10,6 +10,7 @@
 
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
+#include "sim_loop/cpu_features.h"
 
 namespace felt {
 namespace {
@@ -296,17 +297,14 @@ __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t
   return _mm256_movemask_pd(loose) != 0 || tail;
 }
 
-// True if this CPU runs AVX2 (asked once) and the tests have not asked for the portable loops.
-bool CpuHasAvx2() {
-  static const bool has = __builtin_cpu_supports("avx2") != 0;
-  return has && !g_provot_portable.load(std::memory_order_relaxed);
-}
+// True if this CPU runs AVX2 and the tests have not asked for the portable loops.
+bool ProvotUsesAvx2() { return CpuHasAvx2() && !g_provot_portable.load(std::memory_order_relaxed); }
 #endif
 
 // One Gauss-Seidel sweep over a family: AVX2 where the CPU has it, else the portable loop.
 bool SweepFamily(const ProvotSoa& a, int32_t width, const ProvotFamily& f) {
 #if defined(__x86_64__)
-  if (CpuHasAvx2()) return SweepFamilyAvx2(a, width, f);
+  if (ProvotUsesAvx2()) return SweepFamilyAvx2(a, width, f);
 #endif
   return SweepFamilyPortable(a, width, f);
 }

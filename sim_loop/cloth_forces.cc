@@ -12,12 +12,11 @@
 
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
+#include "sim_loop/cpu_features.h"
 
 namespace felt {
 namespace {
 
-// Springs shorter than this have no usable direction and exert no force.
-constexpr double kMinSpringLength_m = 1e-12;
 // The flat kernels read a std::vector<Vec3> as 3 n packed doubles.
 static_assert(sizeof(Vec3) == 3 * sizeof(double));
 
@@ -49,8 +48,7 @@ void AddSpringForces(const ClothModel& model, std::span<const Vec3> x, std::span
         inv_len;
     // Force magnitude over length, so that force = scale * d.
     const double scale =
-        (s.stiffness_N_per_m * (len - s.rest_length_m) + s.damping_N_s_per_m * rel_speed) *
-        inv_len;
+        (s.stiffness_N_per_m * (len - s.rest_length_m) + s.damping_N_s_per_m * rel_speed) * inv_len;
     const double fx = scale * dx, fy = scale * dy, fz = scale * dz;
     fp[i] += fx;
     fp[i + 1] += fy;
@@ -101,8 +99,8 @@ void FamilySpringForces(const SoaViews& a, const SpringFamily& family, ptrdiff_t
     const double live = len2 > kMinLength2 ? 1.0 : 0.0;
     const double len = std::sqrt(len2 > kMinLength2 ? len2 : kMinLength2);
     const double inv_len = 1.0 / len;
-    const double rel_speed = ((vx[q] - vx[p]) * dx + (vy[q] - vy[p]) * dy + (vz[q] - vz[p]) * dz) *
-                             inv_len;
+    const double rel_speed =
+        ((vx[q] - vx[p]) * dx + (vy[q] - vy[p]) * dy + (vz[q] - vz[p]) * dz) * inv_len;
     const double scale = live * (k * (len - rest) + c * rel_speed) * inv_len;
     sx[p] = scale * dx;
     sy[p] = scale * dy;
@@ -130,8 +128,8 @@ __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
     const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(a.x + q), _mm256_loadu_pd(a.x + p));
     const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(a.y + q), _mm256_loadu_pd(a.y + p));
     const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(a.z + q), _mm256_loadu_pd(a.z + p));
-    const __m256d len2 = _mm256_add_pd(
-        _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+    const __m256d len2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+                                       _mm256_mul_pd(dz, dz));
     const __m256d live_mask = _mm256_cmp_pd(len2, min2, _CMP_GT_OQ);
     const __m256d live = _mm256_and_pd(live_mask, one);
     const __m256d len = _mm256_sqrt_pd(_mm256_blendv_pd(min2, len2, live_mask));
@@ -139,10 +137,10 @@ __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
     const __m256d dvx = _mm256_sub_pd(_mm256_loadu_pd(a.vx + q), _mm256_loadu_pd(a.vx + p));
     const __m256d dvy = _mm256_sub_pd(_mm256_loadu_pd(a.vy + q), _mm256_loadu_pd(a.vy + p));
     const __m256d dvz = _mm256_sub_pd(_mm256_loadu_pd(a.vz + q), _mm256_loadu_pd(a.vz + p));
-    const __m256d rel_speed = _mm256_mul_pd(
-        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dvx, dx), _mm256_mul_pd(dvy, dy)),
-                      _mm256_mul_pd(dvz, dz)),
-        inv_len);
+    const __m256d rel_speed =
+        _mm256_mul_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dvx, dx), _mm256_mul_pd(dvy, dy)),
+                                    _mm256_mul_pd(dvz, dz)),
+                      inv_len);
     const __m256d magnitude =
         _mm256_add_pd(_mm256_mul_pd(k, _mm256_sub_pd(len, rest)), _mm256_mul_pd(c, rel_speed));
     const __m256d scale = _mm256_mul_pd(_mm256_mul_pd(live, magnitude), inv_len);
@@ -153,18 +151,13 @@ __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
   if (p < hi) FamilySpringForces(a, family, off, p, hi);
 }
 
-// True if this CPU runs AVX2 (asked once).
-bool HasAvx2() {
-  static const bool has = __builtin_cpu_supports("avx2") != 0;
-  return has;
-}
 #endif
 
 // The family's spring forces into s[lo, hi): AVX2 where available, else the portable loop.
 void FamilySpringForcesBest(const SoaViews& a, const SpringFamily& family, ptrdiff_t off,
                             ptrdiff_t lo, ptrdiff_t hi) {
 #if defined(__x86_64__)
-  if (HasAvx2()) {
+  if (CpuHasAvx2()) {
     FamilySpringForcesAvx2(a, family, off, lo, hi);
     return;
   }

@@ -15,8 +15,6 @@
 namespace felt {
 namespace {
 
-constexpr double kMinSpringLength_m = 1e-12;
-
 void Accel(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
            ClothState::Scratch* s, std::vector<Vec3>* a) {
   ComputeAccelerations(model, x, v, s, *a);

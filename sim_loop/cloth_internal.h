@@ -14,6 +14,10 @@
 
 namespace felt {
 
+/// Springs shorter than this (m) have no usable direction: they exert no force and add no
+/// stiffness to implicit Euler's Jacobian.
+inline constexpr double kMinSpringLength_m = 1e-12;
+
 /// Preallocated work arrays of one ClothState, sized once by MakeClothState (n = particles).
 struct ClothState::Scratch {
   // Forces and integrator stages, [n] each.

@@ -22,7 +22,7 @@
 namespace felt::transport {
 namespace {
 
-constexpr size_t kForceBatch = 256;        // forces per TakeForces call
+constexpr size_t kReplayTakeBatch = 256;   // forces per TakeForces call
 constexpr uint32_t kForceHistory = 4096;   // forces the reader holds before overwriting
 constexpr int64_t kStartLeadNs = 5000000;  // first deadline: 5 ms after Run begins
 constexpr int64_t kMaxSleepNs = 50000000;  // sleep at most 50 ms at a time (to see the stop flag)
@@ -189,7 +189,7 @@ void Replayer::Impl::OnForce(const ForceCommandView& force) {
 }
 
 void Replayer::Impl::ReceiveLoop() {
-  std::vector<ForceCommandView> batch(kForceBatch);
+  std::vector<ForceCommandView> batch(kReplayTakeBatch);
   try {
     for (;;) {
       const bool stopping = stop_receiving_.load(std::memory_order_acquire);

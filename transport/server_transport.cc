@@ -42,7 +42,7 @@ HopSummary SummarizeHops(const Histogram& hops) {
 }
 
 // Relaxed counter bump for a counter with one writer at a time.
-void Bump(std::atomic<uint64_t>& counter) {
+void BumpSingleWriter(std::atomic<uint64_t>& counter) {
   counter.store(counter.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
 }
 
@@ -238,7 +238,7 @@ void ServerTransport::Impl::WaitsetLoop() {
     // Block until a sample or the stop guard; the result only says how many triggered.
     const dds_return_t n = dds_waitset_wait(waitset_.get(), nullptr, 0, DDS_INFINITY);
     if (n < 0) {
-      Bump(dds_errors_receive_);
+      BumpSingleWriter(dds_errors_receive_);
       continue;
     }
     if (stop_receive_.load()) break;
@@ -255,7 +255,7 @@ void ServerTransport::Impl::DrainPointers() {
     const dds_return_t n = dds_take(pointer_reader_.get(), take_ptrs_.data(), take_infos_.data(),
                                     kTakeBatch, kTakeBatch);
     if (n < 0) {
-      Bump(dds_errors_receive_);
+      BumpSingleWriter(dds_errors_receive_);
       break;
     }
     if (n == 0) break;
@@ -279,7 +279,7 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
          std::strncmp(devices_[index].id, sample.device_id, sizeof(devices_[index].id)) != 0) {
     ++index;
   }
-  if (index == devices_.size()) return Bump(unknown_);
+  if (index == devices_.size()) return BumpSingleWriter(unknown_);
   Device& device = devices_[index];
 
   // Flood: a token bucket of max_rate_hz with burst_samples depth; every sample costs a token.
@@ -287,25 +287,25 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
       static_cast<double>(now_ns - device.last_refill_ns) * 1e-9 * device.limits.max_rate_hz;
   device.tokens = std::min(device.limits.burst_samples, device.tokens + refill);
   device.last_refill_ns = now_ns;
-  if (device.tokens < 1.0) return Bump(flood_);
+  if (device.tokens < 1.0) return BumpSingleWriter(flood_);
   device.tokens -= 1.0;
 
   // Non-finite position or velocity.
   if (!AllFinite(sample.position_m) || !AllFinite(sample.velocity_m_per_s)) {
-    return Bump(nonfinite_);
+    return BumpSingleWriter(nonfinite_);
   }
 
   // Outside the device's workspace box (device frame).
   for (int k = 0; k < 3; ++k) {
     if (sample.position_m[k] < device.limits.workspace_min_m_D[k] ||
         sample.position_m[k] > device.limits.workspace_max_m_D[k]) {
-      return Bump(workspace_);
+      return BumpSingleWriter(workspace_);
     }
   }
 
   // Sequence: strictly increasing per writer; a new writer (a restarted driver) starts afresh.
   if (device.has_last && writer == device.last_writer && sample.seq <= device.last_seq) {
-    return Bump(seq_);
+    return BumpSingleWriter(seq_);
   }
   device.has_last = true;
   device.last_seq = sample.seq;
@@ -315,7 +315,7 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
   TripleBuffer<PointerSampleView>& slot = slots_[index];
   slot.write_slot() = PointerViewOf(sample, static_cast<uint32_t>(index), now_ns);
   slot.Publish();
-  Bump(accepted_);
+  BumpSingleWriter(accepted_);
 }
 
 void ServerTransport::Impl::WriterLoop() {
@@ -329,9 +329,9 @@ void ServerTransport::Impl::WriterLoop() {
       const int64_t start_ns = MonotonicNowNs();
       FillForceMessage(force, devices_[force.device_index].id, &message);
       if (dds_write(force_writer_.get(), &message) < 0) {
-        Bump(dds_errors_write_);
+        BumpSingleWriter(dds_errors_write_);
       } else {
-        Bump(published_);
+        BumpSingleWriter(published_);
       }
       write_hop_.Record(MonotonicNowNs() - start_ns);
     }
@@ -367,16 +367,16 @@ bool ServerTransport::LatestPointer(uint32_t device_index, PointerSampleView* ou
 bool ServerTransport::PushForce(const ForceCommandView& force) {
   Impl& impl = *impl_;
   if (force.device_index >= impl.devices_.size()) {
-    Bump(impl.bad_device_);
+    BumpSingleWriter(impl.bad_device_);
     return false;
   }
   ForceCommandView queued = force;
   queued.seq = impl.devices_[force.device_index].next_force_seq++;
   if (!impl.forces_.TryPush(queued)) {
-    Bump(impl.queue_full_);
+    BumpSingleWriter(impl.queue_full_);
     return false;
   }
-  Bump(impl.pushed_);
+  BumpSingleWriter(impl.pushed_);
   impl.force_epoch_.fetch_add(1, std::memory_order_release);
   impl.force_epoch_.notify_one();  // a futex wake only when the writer thread sleeps
   return true;

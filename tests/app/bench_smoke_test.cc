@@ -18,16 +18,10 @@
 namespace {
 
 using felt::test::kFelt;
+using felt::test::kSource;
 using felt::test::Outcome;
+using felt::test::ReadFile;
 using felt::test::RunFelt;
-const std::string kSource = std::string(FELT_SOURCE_DIR);
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream file(path);
-  std::stringstream contents;
-  contents << file.rdbuf();
-  return contents.str();
-}
 
 // A fresh folder of this test's own under the test temp directory.
 std::string FreshDir(const std::string& name) {

@@ -14,16 +14,10 @@
 
 namespace {
 
+using felt::test::kSource;
 using felt::test::Outcome;
+using felt::test::ReadFile;
 using felt::test::RunFelt;
-const std::string kSource = std::string(FELT_SOURCE_DIR);
-
-std::string Slurp(const std::string& path) {
-  std::ifstream file(path);
-  std::stringstream contents;
-  contents << file.rdbuf();
-  return contents.str();
-}
 
 // The number after `"key": ` at the first occurrence of the key inside the object `object`.
 double NumberIn(const std::string& json, const std::string& object, const std::string& key) {
@@ -40,13 +34,13 @@ TEST(BenchTransport, EndToEndRunWritesEveryKey) {
   const std::string json =
       (std::filesystem::path(testing::TempDir()) / "felt_bench_transport.json").string();
   std::filesystem::remove(json);
-  const Outcome outcome = RunFelt("bench transport --seconds 1 --domain 43 --json " + json +
-                                  " --scene " + kSource + "/scenes/curtain.toml --trace " +
-                                  kSource + "/recordings/poke_hold.trace");
+  const Outcome outcome =
+      RunFelt("bench transport --seconds 1 --domain 43 --json " + json + " --scene " + kSource +
+              "/scenes/curtain.toml --trace " + kSource + "/recordings/poke_hold.trace");
   ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
   EXPECT_NE(outcome.output.find("end to end: publish -> force received"), std::string::npos)
       << outcome.output;
-  const std::string text = Slurp(json);
+  const std::string text = ReadFile(json);
   for (const char* object : {"e2e_us", "sample_age_us", "raw_roundtrip_us"}) {
     for (const char* key : {"p50", "p99", "p999", "max"}) {
       const double v = NumberIn(text, object, key);

@@ -16,18 +16,12 @@ namespace {
 
 using test::RunFelt;
 
-const std::string kSource = FELT_SOURCE_DIR;
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using test::kSource;
+using test::ReadFile;
 
 // A temporary file name unique to this process and `tag`.
-std::string TempPath(const std::string& tag) {
-  return testing::TempDir() + "felt_compare_" + std::to_string(getpid()) + "_" + tag;
+std::string CompareTempPath(const std::string& tag) {
+  return test::TempPath("felt_compare_" + std::to_string(getpid()) + "_" + tag);
 }
 
 // `felt compare` on the first `duration` of a bundled trace with two snapshot modes on the
@@ -54,7 +48,7 @@ std::string VariantMember(const std::string& json, const std::string& name,
 }
 
 TEST(CompareCommand, PrintsTheTableAndWritesEveryJsonField) {
-  const std::string json_path = TempPath("a.json");
+  const std::string json_path = CompareTempPath("a.json");
   const test::Outcome out = ShortCompare("poke_hold", "0.3", json_path);
   ASSERT_EQ(out.exit_code, 0) << out.output;
   EXPECT_NE(out.output.find("301 ticks"), std::string::npos) << out.output;
@@ -85,8 +79,8 @@ TEST(CompareCommand, PrintsTheTableAndWritesEveryJsonField) {
 TEST(CompareCommand, TwoProcessesGiveTheSameForces) {
   // Force figures are printed in shortest round-trip form: equal text means equal bits. 1.2 s of
   // the fast swipe: the tip crosses the cloth's plane from 1.1 s on, so the forces are not zero.
-  const std::string a_path = TempPath("b1.json");
-  const std::string b_path = TempPath("b2.json");
+  const std::string a_path = CompareTempPath("b1.json");
+  const std::string b_path = CompareTempPath("b2.json");
   ASSERT_EQ(ShortCompare("fast_swipe", "1.2", a_path).exit_code, 0);
   ASSERT_EQ(ShortCompare("fast_swipe", "1.2", b_path).exit_code, 0);
   const std::string a = ReadFile(a_path);

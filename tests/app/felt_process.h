@@ -1,16 +1,39 @@
 #pragma once
 // Runs the built `felt` binary as a child process, for the tests of its commands.
 
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 namespace felt::test {
 
 /// The felt binary of this build.
 inline const std::string kFelt = std::string(FELT_BINARY_DIR) + "/felt";
+
+/// The repository root (scenes/, recordings/ are under it).
+inline const std::string kSource = FELT_SOURCE_DIR;
+
+/// The bundled poke-and-hold trace, the one most command tests replay.
+inline const std::string kPokeHoldTrace = FELT_SOURCE_DIR "/recordings/poke_hold.trace";
+
+/// The whole text of the file at `path` ("" if it cannot be read).
+inline std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+/// `name` in GoogleTest's temporary directory.
+inline std::string TempPath(const std::string& name) {
+  return (std::filesystem::path(::testing::TempDir()) / name).string();
+}
 
 /// What a `felt` run returned.
 struct Outcome {

@@ -13,13 +13,10 @@
 namespace {
 
 using felt::test::kFelt;
+using felt::test::kPokeHoldTrace;
 using felt::test::Outcome;
 using felt::test::RunFelt;
-const std::string kTrace = std::string(FELT_SOURCE_DIR) + "/recordings/poke_hold.trace";
-
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::path(testing::TempDir()) / name).string();
-}
+using felt::test::TempPath;
 
 class ReplayCommand : public testing::Test {
  protected:
@@ -49,10 +46,10 @@ TEST_F(ReplayCommand, MalformedTraceExitsTwoWithFileAndLine) {
 }
 
 TEST_F(ReplayCommand, BadRateAndDurationExitTwo) {
-  Outcome outcome = RunFelt("replay " + kTrace + " --rate 0");
+  Outcome outcome = RunFelt("replay " + kPokeHoldTrace + " --rate 0");
   EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
   EXPECT_EQ(outcome.output, "felt: error: --rate must be in (0, 100], got 0\n");
-  outcome = RunFelt("replay " + kTrace + " --duration -2");
+  outcome = RunFelt("replay " + kPokeHoldTrace + " --duration -2");
   EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
   EXPECT_EQ(outcome.output, "felt: error: --duration must be in (0, 86400] s, got -2\n");
 }
@@ -61,7 +58,7 @@ TEST_F(ReplayCommand, NoServerGivesUpAfterTheDiscoveryTimeout) {
   // A domain nobody serves: 200 + pid % 30.
   const std::string domain = std::to_string(200 + getpid() % 30);
   const Outcome outcome =
-      RunFelt("replay " + kTrace + " --domain " + domain + " --discovery-timeout 0.5");
+      RunFelt("replay " + kPokeHoldTrace + " --domain " + domain + " --discovery-timeout 0.5");
   EXPECT_EQ(outcome.exit_code, 1) << outcome.output;
   EXPECT_NE(outcome.output.find("felt replay: no server found on DDS domain " + domain),
             std::string::npos)

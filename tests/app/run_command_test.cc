@@ -17,21 +17,15 @@ namespace {
 
 using felt::test::kFelt;
 using felt::test::Outcome;
+using felt::test::ReadFile;
 using felt::test::RunFelt;
-const std::string kScenes = std::string(FELT_SOURCE_DIR) + "/scenes";
+const std::string kScenes = felt::test::kSource + "/scenes";
 
 // Writes `text` to a file of this test's own in the test temp directory; returns its path.
 std::string WriteTemp(const std::string& name, const std::string& text) {
   const std::filesystem::path path = std::filesystem::path(testing::TempDir()) / name;
   std::ofstream(path) << text;
   return path.string();
-}
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream file(path);
-  std::stringstream contents;
-  contents << file.rdbuf();
-  return contents.str();
 }
 
 // A small, cheap scene: 8 x 8 hanging from its top edge.

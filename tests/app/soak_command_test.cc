@@ -22,20 +22,11 @@ namespace {
 
 using felt::test::kFelt;
 using felt::test::Outcome;
+using felt::test::ReadFile;
 using felt::test::RunFelt;
-const std::string kScene = std::string(FELT_SOURCE_DIR) + "/scenes/curtain.toml";
-const std::string kTrace = std::string(FELT_SOURCE_DIR) + "/recordings/poke_hold.trace";
-
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::path(testing::TempDir()) / name).string();
-}
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using felt::test::TempPath;
+const std::string kScene = felt::test::kSource + "/scenes/curtain.toml";
+using felt::test::kPokeHoldTrace;
 
 // A DDS domain for this test process: 160..199, away from 0 and the transport tests' 42.
 std::string Domain() { return std::to_string(160 + getpid() % 40); }
@@ -73,10 +64,11 @@ TEST_F(SoakCommand, ShortRunWritesEveryFieldAndACrossedThresholdExitsThree) {
   const std::string md = TempPath("soak_short.md");
   std::filesystem::remove(json);
   std::filesystem::remove(md);
-  const Outcome outcome = RunFelt("soak --minutes 0.03 --scene " + kScene + " --trace " + kTrace +
-                                  " --domain " + Domain() + " --no-realtime --json " + json +
-                                  " --max-dropped 1e9 --max-rss-growth-kb 1e9 "
-                                  "--max-lateness-p999-us 1e9 --max-lateness-p99-us 0");
+  const Outcome outcome =
+      RunFelt("soak --minutes 0.03 --scene " + kScene + " --trace " + kPokeHoldTrace +
+              " --domain " + Domain() + " --no-realtime --json " + json +
+              " --max-dropped 1e9 --max-rss-growth-kb 1e9 "
+              "--max-lateness-p999-us 1e9 --max-lateness-p99-us 0");
   EXPECT_EQ(outcome.exit_code, 3) << outcome.output;
   EXPECT_NE(outcome.output.find("check         FAIL haptic lateness p99 us"), std::string::npos)
       << outcome.output;
@@ -143,7 +135,7 @@ TEST_F(SoakCommand, SigtermStopsBothChildrenAndLeavesNoOrphan) {
     (void)out;
     dup2(STDOUT_FILENO, STDERR_FILENO);
     execl(kFelt.c_str(), kFelt.c_str(), "soak", "--minutes", "5", "--scene", kScene.c_str(),
-          "--trace", kTrace.c_str(), "--domain", domain.c_str(), "--no-realtime",
+          "--trace", kPokeHoldTrace.c_str(), "--domain", domain.c_str(), "--no-realtime",
           static_cast<char*>(nullptr));
     _exit(127);
   }
@@ -195,12 +187,13 @@ TEST_F(SoakCommand, BadInputExitsTwoNamingWhatWasWrong) {
   std::filesystem::remove(bad);
 
   // A missing scene; a bad duration.
-  outcome = RunFelt("soak --minutes 0.1 --scene /nonexistent/felt_no.toml --trace " + kTrace);
+  outcome =
+      RunFelt("soak --minutes 0.1 --scene /nonexistent/felt_no.toml --trace " + kPokeHoldTrace);
   EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
   EXPECT_NE(outcome.output.find("felt: error: /nonexistent/felt_no.toml: cannot read scene file"),
             std::string::npos)
       << outcome.output;
-  outcome = RunFelt("soak --minutes 0 --scene " + kScene + " --trace " + kTrace);
+  outcome = RunFelt("soak --minutes 0 --scene " + kScene + " --trace " + kPokeHoldTrace);
   EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
   EXPECT_EQ(outcome.output, "felt: error: --minutes must be in (0, 1440], got 0\n");
 }

@@ -32,7 +32,7 @@ std::string ErrorOf(F&& f) {
 // scenes/curtain.toml at 16 x 16 particles over the same 0.496 m (as tests/haptic_loop's
 // SmallCurtain), with a 50 ms ramp-in so a short press reaches its full force.
 SceneDocument SmallCurtainScene() {
-  SceneDocument doc = LoadSceneDocument(std::string(FELT_SOURCE_DIR) + "/scenes/curtain.toml");
+  SceneDocument doc = LoadSceneDocument(std::string(FELT_SOURCE_DIR "/scenes/curtain.toml"));
   toml::table& cloth = *doc.root["cloth"].as_table();
   cloth.insert_or_assign("width", 16);
   cloth.insert_or_assign("height", 16);
@@ -45,7 +45,7 @@ SceneDocument SmallCurtainScene() {
 
 // The press of poke_hold.trace: 1 s from t = 1.5 s (the tip meets the cloth at about 1.68 s).
 std::vector<TraceSample> PokeSamples() {
-  const Trace trace = ReadTrace(std::string(FELT_SOURCE_DIR) + "/recordings/poke_hold.trace");
+  const Trace trace = ReadTrace(FELT_SOURCE_DIR "/recordings/poke_hold.trace");
   return std::vector<TraceSample>(trace.samples.begin() + 1500, trace.samples.begin() + 2500);
 }
 

@@ -18,8 +18,8 @@
 namespace {
 
 const std::string kFelt = std::string(FELT_BINARY_DIR) + "/felt";
-const std::string kScene = std::string(FELT_SOURCE_DIR) + "/scenes/curtain.toml";
-const std::string kTrace = std::string(FELT_SOURCE_DIR) + "/recordings/poke_hold.trace";
+const std::string kScene = std::string(FELT_SOURCE_DIR "/scenes/curtain.toml");
+const std::string kTrace = std::string(FELT_SOURCE_DIR "/recordings/poke_hold.trace");
 
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path);

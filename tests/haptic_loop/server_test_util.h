@@ -18,7 +18,7 @@ inline constexpr int64_t kTickNs = 1'000'000;
 /// The bundled curtain scene, made small, with `devices` (empty: the scene's own [device]).
 inline ServerSpec SmallCurtain(std::vector<DeviceSpec> devices = {}) {
   ServerSpec spec =
-      ParseServerSpec(LoadSceneDocument(std::string(FELT_SOURCE_DIR) + "/scenes/curtain.toml"));
+      ParseServerSpec(LoadSceneDocument(std::string(FELT_SOURCE_DIR "/scenes/curtain.toml")));
   spec.sim.cloth.width = 16;
   spec.sim.cloth.height = 16;
   spec.sim.cloth.spacing_m = 0.496 / 15.0;

@@ -233,7 +233,7 @@ TEST(ServerTick, StalledSimIsFlaggedAndTheTickRunsOnTheLastSnapshot) {
 }
 
 TEST(ServerTick, BundledTraceTouchesTheCloth) {
-  const Trace trace = ReadTrace(std::string(FELT_SOURCE_DIR) + "/recordings/poke_hold.trace");
+  const Trace trace = ReadTrace(std::string(FELT_SOURCE_DIR "/recordings/poke_hold.trace"));
   TracePointerSource source({trace.samples});
   CapturingForceSink sink(1);
   Server server(SmallCurtain(), &source, &sink, Quiet());

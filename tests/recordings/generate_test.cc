@@ -13,7 +13,7 @@ namespace felt {
 namespace {
 
 std::string BundledPath(const std::string& name) {
-  return std::string(FELT_SOURCE_DIR) + "/recordings/" + name + ".trace";
+  return std::string(FELT_SOURCE_DIR "/recordings/") + name + ".trace";
 }
 
 TEST(GenerateTest, SameSeedSameBytesOtherSeedOtherNoise) {

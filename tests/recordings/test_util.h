@@ -36,7 +36,7 @@ inline std::string ReadFile(const std::string& path) {
 
 /// Where the third-party real recordings live (read in place, never copied into the project).
 inline std::string RealMotionDir() {
-  return std::string(FELT_SOURCE_DIR) + "/../shared/data/real-motion";
+  return std::string(FELT_SOURCE_DIR "/../shared/data/real-motion");
 }
 
 }  // namespace felt::test

@@ -20,7 +20,7 @@
 namespace felt {
 namespace {
 
-constexpr double kFrame_s = 1.0 / 60.0;
+using cloth_test::kFrame_s;
 constexpr IntegratorKind kIntegrators[] = {IntegratorKind::kLeapfrogVerlet,
                                            IntegratorKind::kSymplecticEuler,
                                            IntegratorKind::kRk4,

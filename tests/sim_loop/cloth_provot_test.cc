@@ -106,9 +106,7 @@ ClothState Scrambled(const ClothModel& model, double amplitude, uint32_t seed) {
   return state;
 }
 
-bool BitwiseEqual(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec3)) == 0;
-}
+using cloth_test::BitwiseEqual;
 
 TEST(ProvotTest, RunsVisitEveryPairOfEveryFamilyOnceAndColoursShareNoParticle) {
   for (int32_t grid : {5, 13, 64}) {

@@ -17,11 +17,8 @@ using cloth_test::Corner;
 using cloth_test::Curtain;
 using cloth_test::HorizontalCurtain;
 
-constexpr double kFrame_s = 1.0 / 60.0;
-
-bool BitwiseEqual(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec3)) == 0;
-}
+using cloth_test::BitwiseEqual;
+using cloth_test::kFrame_s;
 
 bool AllFinite(const ClothState& s) {
   for (size_t p = 0; p < s.x.size(); ++p) {
@@ -184,8 +181,8 @@ TEST(ClothStepTest, StiffSpringsAtLargeDtWithAutoSubstepsStayBounded) {
   // Springs 1000 times the default, a 100 ms frame (clamped to the 33 ms maximum), auto substeps.
   // Explicit Euler has no usable auto step here (its drag-damped modes need h < 1e-7 s): auto
   // refuses it (tests/sim_loop/cloth_bounds_test.cc), and it runs stiff scenes with drag there.
-  for (IntegratorKind kind : {IntegratorKind::kLeapfrogVerlet, IntegratorKind::kRk4,
-                              IntegratorKind::kSymplecticEuler}) {
+  for (IntegratorKind kind :
+       {IntegratorKind::kLeapfrogVerlet, IntegratorKind::kRk4, IntegratorKind::kSymplecticEuler}) {
     SimSpec spec = HorizontalCurtain(8);
     for (auto* s : {&spec.cloth.structural, &spec.cloth.shear, &spec.cloth.bend}) {
       (*s)->stiffness_N_per_m *= 1000;
@@ -209,8 +206,8 @@ TEST(ClothStepTest, FastClothDoesNotPassThroughThinObstacles) {
   // check cannot see it; the impact frame's check of the middle particle can: it must be on top.
   struct Case {
     ObstacleSpec obstacle;
-    double top_y;       // the obstacle's top surface under the middle particle
-    bool cloth_stays;   // the obstacle is wider than the cloth, so the cloth stays on it
+    double top_y;      // the obstacle's top surface under the middle particle
+    bool cloth_stays;  // the obstacle is wider than the cloth, so the cloth stays on it
   };
   const Case cases[] = {
       {{BoxSpec{Vec3(-0.4, -0.004, -0.4), Vec3(0.4, 0.0, 0.4)}, 0.3, 0.002}, 0.0, true},

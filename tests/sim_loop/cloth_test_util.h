@@ -2,11 +2,21 @@
 // Small scene builders shared by the cloth tests.
 
 #include <cstdint>
+#include <cstring>
 #include <string>
+#include <vector>
 
 #include "sim_loop/cloth.h"
 
 namespace felt::cloth_test {
+
+/// One 60 Hz frame, s.
+inline constexpr double kFrame_s = 1.0 / 60.0;
+
+/// True if the two position (or velocity) arrays hold the same bits.
+inline bool BitwiseEqual(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec3)) == 0;
+}
 
 /// A corner pin.
 inline PinSpec Corner(const std::string& name) {

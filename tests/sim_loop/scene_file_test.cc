@@ -278,7 +278,7 @@ TEST(SceneFileErrors, SyntaxErrorNamesLineAndColumn) {
 
 TEST(SceneFileErrors, SyntaxErrorFromAFileNamesTheFile) {
   const std::filesystem::path path =
-      std::filesystem::path(testing::TempDir()) / "felt_scene_syntax_error.toml";
+      std::filesystem::path(::testing::TempDir()) / "felt_scene_syntax_error.toml";
   {
     std::ofstream file(path);
     file << "[scene]\nname = \"unterminated\n";

@@ -19,7 +19,7 @@ extern "C" const char* __tsan_default_suppressions() { return kSuppressions; }
 #endif
 
 TEST(TsanSuppressionsTest, TheEmbeddedCopyMatchesTheFile) {
-  std::ifstream in(std::string(FELT_SOURCE_DIR) + "/tests/transport/tsan.supp");
+  std::ifstream in(std::string(FELT_SOURCE_DIR "/tests/transport/tsan.supp"));
   ASSERT_TRUE(in) << "tests/transport/tsan.supp is missing";
   std::string rules, line;
   while (std::getline(in, line)) {
