@@ -9,7 +9,8 @@
 // on counts around each integrator's theory bound):
 //   - ms per 60 Hz frame: median wall time of StepFrame over the timed frames (300; also this
 //     thread's CPU time), on the scene as written (damped); an unstable row stops at its first
-//     unstable frame and is timed over the frames run, a row over 1 s of CPU a frame over 2 s;
+//     unstable frame and is timed over the frames run; a row over 1 s of CPU a frame is timed
+//     over its 2 s run only (120 frames);
 //   - RMS position error after 2 s against a reference: RK4 with 1/16 of its stable step, same
 //     initial state, same Provot setting; the reference's own error is estimated by Richardson
 //     extrapolation against RK4 with 1/8 of its stable step;
