@@ -21,7 +21,7 @@
 // Then, per integrator and grid (Provot off, damped), the largest stable step: bisection on the
 // substep count over 2 s (geometric midpoints, to 5% or adjacent counts), reported as h_max and
 // its ratio to the model's theory bound stable_dt_s. Where the time goes at 64 x 64: explicit
-// Euler, whose auto count is ~22 000 substeps (~3.5 s of CPU a frame); everything else takes a
+// Euler, whose auto count is 22375 substeps (~3.9 s of CPU a frame); everything else takes a
 // few minutes. Writes <out>/integrators.{md,csv,json}, <out>/integrators_plot.dat (rewritten after
 // each row set and stable step, marked partial until the end) and, if gnuplot is found,
 // <out>/integrators.png from bench/plot_integrators.gp.
