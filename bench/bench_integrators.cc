@@ -5,20 +5,26 @@
 // Row sets: (32, Provot off), (64, Provot off) for the accuracy comparison (Provot's projection
 // is not part of the ODE, so with it on the error would mix the integrator's error with the
 // projection's dependence on h), and (32, Provot on), the scene's default, for reference. One row
-// per integrator and substep count (auto, then fixed counts):
-//   - ms per 60 Hz frame: median wall time of StepFrame over the timed frames (>= 300; also this
-//     thread's CPU time), on the scene as written (damped);
+// per integrator and substep count (auto, then fixed counts: one list below 64 x 64, from 64 x 64
+// on counts around each integrator's theory bound):
+//   - ms per 60 Hz frame: median wall time of StepFrame over the timed frames (300; also this
+//     thread's CPU time), on the scene as written (damped); an unstable row stops at its first
+//     unstable frame and is timed over the frames run; a row over 1 s of CPU a frame is timed
+//     over its 2 s run only (120 frames);
 //   - RMS position error after 2 s against a reference: RK4 with 1/16 of its stable step, same
 //     initial state, same Provot setting; the reference's own error is estimated by Richardson
 //     extrapolation against RK4 with 1/8 of its stable step;
 //   - energy drift: a separate 2 s run with every damping and drag set to zero, same substeps:
-//     (E(2 s) - E(0)) / (M g L) and max |E - E(0)| / (M g L);
+//     (E(2 s) - E(0)) / (M g L) and max |E - E(0)| / (M g L), stopped at a blow-up;
 //   - max stretch over the 2 s; stable = every value finite (no NaN event) and the energy of the
 //     damped run never above its start by more than 1% of M g L.
 // Then, per integrator and grid (Provot off, damped), the largest stable step: bisection on the
-// substep count over 2 s, reported as h_max and its ratio to the model's theory bound
-// stable_dt_s. Writes <out>/integrators.{md,csv,json}, <out>/integrators_plot.dat and, if
-// gnuplot is found, <out>/integrators.png from bench/plot_integrators.gp.
+// substep count over 2 s (geometric midpoints, to 5% or adjacent counts), reported as h_max and
+// its ratio to the model's theory bound stable_dt_s. Where the time goes at 64 x 64: explicit
+// Euler, whose auto count is 22375 substeps (~3.9 s of CPU a frame); everything else takes a
+// few minutes. Writes <out>/integrators.{md,csv,json}, <out>/integrators_plot.dat (rewritten after
+// each row set and stable step, marked partial until the end) and, if gnuplot is found,
+// <out>/integrators.png from bench/plot_integrators.gp.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
@@ -44,6 +50,7 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr int32_t kMaxProbeSubsteps = 100000;  // the model's cap on substeps per frame
 
 struct Args {
   std::string json;
@@ -58,11 +65,24 @@ struct Args {
 struct Settings {
   std::vector<std::pair<int32_t, bool>> sets;  // (grid, Provot on)
   std::vector<int32_t> explicit_counts;        // fixed substep counts of the explicit methods
-  std::vector<int32_t> explicit_counts_fine;   // the same at grids >= 64 (cost: fewer counts)
   std::vector<int32_t> implicit_counts;        // fixed substep counts of implicit Euler
+  // At grids >= fine_grid the explicit methods' fixed counts follow each one's theory bound
+  // instead of explicit_counts: p, 2p, ..., with p the largest power of two <= (1/60 s) /
+  // stable_dt_s, fine_counts of them, each at most max_fine_substeps.
+  int32_t fine_grid = 64;
+  int32_t fine_counts = 3;
+  int32_t max_fine_substeps = 1024;
   int32_t timed_frames = 300;
   int32_t error_frames = 120;  // 2 s
   int32_t reference_divisor = 16;
+  // A row whose median frame over the error_frames costs more than this [ms] of CPU time is
+  // timed over those frames only (explicit Euler at its auto count on 64 x 64: ~3.5 s a frame).
+  double slow_frame_cpu_ms = 1000.0;
+  // The undamped run stops once |E - E(0)| exceeds this many M g L (a blow-up).
+  double energy_blowup = 100.0;
+  // The stable-step bisection stops when the bracket (lo unstable, hi stable) has hi <= lo + 1
+  // or hi <= lo * (1 + stable_step_tolerance).
+  double stable_step_tolerance = 0.05;
 };
 
 Settings MakeSettings(bool quick) {
@@ -78,7 +98,6 @@ Settings MakeSettings(bool quick) {
   }
   s.sets = {{32, false}, {64, false}, {32, true}};
   s.explicit_counts = {1, 2, 4, 8, 16, 32};
-  s.explicit_counts_fine = {2, 4, 8, 16};
   s.implicit_counts = {1, 2, 4, 8};
   return s;
 }
@@ -94,13 +113,17 @@ struct Row {
   double ms_median = kInf;
   double ms_p99 = kInf;
   double cpu_ms_median = kInf;
-  double rms_error_m = kInf;
-  double energy_drift = kInf;    // (E(2 s) - E(0)) / MgL, undamped run
-  double energy_max_dev = kInf;  // max |E - E(0)| / MgL, undamped run
-  bool energy_finite = false;
+  int32_t timed_frames = 0;       // frames in the medians
+  double rms_error_m = kNaN;      // after 2 s; NaN for an unstable row (its run stops early)
+  double energy_drift = kNaN;     // (E(2 s) - E(0)) / MgL, undamped run; NaN after a blow-up
+  double energy_max_dev = kNaN;   // max |E - E(0)| / MgL, undamped run (up to its stop)
+  bool energy_finite = false;     // the undamped run reached 2 s without a blow-up
+  double energy_blowup_s = kNaN;  // when the undamped run stopped (blow-up), s
   double max_stretch = kInf;
   bool stable = false;
+  double unstable_at_s = kNaN;  // when the damped run first broke the stability rule, s
   uint64_t nan_events = 0;
+  double cpu_s = 0.0;  // CPU time of the row's two runs, s
 };
 
 // The largest stable step of one integrator at one grid.
@@ -113,6 +136,8 @@ struct StableStepResult {
   double theory_dt_s = 0.0;         // model.stable_dt_s
   int32_t auto_substeps = 0;
   int32_t probes = 0;
+  int32_t search_cap = 0;  // the largest count the doubling would probe (0: no doubling needed)
+  double cpu_s = 0.0;      // CPU time of the probes, s
 };
 
 SimSpec RowSpec(const Args& args, int32_t grid, bool provot, IntegratorKind kind,
@@ -175,9 +200,11 @@ struct Reference {
   int32_t substeps = 0;
   double h_s = 0.0;
   double error_estimate_m = 0.0;
+  double cpu_s = 0.0;  // CPU time of the two runs, s
 };
 
 Reference MakeReference(const Args& args, const Settings& s, int32_t grid, bool provot) {
+  const double cpu0 = ThreadCpuMs();
   const ClothModel probe = BuildClothModel(RowSpec(args, grid, provot, IntegratorKind::kRk4, 0));
   const double h = probe.stable_dt_s / s.reference_divisor;
   Reference ref;
@@ -190,11 +217,13 @@ Reference MakeReference(const Args& args, const Settings& s, int32_t grid, bool 
       RunPlain(RowSpec(args, grid, provot, IntegratorKind::kRk4, ref.substeps / 2), s.error_frames);
   ref.x = fine.x;
   ref.error_estimate_m = RmsDistance(fine.x, coarse.x) / 15.0;
+  ref.cpu_s = (ThreadCpuMs() - cpu0) / 1e3;
   return ref;
 }
 
 Row RunRow(const Args& args, const Settings& s, const Reference& ref, int32_t grid, bool provot,
            IntegratorKind kind, int32_t fixed_substeps) {
+  const double row_cpu0 = ThreadCpuMs();
   const SimSpec spec = RowSpec(args, grid, provot, kind, fixed_substeps);
   const ClothModel model = BuildClothModel(spec);
   Row row;
@@ -205,7 +234,8 @@ Row RunRow(const Args& args, const Settings& s, const Reference& ref, int32_t gr
   row.substeps = model.substeps;
   row.h_s = (1.0 / 60.0) / model.substeps;
 
-  // The damped scene: time every frame; error, stretch and stability over the first 2 s.
+  // The damped scene: time every frame; error, stretch and stability over the first 2 s. The
+  // run stops at the first frame that breaks the stability rule (what follows is no result).
   ClothState state = MakeClothState(model);
   const double e0 = TotalEnergy(model, state);
   const double bound = e0 + 0.01 * EnergyScale_J(spec);
@@ -214,8 +244,8 @@ Row RunRow(const Args& args, const Settings& s, const Reference& ref, int32_t gr
   std::vector<double> wall, cpu;
   wall.reserve(static_cast<size_t>(frames));
   cpu.reserve(static_cast<size_t>(frames));
-  bool bounded = true;
   row.max_stretch = 1.0;
+  row.stable = true;
   for (int32_t f = 0; f < frames; ++f) {
     const double cpu0 = ThreadCpuMs();
     const double wall0 = WallMs();
@@ -226,21 +256,27 @@ Row RunRow(const Args& args, const Settings& s, const Reference& ref, int32_t gr
       wall.push_back(wall1 - wall0);
       cpu.push_back(cpu1 - cpu0);
     }
-    if (f < s.error_frames) {
-      row.max_stretch = std::max(row.max_stretch, MaxStretch(model, state));
-      bounded = bounded && TotalEnergy(model, state) <= bound;
-      if (f + 1 == s.error_frames) {
-        row.rms_error_m = RmsDistance(state.x, ref.x);
-        row.nan_events = state.counters.nan_events;
-      }
+    if (f >= s.error_frames) continue;
+    row.max_stretch = std::max(row.max_stretch, MaxStretch(model, state));
+    row.nan_events = state.counters.nan_events;
+    if (row.nan_events > 0 || !(TotalEnergy(model, state) <= bound)) {
+      row.stable = false;
+      row.unstable_at_s = (f + 1) / 60.0;
+      break;
+    }
+    if (f + 1 == s.error_frames) {
+      row.rms_error_m = RmsDistance(state.x, ref.x);
+      // A slow row is timed over the 2 s run only.
+      if (Median(cpu) > s.slow_frame_cpu_ms) break;
     }
   }
+  row.timed_frames = static_cast<int32_t>(wall.size());
   row.ms_median = Median(wall);
   row.ms_p99 = Percentile(wall, 99);
   row.cpu_ms_median = Median(cpu);
-  row.stable = bounded && row.nan_events == 0;
 
-  // The same substeps without any damping: the energy drift of the integrator (and Provot).
+  // The same substeps without any damping: the energy drift of the integrator (and Provot),
+  // stopped at a blow-up (non-finite, or |E - E(0)| over energy_blowup M g L).
   SimSpec undamped = Undamped(spec);
   undamped.integration.substeps = model.substeps;
   const ClothModel free_model = BuildClothModel(undamped);
@@ -248,17 +284,27 @@ Row RunRow(const Args& args, const Settings& s, const Reference& ref, int32_t gr
   const double scale = EnergyScale_J(spec);
   const double f0 = TotalEnergy(free_model, free_state);
   double dev = 0.0;
+  row.energy_finite = true;
   for (int32_t f = 0; f < s.error_frames; ++f) {
     StepFrame(free_model, none, 1.0 / 60.0, &free_state);
-    dev = std::max(dev, std::abs(TotalEnergy(free_model, free_state) - f0));
+    const double d = std::abs(TotalEnergy(free_model, free_state) - f0);
+    if (free_state.counters.nan_events > 0 || !(d <= s.energy_blowup * scale)) {
+      row.energy_finite = false;
+      row.energy_blowup_s = (f + 1) / 60.0;
+      if (std::isfinite(d)) dev = std::max(dev, d);
+      break;
+    }
+    dev = std::max(dev, d);
   }
-  row.energy_finite = free_state.counters.nan_events == 0;
-  row.energy_drift = (TotalEnergy(free_model, free_state) - f0) / scale;
+  if (row.energy_finite) row.energy_drift = (TotalEnergy(free_model, free_state) - f0) / scale;
   row.energy_max_dev = dev / scale;
+  row.cpu_s = (ThreadCpuMs() - row_cpu0) / 1e3;
   return row;
 }
 
-// Bisection on the substep count between the sweep's largest unstable and smallest stable count.
+// Bisection on the substep count between the sweep's largest unstable and smallest stable count
+// (geometric midpoints, stopped at the tolerance), each probe a 2 s RunPlain that stops at the
+// first unstable frame.
 StableStepResult FindStableStep(const Args& args, const Settings& s, int32_t grid,
                                 IntegratorKind kind, const std::vector<Row>& rows) {
   StableStepResult r;
@@ -267,6 +313,7 @@ StableStepResult FindStableStep(const Args& args, const Settings& s, int32_t gri
   const ClothModel model = BuildClothModel(RowSpec(args, grid, false, kind, 0));
   r.theory_dt_s = model.stable_dt_s;
   r.auto_substeps = model.substeps;
+  const double cpu0 = ThreadCpuMs();
   const auto stable = [&](int32_t n) {
     ++r.probes;
     return RunPlain(RowSpec(args, grid, false, kind, n), s.error_frames).stable;
@@ -279,22 +326,29 @@ StableStepResult FindStableStep(const Args& args, const Settings& s, int32_t gri
     if (!row.stable && row.substeps > lo) lo = row.substeps;
   }
   if (hi == 0) {
-    // Nothing stable in the sweep: double until stable (the model's cap is 100000).
+    // Nothing stable in the sweep: double until stable, up to 4 x max(auto, lo) (bounded cost).
+    r.search_cap = std::min(kMaxProbeSubsteps, 4 * std::max(r.auto_substeps, lo));
     hi = std::max(1, lo) * 2;
-    while (hi <= 100000 && !stable(hi)) {
+    while (hi <= r.search_cap && !stable(hi)) {
       lo = hi;
       hi *= 2;
     }
-    if (hi > 100000) return r;
+    if (hi > r.search_cap) {
+      r.cpu_s = (ThreadCpuMs() - cpu0) / 1e3;
+      return r;
+    }
   }
   lo = std::min(lo, hi - 1);
-  while (hi - lo > 1) {
-    const int32_t mid = lo + (hi - lo) / 2;
+  if (lo == 0 && hi > 1) (stable(1) ? hi : lo) = 1;
+  while (hi - lo > 1 && hi > lo * (1.0 + s.stable_step_tolerance)) {
+    const auto geometric = static_cast<int32_t>(std::lround(std::sqrt(double{lo} * hi)));
+    const int32_t mid = std::clamp(geometric, lo + 1, hi - 1);
     (stable(mid) ? hi : lo) = mid;
   }
   r.min_stable_substeps = hi;
   r.h_max_s = (1.0 / 60.0) / hi;
   r.h_unstable_s = lo > 0 ? (1.0 / 60.0) / lo : kInf;
+  r.cpu_s = (ThreadCpuMs() - cpu0) / 1e3;
   return r;
 }
 
@@ -303,19 +357,24 @@ std::string SetName(int32_t grid, bool provot) {
          (provot ? ", Provot on (scene default)" : ", Provot off");
 }
 
-std::vector<std::string> RowCells(const Row& r) {
-  return {std::to_string(r.grid),
-          r.provot ? "on" : "off",
-          std::string(ToName(r.kind)),
-          r.is_auto ? "auto (" + std::to_string(r.substeps) + ")" : std::to_string(r.substeps),
-          Sig(r.h_s * 1e3, 4),
-          Fixed(r.ms_median, 4),
-          Fixed(r.cpu_ms_median, 4),
-          r.stable ? Sig(r.rms_error_m, 3) : "(" + Sig(r.rms_error_m, 3) + ")",
-          r.energy_finite ? Sig(r.energy_drift, 3) : "non-finite",
-          r.energy_finite ? Sig(r.energy_max_dev, 3) : "non-finite",
-          Sig(r.max_stretch, 4),
-          r.stable ? "yes" : "no"};
+std::vector<std::string> RowCells(const Settings& s, const Row& r) {
+  // A stable row timed on fewer frames than the rest (a slow row) says how many: "[120]".
+  const bool short_timing = r.stable && r.timed_frames < s.timed_frames;
+  return {
+      std::to_string(r.grid),
+      r.provot ? "on" : "off",
+      std::string(ToName(r.kind)),
+      r.is_auto ? "auto (" + std::to_string(r.substeps) + ")" : std::to_string(r.substeps),
+      Sig(r.h_s * 1e3, 4),
+      Fixed(r.ms_median, 4) + (short_timing ? " [" + std::to_string(r.timed_frames) + "]" : ""),
+      Fixed(r.cpu_ms_median, 4),
+      r.stable ? Sig(r.rms_error_m, 3) : "-",
+      r.energy_finite ? Sig(r.energy_drift, 3) : "blow-up (" + Fixed(r.energy_blowup_s, 2) + " s)",
+      r.energy_finite                      ? Sig(r.energy_max_dev, 3)
+      : r.energy_max_dev > s.energy_blowup ? "> " + Sig(s.energy_blowup, 3)
+                                           : "non-finite",
+      Sig(r.max_stretch, 4),
+      r.stable ? "yes" : "no (" + Fixed(r.unstable_at_s, 2) + " s)"};
 }
 
 std::string Command(const Args& args) {
@@ -360,64 +419,42 @@ std::string PlotData(const Settings& s, const std::vector<Row>& rows) {
   return out;
 }
 
-int Run(const Args& args) {
-  Settings s = MakeSettings(args.quick);
-  if (!args.grids.empty()) {
-    std::erase_if(s.sets, [&](const std::pair<int32_t, bool>& set) {
-      return std::find(args.grids.begin(), args.grids.end(), set.first) == args.grids.end();
-    });
-    if (s.sets.empty()) throw std::invalid_argument("--grids: no row set has these grids");
-  }
-  const MachineInfo machine = ReadMachineInfo();
-  const std::string cmd = Command(args);
-  std::printf("%s\nload average %s\n", cmd.c_str(), machine.load_average.c_str());
-  std::fflush(stdout);
-
-  // The sweep, set by set.
+// Everything a run has measured so far.
+struct Results {
   std::vector<Row> rows;
   std::map<std::pair<int32_t, bool>, Reference> references;
-  for (const auto& [grid, provot] : s.sets) {
-    const Reference& ref = references[{grid, provot}] = MakeReference(args, s, grid, provot);
-    std::printf("%s: reference RK4 %d substeps (h = %.4g ms), its error ~ %.3g m\n",
-                SetName(grid, provot).c_str(), ref.substeps, ref.h_s * 1e3, ref.error_estimate_m);
-    std::fflush(stdout);
-    for (const IntegratorName& in : kIntegratorNames) {
-      const bool implicit = in.kind == IntegratorKind::kImplicitEuler;
-      std::vector<int32_t> counts = {0};
-      const ClothModel auto_model = BuildClothModel(RowSpec(args, grid, provot, in.kind, 0));
-      const std::vector<int32_t>& fixed = implicit     ? s.implicit_counts
-                                          : grid >= 64 ? s.explicit_counts_fine
-                                                       : s.explicit_counts;
-      for (const int32_t n : fixed) {
-        if (n != auto_model.substeps) counts.push_back(n);
-      }
-      for (const int32_t n : counts) {
-        rows.push_back(RunRow(args, s, ref, grid, provot, in.kind, n));
-        const Row& r = rows.back();
-        std::printf("  %-18s %6d substeps  %9.4f ms  err %-10.3g drift %-10.3g stretch %-9.4g %s\n",
-                    std::string(in.name).c_str(), r.substeps, r.ms_median, r.rms_error_m,
-                    r.energy_drift, r.max_stretch, r.stable ? "stable" : "UNSTABLE");
-        std::fflush(stdout);
-      }
-    }
-  }
-
-  // Largest stable step per grid (Provot off sets) and integrator.
   std::vector<StableStepResult> steps;
-  for (const auto& [grid, provot] : s.sets) {
-    if (provot) continue;
-    for (const IntegratorName& in : kIntegratorNames) {
-      steps.push_back(FindStableStep(args, s, grid, in.kind, rows));
-      const StableStepResult& st = steps.back();
-      std::printf("grid %d %-18s h_max %.4g ms (%d substeps), theory %.4g ms, ratio %.3g\n", grid,
-                  std::string(in.name).c_str(), st.h_max_s * 1e3, st.min_stable_substeps,
-                  st.theory_dt_s * 1e3, st.h_max_s / st.theory_dt_s);
-      std::fflush(stdout);
+};
+
+// The fixed substep counts of one integrator on one set (the auto count is left out).
+std::vector<int32_t> FixedCounts(const Settings& s, int32_t grid, const ClothModel& auto_model,
+                                 IntegratorKind kind) {
+  std::vector<int32_t> counts;
+  if (kind == IntegratorKind::kImplicitEuler) {
+    counts = s.implicit_counts;
+  } else if (grid < s.fine_grid || !std::isfinite(auto_model.stable_dt_s)) {
+    counts = s.explicit_counts;
+  } else {
+    // Around the theory bound: p, 2p, 4p with p the largest power of two <= (1/60) / stable_dt.
+    const double bound_count = (1.0 / 60.0) / auto_model.stable_dt_s;
+    int32_t p = 1;
+    while (2.0 * p <= bound_count) p *= 2;
+    for (int32_t k = 0; k < s.fine_counts && p <= s.max_fine_substeps; ++k, p *= 2) {
+      counts.push_back(p);
     }
   }
-  const std::string load_end = LoadAverage();
+  std::erase(counts, auto_model.substeps);
+  return counts;
+}
 
-  // Tables.
+// Writes <out>/integrators.{md,csv,json} and integrators_plot.dat from what `results` holds.
+// `progress` is empty for the finished run, else it says what is still missing (the files are
+// rewritten after each row set and each stable step, so a stopped run leaves a labelled partial
+// result). Draws the plot for the finished run only. Returns false when gnuplot failed.
+bool WriteReports(const Args& args, const Settings& s, const std::string& cmd,
+                  const MachineInfo& machine, const Results& results, const std::string& progress) {
+  const std::string load_end = LoadAverage();
+  const std::vector<Row>& rows = results.rows;
   const std::vector<std::string> header = {"grid",           "Provot",      "integrator",
                                            "substeps",       "h ms",        "frame ms median",
                                            "cpu ms median",  "RMS error m", "energy drift",
@@ -425,12 +462,13 @@ int Run(const Args& args) {
   const std::vector<bool> right = {true, false, false, true, true, true,
                                    true, true,  true,  true, true, false};
   std::vector<std::vector<std::string>> all_cells;
-  for (const Row& r : rows) all_cells.push_back(RowCells(r));
+  for (const Row& r : rows) all_cells.push_back(RowCells(s, r));
   std::vector<std::vector<std::string>> step_cells;
-  for (const StableStepResult& st : steps) {
+  for (const StableStepResult& st : results.steps) {
     step_cells.push_back(
         {std::to_string(st.grid), std::string(ToName(st.kind)),
-         st.min_stable_substeps > 0 ? std::to_string(st.min_stable_substeps) : "none <= 100000",
+         st.min_stable_substeps > 0 ? std::to_string(st.min_stable_substeps)
+                                    : "none <= " + std::to_string(st.search_cap),
          st.min_stable_substeps > 0
              ? (std::isfinite(st.h_unstable_s) ? "" : ">= ") + Sig(st.h_max_s * 1e3, 4)
              : "-",
@@ -439,11 +477,15 @@ int Run(const Args& args) {
          std::isfinite(st.theory_dt_s) && st.min_stable_substeps > 0
              ? Sig(st.h_max_s / st.theory_dt_s, 3)
              : "-",
-         std::to_string(st.auto_substeps), std::to_string(st.probes)});
+         std::to_string(st.auto_substeps), std::to_string(st.probes), Fixed(st.cpu_s, 1)});
   }
 
   std::string md = ReportHeader("Integrators: speed against error (`felt bench integrators`)", cmd,
                                 machine, load_end);
+  if (!progress.empty()) {
+    md += "**Partial result: the run had not finished when this was written (" + progress +
+          ").**\n\n";
+  }
   md +=
       "The default curtain (scenes/curtain.toml) resized over the same 0.496 m square, starting "
       "at rest, flat, pinned at its two top corners. Provot is **off** for the accuracy "
@@ -451,24 +493,59 @@ int Run(const Args& args) {
       "each substep depends on h and is no part of the ODE); one row set with the scene's "
       "default **Provot on** follows, its error measured against an RK4 reference with Provot "
       "on at the same tiny step.\n\n"
+      "- substeps: auto (the model's count, 0.5 of the theory bound stable_dt_s), then fixed "
+      "counts: " +
+      [&] {
+        std::string list;
+        for (const int32_t n : s.explicit_counts)
+          list += (list.empty() ? "" : ", ") + std::to_string(n);
+        return list;
+      }() +
+      " for the explicit methods below " + std::to_string(s.fine_grid) + " x " +
+      std::to_string(s.fine_grid) + "; from " + std::to_string(s.fine_grid) + " x " +
+      std::to_string(s.fine_grid) +
+      " on, p, 2p, 4p around each one's theory bound (p the "
+      "largest power of two <= (1/60 s) / stable_dt_s), counts over " +
+      std::to_string(s.max_fine_substeps) + " left out; implicit Euler " +
+      [&] {
+        std::string list;
+        for (const int32_t n : s.implicit_counts)
+          list += (list.empty() ? "" : ", ") + std::to_string(n);
+        return list;
+      }() +
+      ".\n"
       "- frame ms: median wall time of StepFrame over " +
       std::to_string(s.timed_frames) +
       " frames of 1/60 s (cpu ms: this thread's CPU time, which excludes preemption by other "
-      "processes), the scene as written (damped).\n"
+      "processes), the scene as written (damped). An unstable row's run stops at the frame "
+      "that broke the stability rule, so its medians are over the frames run until then "
+      "(the time in its 'stable' cell). A stable row whose median frame costs over " +
+      Fixed(s.slow_frame_cpu_ms / 1e3, 1) +
+      " s of CPU is timed over the 2 s run only, the frame count in brackets.\n"
       "- RMS error: sqrt(mean over particles |x - x_ref|^2) after " +
       Fixed(s.error_frames / 60.0, 1) + " s, the reference being RK4 with 1/" +
       std::to_string(s.reference_divisor) +
-      " of its stable step from the same initial state; in parentheses for unstable rows.\n"
+      " of its stable step from the same initial state; '-' for unstable rows (their run "
+      "stopped before 2 s).\n"
       "- energy drift: a separate run of the same integrator and substeps with every spring "
       "damping and the drag set to zero: (E(2 s) - E(0)) / (M g L) and max |E - E(0)| / "
       "(M g L) over the 2 s, M g L = 0.487 J (the cloth lowered by its own height). With "
-      "Provot on, the projection's own energy loss is included.\n"
-      "- max stretch: largest structural length / rest length over the 2 s.\n"
+      "Provot on, the projection's own energy loss is included. The run stops at a blow-up: "
+      "a non-finite value or |E - E(0)| over " +
+      Sig(s.energy_blowup, 3) +
+      " M g L ('blow-up (t s)', the time it stopped; max energy dev then '> " +
+      Sig(s.energy_blowup, 3) +
+      "' or 'non-finite').\n"
+      "- max stretch: largest structural length / rest length over the 2 s (over the frames "
+      "run, for an unstable row).\n"
       "- stable: no non-finite value in the 2 s (no NaN event) and the damped run's energy "
-      "never above its start by more than 1% of M g L.\n\n";
+      "never above its start by more than 1% of M g L; 'no (t s)': the rule first failed at "
+      "t.\n\n";
   md += "## References\n\n";
   for (const auto& [grid, provot] : s.sets) {
-    const Reference& ref = references[{grid, provot}];
+    const auto it = results.references.find({grid, provot});
+    if (it == results.references.end()) continue;
+    const Reference& ref = it->second;
     md += "- " + SetName(grid, provot) + ": RK4, " + std::to_string(ref.substeps) +
           " substeps per frame (h = " + Sig(ref.h_s * 1e3, 4) +
           " ms); its own error, estimated by Richardson extrapolation against " +
@@ -476,25 +553,31 @@ int Run(const Args& args) {
           " substeps (|x_h - x_2h| / 15): " + Sig(ref.error_estimate_m, 3) + " m RMS\n";
   }
   for (const auto& [grid, provot] : s.sets) {
-    md += "\n## " + SetName(grid, provot) + "\n\n";
     std::vector<std::vector<std::string>> cells;
     for (size_t k = 0; k < rows.size(); ++k) {
       if (rows[k].grid == grid && rows[k].provot == provot) cells.push_back(all_cells[k]);
     }
+    if (cells.empty()) continue;
+    md += "\n## " + SetName(grid, provot) + "\n\n";
     md += MarkdownTable(header, right, cells);
   }
   md +=
       "\n## Largest stable step (Provot off, damped scene, 2 s)\n\n"
       "Bisection on the substep count between the sweep's largest unstable and smallest "
-      "stable count, each probe a 2 s run judged by the stability rule above. h_max = 1/60 s "
-      "/ (smallest stable count); 'first unstable h' is the step of one substep fewer. Theory "
-      "bound: the model's stable_dt_s (the integrator's stability limit on the grid-symbol "
-      "bound of the highest natural frequency, damping included); auto substeps use 0.5 of "
-      "it.\n\n";
-  md +=
-      MarkdownTable({"grid", "integrator", "min stable substeps", "h_max ms", "first unstable h ms",
-                     "theory stable_dt_s ms", "h_max / stable_dt_s", "auto substeps", "probes"},
-                    {true, false, true, true, true, true, true, true, true}, step_cells);
+      "stable count (or, when the sweep has no stable row, the first stable count found by "
+      "doubling up to 4 x max(auto, largest unstable)), at geometric midpoints, each probe a "
+      "2 s run judged by the stability rule above and stopped at its first unstable frame. The "
+      "bisection stops at adjacent counts or when the stable count is within " +
+      Fixed(s.stable_step_tolerance * 100.0, 0) +
+      "% of the unstable one. h_max = 1/60 s / (smallest stable count); 'first unstable h' is "
+      "the step of the largest count found unstable (one substep fewer when the bisection "
+      "reached adjacent counts). Theory bound: the model's stable_dt_s (the integrator's "
+      "stability limit on the grid-symbol bound of the highest natural frequency, damping "
+      "included); auto substeps use 0.5 of it.\n\n";
+  md += MarkdownTable(
+      {"grid", "integrator", "min stable substeps", "h_max ms", "first unstable h ms",
+       "theory stable_dt_s ms", "h_max / stable_dt_s", "auto substeps", "probes", "probes cpu s"},
+      {true, false, true, true, true, true, true, true, true, true}, step_cells);
   md +=
       "\nPlot: integrators.png (bench/plot_integrators.gp on integrators_plot.dat), RMS error "
       "against frame ms, log-log, stable rows only.\n";
@@ -515,6 +598,7 @@ int Run(const Args& args) {
                             .Bool("auto", r.is_auto)
                             .Integer("substeps", r.substeps)
                             .Number("h_s", r.h_s)
+                            .Integer("timed_frames", r.timed_frames)
                             .Number("frame_ms_median", r.ms_median)
                             .Number("frame_ms_p99", r.ms_p99)
                             .Number("cpu_ms_median", r.cpu_ms_median)
@@ -522,12 +606,15 @@ int Run(const Args& args) {
                             .Number("energy_drift", r.energy_drift)
                             .Number("energy_max_dev", r.energy_max_dev)
                             .Bool("energy_finite", r.energy_finite)
+                            .Number("energy_blowup_s", r.energy_blowup_s)
                             .Number("max_stretch", r.max_stretch)
                             .Bool("stable", r.stable)
+                            .Number("unstable_at_s", r.unstable_at_s)
                             .Integer("nan_events", static_cast<int64_t>(r.nan_events))
+                            .Number("row_cpu_s", r.cpu_s)
                             .str());
   }
-  for (const StableStepResult& st : steps) {
+  for (const StableStepResult& st : results.steps) {
     step_items.push_back(JsonRecord()
                              .Integer("grid", st.grid)
                              .String("integrator", ToName(st.kind))
@@ -541,18 +628,21 @@ int Run(const Args& args) {
                                          : kNaN)
                              .Integer("auto_substeps", st.auto_substeps)
                              .Integer("probes", st.probes)
+                             .Number("probes_cpu_s", st.cpu_s)
                              .str());
   }
-  for (const auto& [key, ref] : references) {
+  for (const auto& [key, ref] : results.references) {
     ref_items.push_back(JsonRecord()
                             .Integer("grid", key.first)
                             .Bool("provot", key.second)
                             .Integer("substeps", ref.substeps)
                             .Number("h_s", ref.h_s)
                             .Number("error_estimate_m", ref.error_estimate_m)
+                            .Number("cpu_s", ref.cpu_s)
                             .str());
   }
   const std::string json = "{\n  \"command\": " + JsonQuote(cmd) +
+                           ",\n  \"complete\": " + (progress.empty() ? "true" : "false") +
                            ",\n  \"machine\": " + MachineJson(machine) +
                            ",\n  \"load_average_end\": " + JsonQuote(load_end) +
                            ",\n  \"timed_frames\": " + std::to_string(s.timed_frames) +
@@ -564,6 +654,7 @@ int Run(const Args& args) {
   WriteTextFile(json_path, json);
   const std::string dat = args.out + "/integrators_plot.dat";
   WriteTextFile(dat, PlotData(s, rows));
+  if (!progress.empty()) return true;
   std::printf("wrote %s/integrators.md, %s/integrators.csv, %s, %s\n", args.out.c_str(),
               args.out.c_str(), json_path.c_str(), dat.c_str());
 
@@ -580,13 +671,71 @@ int Run(const Args& args) {
   if (std::system("command -v gnuplot > /dev/null 2>&1") == 0) {
     if (std::system(plot.c_str()) != 0) {
       std::fprintf(stderr, "felt bench integrators: gnuplot failed: %s\n", plot.c_str());
-      return 1;
+      return false;
     }
     std::printf("wrote %s\n", png.c_str());
   } else {
     std::printf("gnuplot not found; to draw the plot run:\n  %s\n", plot.c_str());
   }
-  return 0;
+  return true;
+}
+
+int Run(const Args& args) {
+  Settings s = MakeSettings(args.quick);
+  if (!args.grids.empty()) {
+    std::erase_if(s.sets, [&](const std::pair<int32_t, bool>& set) {
+      return std::find(args.grids.begin(), args.grids.end(), set.first) == args.grids.end();
+    });
+    if (s.sets.empty()) throw std::invalid_argument("--grids: no row set has these grids");
+  }
+  const MachineInfo machine = ReadMachineInfo();
+  const std::string cmd = Command(args);
+  std::printf("%s\nload average %s\n", cmd.c_str(), machine.load_average.c_str());
+  std::fflush(stdout);
+
+  // Set by set: the reference, the sweep, then (Provot off) the largest stable steps; the
+  // reports are rewritten after each step so that a stopped run leaves a partial result.
+  Results results;
+  for (size_t k = 0; k < s.sets.size(); ++k) {
+    const auto [grid, provot] = s.sets[k];
+    const Reference& ref = results.references[{grid, provot}] =
+        MakeReference(args, s, grid, provot);
+    std::printf("%s: reference RK4 %d substeps (h = %.4g ms), its error ~ %.3g m, %.1f s cpu\n",
+                SetName(grid, provot).c_str(), ref.substeps, ref.h_s * 1e3, ref.error_estimate_m,
+                ref.cpu_s);
+    std::fflush(stdout);
+    for (const IntegratorName& in : kIntegratorNames) {
+      const ClothModel auto_model = BuildClothModel(RowSpec(args, grid, provot, in.kind, 0));
+      std::vector<int32_t> counts = {0};
+      for (const int32_t n : FixedCounts(s, grid, auto_model, in.kind)) counts.push_back(n);
+      for (const int32_t n : counts) {
+        results.rows.push_back(RunRow(args, s, ref, grid, provot, in.kind, n));
+        const Row& r = results.rows.back();
+        std::printf(
+            "  %-18s %6d substeps  %9.4f ms  err %-10.3g drift %-10.3g stretch %-9.4g %s  "
+            "(%d frames timed, %.1f s cpu)\n",
+            std::string(in.name).c_str(), r.substeps, r.ms_median, r.rms_error_m, r.energy_drift,
+            r.max_stretch, r.stable ? "stable" : "UNSTABLE", r.timed_frames, r.cpu_s);
+        std::fflush(stdout);
+      }
+      WriteReports(args, s, cmd, machine, results,
+                   "stopped in the " + SetName(grid, provot) + " sweep");
+    }
+    if (provot) continue;
+    for (const IntegratorName& in : kIntegratorNames) {
+      results.steps.push_back(FindStableStep(args, s, grid, in.kind, results.rows));
+      const StableStepResult& st = results.steps.back();
+      std::printf(
+          "grid %d %-18s h_max %.4g ms (%d substeps), theory %.4g ms, ratio %.3g, %d probes, "
+          "%.1f s cpu\n",
+          grid, std::string(in.name).c_str(), st.h_max_s * 1e3, st.min_stable_substeps,
+          st.theory_dt_s * 1e3, st.h_max_s / st.theory_dt_s, st.probes, st.cpu_s);
+      std::fflush(stdout);
+      WriteReports(args, s, cmd, machine, results,
+                   "stopped in the " + SetName(grid, provot) + " stable-step search");
+    }
+  }
+  return WriteReports(args, s, cmd, machine, results, "") ? 0 : 1;
 }
 
 app::CommandRun Setup(CLI::App& cmd) {

@@ -49,6 +49,9 @@ TEST(BenchSmoke, IntegratorsQuickWritesItsFiles) {
   ExpectKeys(text, {"command", "machine", "rows", "stable_steps", "references", "grid", "provot",
                     "integrator", "substeps", "frame_ms_median", "rms_error_m", "energy_drift",
                     "max_stretch", "stable", "h_max_s", "stable_dt_s", "ratio_to_stable_dt"});
+  ExpectKeys(text, {"complete", "timed_frames", "unstable_at_s", "energy_blowup_s"});
+  // The finished run says so (the files are rewritten, marked partial, while it runs).
+  EXPECT_NE(text.find("\"complete\": true"), std::string::npos);
   // Every integrator has rows.
   for (const char* name :
        {"leapfrog_verlet", "explicit_euler", "symplectic_euler", "explicit_midpoint", "rk4",
