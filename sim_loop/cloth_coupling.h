@@ -24,10 +24,13 @@ inline constexpr int32_t kMaxCouplingSprings = 16;
 inline constexpr int32_t kMaxCouplingCandidates = 18;
 
 /// The crease smoothing of a contact spring (CouplingSpring::smoothing_m) is this fraction of the
-/// spring's penetration at the start of its frame, and at least kMinCouplingSmoothing_m.
+/// spring's penetration at the start of its frame, within [kMinCouplingSmoothing_m,
+/// kMaxCouplingSmoothing_m].
 inline constexpr double kCouplingSmoothingFraction = 0.1;
 /// The smallest crease smoothing, m.
 inline constexpr double kMinCouplingSmoothing_m = 1e-6;
+/// The largest crease smoothing, m.
+inline constexpr double kMaxCouplingSmoothing_m = 20e-6;
 
 /// One contact spring of the frame, resolved against the model: the proxy sphere (centre goal_m,
 /// radius_m) pressing on the nearest point of its candidate triangles (ExternalForce), that
@@ -80,11 +83,11 @@ void BeginCouplingFrame(CouplingSprings* springs);
 
 /// Adds `e` (stiffness_N_per_m > 0, triangle in range) as a contact spring for substeps of h_s
 /// [s], with its crease smoothing set from its penetration at state->x (the frame's start):
-/// max(kMinCouplingSmoothing_m, kCouplingSmoothingFraction * penetration), constant over the
-/// frame. Weights of pinned particles are zeroed, k is bounded by MaxCouplingStiffness
-/// (state->counters. coupling_reduced_frames counts each frame once), entries with non-finite or
-/// invalid fields are counted in invalid_external_forces, and entries past kMaxCouplingSprings in
-/// coupling_overflows. Real-time safe.
+/// kCouplingSmoothingFraction * penetration clamped to [kMinCouplingSmoothing_m,
+/// kMaxCouplingSmoothing_m], constant over the frame. Weights of pinned particles are zeroed, k is
+/// bounded by MaxCouplingStiffness (state->counters. coupling_reduced_frames counts each frame
+/// once), entries with non-finite or invalid fields are counted in invalid_external_forces, and
+/// entries past kMaxCouplingSprings in coupling_overflows. Real-time safe.
 void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
                        ClothState* state);
 

@@ -172,7 +172,7 @@ TEST(CoupledTest, PressAndHoldOnTheDefaultCurtainComesToRest) {
 // interpolate, 3.6 mN extrapolate in the last second against 1.7 allowed). The proxy's own contact
 // stayed on one triangle meanwhile, and with the sim's sphere frozen the jitter stayed: it was the
 // sim's nearest point. The sim now smooths that point across creases (sim_loop/cloth_coupling.h,
-// AddCouplingForces): std 0.002 mN and 0.005-0.015 mN peak to peak at 28-30 s in every mode.
+// AddCouplingForces): std 0.002-0.003 mN, 0.006-0.017 mN peak to peak at 28-30 s in every mode.
 TEST(CoupledTest, PressAtTheVertexOfTheDefaultCurtainComesToRest) {
   ExpectPressComesToRest(14.0, 1.0, Vec3::Zero());
 }
