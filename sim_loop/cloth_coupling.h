@@ -23,8 +23,18 @@ inline constexpr int32_t kMaxCouplingSprings = 16;
 /// cells around the contact triangle's cell (every triangle that shares a vertex with it).
 inline constexpr int32_t kMaxCouplingCandidates = 18;
 
+/// The crease smoothing of a contact spring (CouplingSpring::smoothing_m) is this fraction of the
+/// spring's penetration at the start of its frame, within [kMinCouplingSmoothing_m,
+/// kMaxCouplingSmoothing_m].
+inline constexpr double kCouplingSmoothingFraction = 0.1;
+/// The smallest crease smoothing, m.
+inline constexpr double kMinCouplingSmoothing_m = 1e-6;
+/// The largest crease smoothing, m.
+inline constexpr double kMaxCouplingSmoothing_m = 20e-6;
+
 /// One contact spring of the frame, resolved against the model: the proxy sphere (centre goal_m,
-/// radius_m) pressing on the nearest point of its candidate triangles (ExternalForce).
+/// radius_m) pressing on the nearest point of its candidate triangles (ExternalForce), that
+/// nearest point smoothed across the mesh's creases over smoothing_m (AddCouplingForces).
 struct CouplingSpring {
   std::array<Triangle, kMaxCouplingCandidates> candidates{};  ///< particles of each candidate
   std::array<Vec3, kMaxCouplingCandidates> free{};  ///< per corner: 1 if free, 0 if pinned
@@ -34,6 +44,7 @@ struct CouplingSpring {
   Vec3 normal = Vec3::UnitZ();     ///< unit, from the cloth toward the proxy's side
   double stiffness_N_per_m = 0.0;  ///< k_eff (after the stability bound)
   double max_force_N = 0.0;        ///< force clamp, N
+  double smoothing_m = 0.0;        ///< crease smoothing epsilon, m (0: the exact nearest point)
 };
 
 /// The frame's contact springs: storage of kMaxCouplingSprings, count in use.
@@ -71,24 +82,37 @@ int32_t CouplingSubsteps(const ClothModel& model, std::span<const ExternalForce>
 void BeginCouplingFrame(CouplingSprings* springs);
 
 /// Adds `e` (stiffness_N_per_m > 0, triangle in range) as a contact spring for substeps of h_s
-/// [s]: weights of pinned particles are zeroed, k is bounded by MaxCouplingStiffness
-/// (state->counters. coupling_reduced_frames counts each frame once), entries with non-finite or
-/// invalid fields are counted in invalid_external_forces, and entries past kMaxCouplingSprings in
-/// coupling_overflows. Real-time safe.
+/// [s], with its crease smoothing set from its penetration at state->x (the frame's start):
+/// kCouplingSmoothingFraction * penetration clamped to [kMinCouplingSmoothing_m,
+/// kMaxCouplingSmoothing_m], constant over the frame. Weights of pinned particles are zeroed, k is
+/// bounded by MaxCouplingStiffness (state->counters. coupling_reduced_frames counts each frame
+/// once), entries with non-finite or invalid fields are counted in invalid_external_forces, and
+/// entries past kMaxCouplingSprings in coupling_overflows. Real-time safe.
 void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
                        ClothState* state);
 
 /// Adds scale * the contact springs' forces at positions `x` [m, world, n entries] into `f`
-/// (3 n packed doubles, xyz per particle): per spring, the nearest point c of its candidate
-/// triangles to its goal g (the first of equal ones), sd = |g - c| signed by the side of `normal`,
-/// pen = radius - sd; if pen > 0, F = -n min(max_force_N, k pen) with n the unit direction from c
-/// toward the proxy's side (`normal` where g lies on the cloth), corner i of c's triangle getting
-/// free_i b_i F (ExternalForce). F is minus the gradient of CouplingEnergy. Real-time safe.
+/// (3 n packed doubles, xyz per particle). Per spring and candidate triangle i: its nearest point
+/// c_i to the goal g (barycentrics b_i), d_i = |g - c_i|, sd_i = d_i signed by the side of
+/// `normal`, n_i the unit direction from c_i toward the proxy's side (`normal` where g lies on the
+/// cloth). The signed distance is their smooth minimum sd = sum w_i sd_i, w_i proportional to
+/// exp(-(d_i - min d) / smoothing_m) (the Boltzmann operator, Asadi & Littman 2017) over the
+/// local minima of the distance: w_i = 0 for a triangle on the other side of the goal than the
+/// nearest one, or whose nearest point lies on an edge or corner it shares with a nearer
+/// candidate (or an as near one listed first). With smoothing_m = 0: the first nearest
+/// triangle's sd_i. pen = radius - sd. If pen > 0, triangle i gets F_i = -min(max_force_N,
+/// k pen) s_i n_i with s_i = w_i (1 - sign_i (sd_i - sd) / smoothing_m) (the chain rule of sd;
+/// sum s_i = 1), its corner j free_j b_ij F_i. The smooth minimum keeps the force continuous
+/// where the nearest point moves from one face to another across a crease (around a pressed
+/// vertex), which the explicit integrators need to keep energy (Hairer, Lubich & Wanner 2006,
+/// Geometric Numerical Integration, ch. IX, assumes smooth forces). The force is minus the
+/// gradient of CouplingEnergy. Real-time safe.
 void AddCouplingForces(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
                        double* f);
 
-/// The springs' potential energy at `x` [J]: per spring 1/2 k pen^2 while k pen <= max_force_N,
-/// then max_force_N (pen - max_force_N / (2 k)) (the clamp's linear continuation), 0 for pen <= 0.
+/// The springs' potential energy at `x` [J], pen as in AddCouplingForces: per spring 1/2 k pen^2
+/// while k pen <= max_force_N, then max_force_N (pen - max_force_N / (2 k)) (the clamp's linear
+/// continuation), 0 for pen <= 0.
 /// Its gradient with respect to the free particles' positions is minus AddCouplingForces' forces
 /// (with scale 1). For tests and energy bookkeeping. Real-time safe.
 double CouplingEnergy(const CouplingSprings& springs, std::span<const Vec3> x);
