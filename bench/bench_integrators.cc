@@ -341,7 +341,8 @@ StableStepResult FindStableStep(const Args& args, const Settings& s, int32_t gri
   lo = std::min(lo, hi - 1);
   if (lo == 0 && hi > 1) (stable(1) ? hi : lo) = 1;
   while (hi - lo > 1 && hi > lo * (1.0 + s.stable_step_tolerance)) {
-    const auto geometric = static_cast<int32_t>(std::lround(std::sqrt(double{lo} * hi)));
+    const auto geometric =
+        static_cast<int32_t>(std::lround(std::sqrt(static_cast<double>(lo) * hi)));
     const int32_t mid = std::clamp(geometric, lo + 1, hi - 1);
     (stable(mid) ? hi : lo) = mid;
   }
