@@ -32,8 +32,6 @@ void AddTo(std::atomic<double>& value, double delta) {
   value.store(value.load(std::memory_order_relaxed) + delta, std::memory_order_relaxed);
 }
 
-bool SnapshotModeNeedsPrevious(SnapshotMode mode) { return mode != SnapshotMode::kNewest; }
-
 int64_t PeriodNs(double rate_hz) { return std::llround(1e9 / rate_hz); }
 
 }  // namespace
@@ -224,26 +222,27 @@ void Server::HapticTick(int64_t now_ns, double dt_s) {
   if (fresh_snapshot || !have_snapshot_) {
     if (slot.snapshot.frame != newest_frame_ || !have_snapshot_) {
       newest_frame_ = slot.snapshot.frame;
-      if (SnapshotModeNeedsPrevious(spec_.proxy.snapshot_mode)) {
-        // The triple buffer's slot cannot serve as "previous": the next Acquire hands it back to
-        // the sim. So the new snapshot's arrays are swapped into the older haptic-owned copy
-        // (O(1), no allocation: equally sized vectors trade buffers), and that copy's arrays go
-        // back to the sim in the slot, which refills them whole. A deep copy here (positions,
-        // velocities, normals and the BVH, ~1 MB at 64 x 64) cost ~0.2 ms on the 6 % of ticks that
-        // took a new snapshot: the tick's compute-time p99 (bench/results/loops.md).
-        const int next = newest_copy_ == 0 ? 1 : 0;
-        using std::swap;
-        swap(copies_[next], slot.snapshot);
-        previous_copy_ = newest_copy_;
-        newest_copy_ = next;
-      }
+      // Every mode keeps the previous snapshot: mode newest needs it as well, to carry a proxy in
+      // contact with its triangle and to catch a free proxy the cloth sweeps over (ProxyTick
+      // treats a missing previous snapshot as a cloth that did not move).
+      // The triple buffer's slot cannot serve as "previous": the next Acquire hands it back to
+      // the sim. So the new snapshot's arrays are swapped into the older haptic-owned copy
+      // (O(1), no allocation: equally sized vectors trade buffers), and that copy's arrays go
+      // back to the sim in the slot, which refills them whole. A deep copy here (positions,
+      // velocities, normals and the BVH, ~1 MB at 64 x 64) cost ~0.2 ms on the 6 % of ticks that
+      // took a new snapshot: the tick's compute-time p99 (bench/results/loops.md).
+      const int next = newest_copy_ == 0 ? 1 : 0;
+      using std::swap;
+      swap(copies_[next], slot.snapshot);
+      previous_copy_ = newest_copy_;
+      newest_copy_ = next;
       have_snapshot_ = true;
       StageReactions();
     }
   } else if (staged_pending_) {
     StageReactions();  // retry the push of a batch that found the queue full
   }
-  // In the modes that keep the previous snapshot the newest lives in a copy; else in the slot.
+  // The newest lives in a haptic-owned copy once one has arrived; before that, in the slot.
   const ClothSnapshot& newest_snapshot = newest_copy_ >= 0 ? copies_[newest_copy_] : slot.snapshot;
   const ClothSnapshot* previous = previous_copy_ >= 0 ? &copies_[previous_copy_] : nullptr;
   const int64_t age_ns = now_ns - slot.publish_ns;
