@@ -257,4 +257,37 @@ TEST(ServerTick, BundledTraceTouchesTheCloth) {
 }
 
 }  // namespace
+// The cloth moving onto a still pointer catches the proxy and pushes it in every snapshot mode,
+// mode newest included: the server keeps the previous snapshot for it too, without which the
+// proxy was neither caught nor carried (ProxyTick takes a missing previous snapshot as a cloth
+// that did not move) and the cloth passed through the still proxy.
+TEST(ServerTick, ClothMovingOntoAStillPointerCatchesItInEveryMode) {
+  for (SnapshotMode mode : {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
+                            SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate}) {
+    LatestPointerSource source(1);
+    CapturingForceSink sink(1);
+    // The device's origin 20 mm in front of the curtain's centre; gravity along +z, so the
+    // curtain (pinned at its top corners) falls toward and through that still point.
+    ServerSpec spec = QuickRamp({DeviceAt("still", Vec3(0.0, 0.0, 0.02))});
+    spec.sim.cloth.gravity_m_per_s2 = Vec3(0.0, 0.0, 9.81);
+    spec.proxy.snapshot_mode = mode;
+    Server server(spec, &source, &sink, Quiet());
+    Driver driver(&server, &source);
+    const auto still = [](uint32_t, double, PointerInput* in) {
+      in->p_D_m = Vec3::Zero();
+      in->v_D_m_per_s = Vec3::Zero();
+      return true;
+    };
+    double max_push_N = 0.0;
+    for (int i = 0; i < 600; ++i) {
+      driver.Tick(1, still);
+      ForceOutput f;
+      if (sink.Newest(0, &f)) max_push_N = std::max(max_push_N, f.force_D_N.z());
+    }
+    // The proxy rides on the falling cloth (+z), so the device is pushed along +z.
+    EXPECT_GT(max_push_N, 0.5) << SnapshotModeName(mode);
+    EXPECT_GT(server.Report()->devices[0].contact_ticks, 0u) << SnapshotModeName(mode);
+  }
+}
+
 }  // namespace felt
