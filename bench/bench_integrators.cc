@@ -353,6 +353,13 @@ StableStepResult FindStableStep(const Args& args, const Settings& s, int32_t gri
   return r;
 }
 
+// Substep counts as "1, 2, 4" for the legend.
+std::string JoinCounts(const std::vector<int32_t>& counts) {
+  std::string list;
+  for (const int32_t n : counts) list += (list.empty() ? "" : ", ") + std::to_string(n);
+  return list;
+}
+
 std::string SetName(int32_t grid, bool provot) {
   return std::to_string(grid) + " x " + std::to_string(grid) +
          (provot ? ", Provot on (scene default)" : ", Provot off");
@@ -496,24 +503,13 @@ bool WriteReports(const Args& args, const Settings& s, const std::string& cmd,
       "on at the same tiny step.\n\n"
       "- substeps: auto (the model's count, 0.5 of the theory bound stable_dt_s), then fixed "
       "counts: " +
-      [&] {
-        std::string list;
-        for (const int32_t n : s.explicit_counts)
-          list += (list.empty() ? "" : ", ") + std::to_string(n);
-        return list;
-      }() +
-      " for the explicit methods below " + std::to_string(s.fine_grid) + " x " +
-      std::to_string(s.fine_grid) + "; from " + std::to_string(s.fine_grid) + " x " +
-      std::to_string(s.fine_grid) +
+      JoinCounts(s.explicit_counts) + " for the explicit methods below " +
+      std::to_string(s.fine_grid) + " x " + std::to_string(s.fine_grid) + "; from " +
+      std::to_string(s.fine_grid) + " x " + std::to_string(s.fine_grid) +
       " on, p, 2p, 4p around each one's theory bound (p the "
       "largest power of two <= (1/60 s) / stable_dt_s), counts over " +
       std::to_string(s.max_fine_substeps) + " left out; implicit Euler " +
-      [&] {
-        std::string list;
-        for (const int32_t n : s.implicit_counts)
-          list += (list.empty() ? "" : ", ") + std::to_string(n);
-        return list;
-      }() +
+      JoinCounts(s.implicit_counts) +
       ".\n"
       "- frame ms: median wall time of StepFrame over " +
       std::to_string(s.timed_frames) +

@@ -219,8 +219,9 @@ void Server::HapticTick(int64_t now_ns, double dt_s) {
   // hand the reactions of the frame that ended to the sim.
   const bool fresh_snapshot = snapshots_->Acquire();
   PublishedSnapshot& slot = snapshots_->read_slot_mutable();
-  if (fresh_snapshot || !have_snapshot_) {
-    if (slot.snapshot.frame != newest_frame_ || !have_snapshot_) {
+  const bool first_snapshot = newest_copy_ < 0;
+  if (fresh_snapshot || first_snapshot) {
+    if (slot.snapshot.frame != newest_frame_ || first_snapshot) {
       newest_frame_ = slot.snapshot.frame;
       // Every mode keeps the previous snapshot: mode newest needs it as well, to carry a proxy in
       // contact with its triangle and to catch a free proxy the cloth sweeps over (ProxyTick
@@ -236,14 +237,13 @@ void Server::HapticTick(int64_t now_ns, double dt_s) {
       swap(copies_[next], slot.snapshot);
       previous_copy_ = newest_copy_;
       newest_copy_ = next;
-      have_snapshot_ = true;
       StageReactions();
     }
   } else if (staged_pending_) {
     StageReactions();  // retry the push of a batch that found the queue full
   }
-  // The newest lives in a haptic-owned copy once one has arrived; before that, in the slot.
-  const ClothSnapshot& newest_snapshot = newest_copy_ >= 0 ? copies_[newest_copy_] : slot.snapshot;
+  // The newest lives in a haptic-owned copy (the first tick made one).
+  const ClothSnapshot& newest_snapshot = copies_[newest_copy_];
   const ClothSnapshot* previous = previous_copy_ >= 0 ? &copies_[previous_copy_] : nullptr;
   const int64_t age_ns = now_ns - slot.publish_ns;
   haptic_stats_->RecordSnapshotAge(age_ns);

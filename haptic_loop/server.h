@@ -237,7 +237,6 @@ class Server {
   int newest_copy_ = -1;               // index into copies_ of the newest (-1: none yet)
   int previous_copy_ = -1;             // index into copies_ of the previous (-1: none yet)
   uint64_t newest_frame_ = 0;
-  bool have_snapshot_ = false;
   uint64_t sim_frame_counter_ = 0;
   // Sim-owned: the published positions of the last frame and the frame-motion velocities
   // (proxy/frame_motion.h), [particles] each, sized once.
