@@ -74,12 +74,12 @@ class LocalCloth {
   /// overflow, against the query snapshot's structure. Real-time safe.
   SweepHit Sweep(const Vec3& p0, const Vec3& p1, double r) const;
 
-  /// First contact of a sphere moving c0 -> c1 while each gathered triangle moves from its
-  /// previous-tick corners to its current ones (MovingTriangleSphereContact), skipping the
-  /// triangles listed in `skip`. The hit's point, normal and barycentrics are at toi.
-  /// Real-time safe.
-  SweepHit SweepMoving(const Vec3& c0, const Vec3& c1, double r,
-                       std::span<const int32_t> skip) const;
+  /// First contact of a sphere moving c0 -> c1 while each gathered triangle moves over the part
+  /// [s0, s1] of its linear motion from its previous-tick corners (s = 0) to its current ones
+  /// (s = 1) (MovingTriangleSphereContact), skipping the triangles listed in `skip`. The hit's
+  /// toi is a fraction of [s0, s1]; its point, normal and barycentrics are at toi. Real-time safe.
+  SweepHit SweepMoving(const Vec3& c0, const Vec3& c1, double r, std::span<const int32_t> skip,
+                       double s0 = 0.0, double s1 = 1.0) const;
 
   /// Corners [m] of `triangle` at the tick's cloth if gathered, else (after an overflow) at the
   /// query snapshot; false when neither has it. Real-time safe.

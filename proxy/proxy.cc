@@ -281,6 +281,130 @@ struct BodyTick {
   bool caught = false;
 };
 
+// The constraint a remembered cloth contact puts on the proxy (Ruspini 1997 §3's tangent plane of
+// the radius-grown cloth at the closest point), evaluated for a proxy centre at p on the cloth
+// `now`, the contact's point, weights and normal refreshed. The normal points from the closest
+// point to p; a triangle whose interior has moved past p (p on the other side of its face than the
+// contact's local_m says) gets the face normal of the contact's side instead, so it pushes the
+// proxy back to that side.
+ConstraintPlane ContactPlaneAt(const ClothView& now, const Vec3& p, double r, ProxyContact* c) {
+  Vec3 a, b, cc;
+  now.Corners(c->triangle, &a, &b, &cc);
+  const TrianglePoint cp = ClosestPointOnTriangle(p, a, b, cc);
+  const TriFrame f = FrameOf(a, b, cc);
+  const Vec3 d = p - cp.point;
+  const double dist = std::sqrt(cp.distance_sq);
+  const double side = c->local_m(2) >= 0.0 ? 1.0 : -1.0;
+  if (f.ok && cp.barycentric.minCoeff() > 1e-9 && side * f.n.dot(d) < 0.0) {
+    c->normal_W = side * f.n;
+  } else if (dist > 1e-12 * (1.0 + r)) {
+    c->normal_W = d / dist;
+  }
+  c->point_W_m = cp.point;
+  c->barycentric = cp.barycentric;
+  return PlaneOf(*c, r);
+}
+
+// After the carry and the catch: the proxy goes to the point nearest its position on the free
+// side of every cloth contact's plane, the planes taken at `p_eval` (the carried position, where
+// the first contact holds the proxy exactly; ContactPlaneAt) except the first contact's when
+// `first_plane` gives it. The carry follows the first contact only; the others move with the cloth
+// too, and in a closing crease they move into the proxy: a flap folding onto a proxy in the fold
+// squeezes it out along the fold, never through either face. Returns false, leaving the body as
+// it was, when no point satisfies every plane (the fold is narrower than the proxy).
+bool SettleOnContacts(const ClothView& now, const Vec3& p_eval, double r,
+                      const ConstraintPlane* first_plane, GodObject* body) {
+  std::array<ConstraintPlane, kMaxConstraintPlanes> planes;
+  std::array<ProxyContact, kMaxConstraintPlanes> contacts = body->contacts;
+  int32_t n = 0;
+  for (int32_t i = 0; i < body->num_contacts; ++i) {
+    if (IsObstacleContactId(contacts[i].triangle)) continue;  // static: the obstacle sweep's
+    planes[n++] = (i == 0 && first_plane != nullptr) ? *first_plane
+                                                     : ContactPlaneAt(now, p_eval, r, &contacts[i]);
+  }
+  if (n == 0) return true;
+  const PlaneSolveResult sol =
+      SolveClosestFeasible(body->p_W_m, std::span<const ConstraintPlane>(planes.data(), n));
+  if (!sol.feasible) return false;
+  body->p_W_m = sol.point;
+  body->contacts = contacts;
+  return true;
+}
+
+// A proxy the moving cloth caught rides the triangle that hit it (`caught`, placed at `p_ride`)
+// and keeps the cloth contacts it was carried with to `p_carried` (three contacts at most):
+// riding the caught face alone put it behind the face it was carried on when a crease closed on it
+// (a pop-through in fast_swipe, mode extrapolate). Then SettleOnContacts, the caught plane being
+// the tangent one at p_ride. If that finds no room the catch is refused and the proxy stays
+// carried. Returns whether the catch was taken.
+bool RideCaught(const ClothView& now, const Vec3& p_carried, const Vec3& p_ride,
+                const ProxyContact& caught, double r, GodObject* body) {
+  GodObject rider = *body;
+  rider.p_W_m = p_ride;
+  rider.num_contacts = 0;
+  rider.contacts[rider.num_contacts++] = caught;
+  for (int32_t i = 0; i < body->num_contacts && rider.num_contacts < kMaxConstraintPlanes; ++i) {
+    const ProxyContact& k = body->contacts[i];
+    if (IsObstacleContactId(k.triangle) || k.triangle == caught.triangle) continue;
+    rider.contacts[rider.num_contacts++] = k;
+  }
+  // |p_ride - point| = r (the triangle's frame is rigid), so this plane passes through p_ride.
+  const Vec3 off = p_ride - caught.point_W_m;
+  const double len = off.norm();
+  const Vec3 n = len > 1e-12 * (1.0 + r) ? Vec3(off / len) : caught.normal_W;
+  const ConstraintPlane caught_plane{n, n.dot(caught.point_W_m) + r, caught.triangle};
+  if (!SettleOnContacts(now, p_carried, r, &caught_plane, &rider)) return false;
+  *body = rider;
+  return true;
+}
+
+// The first contact of the carried proxy with a moving triangle (LocalCloth::SweepMoving), its
+// toi a fraction of the piece [q0, q1] that covers the part [s0, s1] of the motion.
+struct CarriedSweep {
+  SweepHit hit;
+  Vec3 q0 = Vec3::Zero();
+  Vec3 q1 = Vec3::Zero();
+  double s0 = 0.0;
+  double s1 = 1.0;
+};
+
+// The carried proxy follows its anchor triangle, whose frame turns as it moves: a straight path
+// p_prev -> p_carried cuts the arc, and the anchor's neighbours "caught" a proxy their common
+// motion never brought closer (then on the wrong side of the anchor, after a large carry). So the
+// path is cut into pieces of at most one radius (eight at most), each ending where the carry puts
+// the proxy on the cloth part-way (the two cloths' corners blended), the triangles moving linearly
+// over each piece's share of the motion.
+CarriedSweep SweepCarriedPath(const LocalCloth& local, const ClothView& before,
+                              const ClothView& now, const GodObject& body, const Vec3& p_prev,
+                              const Vec3& p_carried, double r, std::span<const int32_t> skip) {
+  const int32_t anchor = FirstClothContact(body);
+  const double carry_m = (p_carried - p_prev).norm();
+  const int32_t pieces =
+      anchor < 0 ? 1 : std::clamp(static_cast<int32_t>(std::ceil(carry_m / r)), 1, 8);
+  CarriedSweep out;
+  out.q0 = p_prev;
+  for (int32_t k = 0; k < pieces; ++k) {
+    out.s0 = static_cast<double>(k) / pieces;
+    out.s1 = static_cast<double>(k + 1) / pieces;
+    out.q1 = p_carried;
+    if (k + 1 < pieces) {
+      const ProxyContact& c = body.contacts[anchor];
+      Vec3 a0, b0, c0, a1, b1, c1;
+      before.Corners(c.triangle, &a0, &b0, &c0);
+      now.Corners(c.triangle, &a1, &b1, &c1);
+      const Vec3 a = a0 + out.s1 * (a1 - a0);
+      const Vec3 b = b0 + out.s1 * (b1 - b0);
+      const Vec3 cc = c0 + out.s1 * (c1 - c0);
+      out.q1 = c.barycentric(0) * a + c.barycentric(1) * b + c.barycentric(2) * cc +
+               FromLocal(FrameOf(a, b, cc), c.local_m);
+    }
+    out.hit = local.SweepMoving(out.q0, out.q1, r, skip, out.s0, out.s1);
+    if (out.hit.hit) return out;
+    out.q0 = out.q1;
+  }
+  return out;
+}
+
 // Carry, gather, catch and update one body against one cloth for this tick.
 BodyTick TickBody(const ClothSnapshot& query, double inflation_m, const ClothView& now,
                   const ClothView* before, const Vec3& goal, const GodObjectOptions& opts,
@@ -311,32 +435,33 @@ BodyTick TickBody(const ClothSnapshot& query, double inflation_m, const ClothVie
   // Catch: the cloth moving from the previous tick's shape to this one may sweep over the proxy
   // (which moves with its carry meanwhile); it then rides on the triangle that hit it.
   if (before != nullptr) {
-    std::array<int32_t, kMaxConstraintPlanes> skip;
+    std::array<int32_t, kMaxConstraintPlanes> skip;  // the contacts touch from the start
     skip.fill(-1);
     for (int32_t i = 0; i < body->num_contacts; ++i) skip[i] = body->contacts[i].triangle;
-    const SweepHit hit = local->SweepMoving(p_prev, p_carried, r, skip);
-    if (hit.hit) {
+    const CarriedSweep cs =
+        SweepCarriedPath(*local, *before, now, *body, p_prev, p_carried, r, skip);
+    if (cs.hit.hit) {
+      const SweepHit& hit = cs.hit;
       const LocalTriangle* t = FindLocal(*local, hit.triangle);
-      const double s = hit.toi;
+      const double s = cs.s0 + hit.toi * (cs.s1 - cs.s0);
       const TriFrame f0 = FrameOf(t->a0 + s * (t->a - t->a0), t->b0 + s * (t->b - t->b0),
                                   t->c0 + s * (t->c - t->c0));
-      const Vec3 p_toi = p_prev + s * (p_carried - p_prev);
+      const Vec3 p_toi = cs.q0 + hit.toi * (cs.q1 - cs.q0);
       const Vec3 local_off = ToLocal(f0, p_toi - hit.point_m);
       const TriFrame f1 = FrameOf(t->a, t->b, t->c);
       const Vec3& w = hit.barycentric;
       const Vec3 point = w(0) * t->a + w(1) * t->b + w(2) * t->c;
-      body->p_W_m = point + FromLocal(f1, local_off);
+      const Vec3 p_ride = point + FromLocal(f1, local_off);
       ProxyContact c;
       c.triangle = hit.triangle;
       c.barycentric = w;
       c.point_W_m = point;
       c.normal_W = f1.ok ? Vec3(f1.n * (local_off(2) >= 0.0 ? 1.0 : -1.0)) : hit.normal;
       c.local_m = local_off;
-      body->contacts[0] = c;
-      body->num_contacts = 1;
-      out.caught = true;
+      out.caught = RideCaught(now, p_carried, p_ride, c, r, body);
     }
   }
+  if (!out.caught) SettleOnContacts(now, p_carried, r, nullptr, body);
   // The static obstacles stop the carry and the catch: the cloth may press the proxy toward an
   // obstacle, but the proxy never enters one (it stays at the first contact on its way).
   if (!opts.obstacles.empty()) {

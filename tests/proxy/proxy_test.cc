@@ -195,6 +195,101 @@ TEST(ProxyTest, ModeAUsesTheNewestClothAndCatchesAFreeProxy) {
   }
 }
 
+TEST(ProxyTest, FlapClosingOnAProxyInItsFoldSqueezesItOutNeverThrough) {
+  // A sheet on z = 0 (x in [0, 0.1]) and a flap hinged to it along the y axis, (s cos a, y,
+  // s sin a). The pointer presses the sheet at x = 2 cm; the flap folds from 80 to 10 degrees in
+  // one frame. It catches the proxy (at 22.6 degrees) while the sheet carries it: riding the flap
+  // alone would put the proxy 0.5 mm under the sheet; it must come out of the fold instead.
+  const double r = 0.004;
+  auto flap_at = [](double deg) {
+    const double a = deg * M_PI / 180.0;
+    return GridMesh(11, 11, [a](double u, double v) {
+      return Vec3(0.1 * u * std::cos(a), (v - 0.5) * 0.1, 0.1 * u * std::sin(a));
+    });
+  };
+  const TestMesh sheet =
+      GridMesh(11, 11, [](double u, double v) { return Vec3(0.1 * u, (v - 0.5) * 0.1, 0.0); });
+  TestMesh both = sheet;
+  testing::Append(&both, flap_at(80.0));
+  const DeviceSpec d = UnitDevice(r);
+  for (SnapshotMode mode : kAllModes) {
+    ClothSnapshot prev = Snap(both);
+    ClothSnapshot next = Snap(both);
+    const ProxySpec p = Spec(mode, true);
+    ProxyState st = MakeProxyState(p);
+    auto angle = [](uint64_t f) { return f < 3 ? 80.0 : 10.0; };
+    auto fill = [&](ClothSnapshot* s, uint64_t f) {
+      std::vector<Vec3> x = sheet.x;
+      const TestMesh flap = flap_at(angle(f));
+      x.insert(x.end(), flap.x.begin(), flap.x.end());
+      testing::Refill(x, std::vector<Vec3>(x.size(), Vec3::Zero()), f, f * 0.016, 0.016, s);
+    };
+    fill(&prev, 0);
+    fill(&next, 1);
+    uint64_t frame = 1;
+    ProxyTickResult r_last;
+    for (int k = 0; k < 16 * 8; ++k) {
+      if (k > 0 && k % 16 == 0) {
+        std::swap(prev, next);
+        fill(&next, ++frame);
+      }
+      // Down from 1 cm above the sheet to 2 mm into it, then held.
+      const double gz = std::max(-0.002, 0.01 - 0.001 * k);
+      r_last = ProxyTick(d, p, next, &prev, (k % 16) * 1e-3,
+                         DeviceSample{Vec3(0.02, 0.0, gz), Vec3::Zero()}, 1e-3, &st);
+      EXPECT_GE(r_last.proxy_W_m.z(), r - 1e-7) << SnapshotModeName(mode) << " tick " << k;
+    }
+    // At rest in the closed fold: on the sheet's upper side and under the flap, both by r.
+    const double a = 10.0 * M_PI / 180.0;
+    const Vec3& q = r_last.proxy_W_m;
+    EXPECT_GE(q.z(), r - 1e-7) << SnapshotModeName(mode);
+    EXPECT_GE(q.x() * std::sin(a) - q.z() * std::cos(a), r - 1e-7) << SnapshotModeName(mode);
+  }
+}
+
+TEST(ProxyTest, RoofTurnedRigidlyCarriesTheProxyWithoutACatch) {
+  // A roof z = -tan(20 deg) |x| with the proxy resting on its x > 0 face, 1.05 r from the ridge.
+  // The roof turns rigidly by 60 degrees about the y axis through x = -5 cm in one frame. The
+  // carried proxy keeps its place on the face; the straight path from its old place to its new
+  // one cuts the arc (its distances to the roof shrink by cos 30 deg part-way), which made the
+  // other face "catch" it.
+  const double r = 0.004;
+  const double beta = 20.0 * M_PI / 180.0;
+  const TestMesh roof = GridMesh(11, 11, [&](double u, double v) {
+    const double x = (u - 0.5) * 0.1;
+    return Vec3(x, (v - 0.5) * 0.1, -std::tan(beta) * std::abs(x));
+  });
+  const Vec3 n_a(std::sin(beta), 0.0, std::cos(beta));
+  const Vec3 foot(0.3 * r, 0.003, -std::tan(beta) * 0.3 * r);
+  const Vec3 c = foot + r * n_a;
+  ASSERT_NEAR(Vec3(c.x(), 0.0, c.z()).norm(), 1.05 * r, 0.001 * r);
+  const Eigen::Matrix3d rot = Eigen::AngleAxisd(M_PI / 3.0, Vec3::UnitY()).toRotationMatrix();
+  const Vec3 pivot(-0.05, 0.0, 0.0);
+  std::vector<Vec3> turned = roof.x;
+  for (Vec3& x : turned) x = pivot + rot * (x - pivot);
+  ClothSnapshot prev = Snap(roof);
+  ClothSnapshot next = Snap(roof);
+  const std::vector<Vec3> zero(roof.x.size(), Vec3::Zero());
+  testing::Refill(roof.x, zero, 1, 0.0, 0.016, &next);
+  const DeviceSpec d = UnitDevice(r);
+  const ProxySpec p = Spec(SnapshotMode::kNewest, false);
+  ProxyState st = MakeProxyState(p);
+  // Down along the face normal onto the face, then pressing 1 mm.
+  for (int k = 0; k <= 20; ++k) {
+    const Vec3 goal = c + (0.01 - 0.00055 * k) * n_a;
+    ProxyTick(d, p, next, &prev, k * 1e-3, DeviceSample{goal, Vec3::Zero()}, 1e-3, &st);
+  }
+  ASSERT_EQ(st.body.num_contacts, 1);
+  ASSERT_NEAR((st.body.p_W_m - c).norm(), 0.0, 1e-9);
+  std::swap(prev, next);
+  testing::Refill(turned, zero, 2, 0.016, 0.016, &next);
+  const Vec3 goal = pivot + rot * (c - 0.001 * n_a - pivot);
+  const ProxyTickResult res =
+      ProxyTick(d, p, next, &prev, 0.0, DeviceSample{goal, Vec3::Zero()}, 1e-3, &st);
+  EXPECT_FALSE(res.caught);
+  EXPECT_NEAR((res.proxy_W_m - (pivot + rot * (c - pivot))).norm(), 0.0, 1e-9);
+}
+
 TEST(ProxyTest, PinchedBetweenTwoLayersTheProxyStaysBetween) {
   // A fold: the lower layer lies on a box (static), the upper one comes down onto the pointer.
   const TestMesh lower = FlatSheet(0.2, 11, 0.0);
