@@ -180,6 +180,9 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
   cloth_at(0.0);
   auto tris = std::make_shared<const std::vector<Triangle>>(model.triangles);
   ClothSnapshot ref_snap = MakeClothSnapshot(tris, x, base.structure);
+  // The reference's previous tick's cloth: without it ProxyTick would neither carry the proxy
+  // with the cloth nor catch it when the cloth sweeps over it.
+  ClothSnapshot ref_prev = MakeClothSnapshot(tris, x, base.structure);
   ClothSnapshot prev = MakeClothSnapshot(tris, x, base.structure);
   ClothSnapshot next = MakeClothSnapshot(tris, x, base.structure);
   FillSnapshot(x, v, normals, 0, 0.0, kFrameS, &prev);
@@ -216,6 +219,7 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
       StepFrame(model, std::span<const ExternalForce>(external.data(), k), kTickS, &state);
     }
     cloth_at(t);
+    std::swap(ref_prev, ref_snap);
     FillSnapshot(x, v, normals, i + 1, t, kTickS, &ref_snap);
     // A 60 Hz frame publishes this cloth to the modes.
     if (static_cast<int64_t>(i) >= next_frame_tick) {
@@ -231,8 +235,8 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
     }
     const double since = t - last_publish_t;
     const DeviceSample sample{samples[i].p_D, samples[i].v_D};
-    const ProxyTickResult ref =
-        ProxyTick(device, ref_spec, ref_snap, nullptr, 0.0, sample, kTickS, &ref_state);
+    const ProxyTickResult ref = ProxyTick(device, ref_spec, ref_snap, i > 0 ? &ref_prev : nullptr,
+                                          0.0, sample, kTickS, &ref_state);
     if (i > 0)
       res.reference_max_jump_N =
           std::max(res.reference_max_jump_N, (ref.force_D_N - last_ref).norm());

@@ -80,13 +80,14 @@ struct PinAttachment {
 /// positions being evaluated (virtual coupling, Colgate, Stanley & Brown 1995, on the god-object
 /// contact of Ruspini, Kolarov & Khatib 1997): the proxy sphere of radius_m centred at g = anchor_m
 /// + radius_m normal penetrates the cloth by pen = radius_m - sd, where sd is g's distance to the
-/// nearest point c of the triangles around `triangle` (those of the 3 x 3 grid cells around its
-/// cell), negative when g is past the cloth (normal says which side is the proxy's). The cloth
-/// gets F = -n min(max_force_N, k_eff pen), n the unit direction from c toward the proxy's side,
-/// split over c's triangle by its barycentric weights (pinned particles get nothing): the
-/// gradient of the potential 1/2 k_eff pen^2, so the coupling is conservative however the cloth
-/// moves under it; `barycentric` only names where the haptic side found the contact, and force_N
-/// is not applied. A frame holding a spring too stiff for its substep is cut into up to 4 times
+/// cloth around `triangle` (the triangles of the 3 x 3 grid cells around its cell), negative when
+/// g is past the cloth (normal says which side is the proxy's): the distance to the nearest point
+/// where one face is clearly nearest, a smooth minimum over the faces of a crease where several
+/// are (sim_loop/cloth_coupling.h, AddCouplingForces). The cloth gets the force
+/// -dE/dx of E = 1/2 k_eff pen^2 (|F| <= max_force_N), each face its share of the gradient split
+/// over its particles by the barycentric weights of its nearest point (pinned particles get
+/// nothing), so the coupling is conservative however the cloth moves under it; `barycentric`
+/// only names where the haptic side found the contact, and force_N is not applied. A frame holding a spring too stiff for its substep is cut into up to 4 times
 /// its substeps (ClothCounters::coupling_substepped_frames); beyond that k_eff = min(k, the
 /// largest stiffness the integrator is stable with at the substep; see
 /// ClothCounters::coupling_reduced_frames). At most 16 springs per frame (more are counted and
