@@ -778,6 +778,34 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
                                      proxy_c - reach_m * c.normal_W,
                                      device.stiffness_N_per_m / (device.scale * device.scale),
                                      device.max_force_N / device.scale, reach_m);
+    state->hand_seed = c;
+  } else if (state->hand_seed.triangle >= 0 && !first) {
+    // Free: the hand is still there for the cloth. The haptic side's cloth is a snapshot (or an
+    // interpolated or extrapolated one) while the sim's is the real one; a proxy that lost contact
+    // with the one may still be pressing on the other. Without a spring the sim's cloth sprang
+    // back freely into the hand, and mode extrapolate fell into a limit cycle (contact lost each
+    // frame the sim's cloth was pushed away, regained when it sprang back;
+    // bench/results/compare_poke_hold.md). So while the free proxy (at the goal) is within three
+    // radii of its last contact point, on the side it touched (the newest snapshot's cloth there),
+    // the sim keeps the proxy sphere there: a unilateral spring that pushes only if the cloth
+    // enters it, continuous with the contact's (whose sphere's far side also lies r beyond the
+    // goal). The frame's averaged impulses then give way to it (ReactionAccumulator::DrainInto).
+    const ProxyContact& c = state->hand_seed;
+    const Triangle& t = tris[c.triangle];
+    const ClothView view = ClothView::Of(newest);
+    const Vec3 point = c.barycentric(0) * view.Position(t[0]) +
+                       c.barycentric(1) * view.Position(t[1]) +
+                       c.barycentric(2) * view.Position(t[2]);
+    const Vec3 d = goal - point;
+    if (d.norm() < 3.0 * opts.radius_m && d.dot(c.normal_W) >= 0.0) {
+      state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
+                                       goal - opts.radius_m * c.normal_W,
+                                       device.stiffness_N_per_m / (device.scale * device.scale),
+                                       device.max_force_N / device.scale, opts.radius_m);
+    } else {
+      state->hand_seed.triangle = -1;
+      state->reaction.ClearContactSpring();
+    }
   } else {
     state->reaction.ClearContactSpring();
   }

@@ -75,18 +75,20 @@ struct ProxyCounters {
 
 /// Everything one device's proxy keeps between ticks, sized once by MakeProxyState.
 struct ProxyState {
-  GodObject body;             ///< against the tick's cloth (mode b: against the newest snapshot)
-  GodObject body_prev;        ///< mode b only: against the previous snapshot
-  uint64_t newest_frame = 0;  ///< frame of the newest snapshot seen
-  bool have_frame = false;    ///< false before the first tick
-  double last_alpha = 0.0;    ///< the previous tick's interpolation weight (modes b, c)
-  double last_tau_s = 0.0;    ///< the previous tick's extrapolation time (mode d)
+  GodObject body;               ///< against the tick's cloth (mode b: against the newest snapshot)
+  GodObject body_prev;          ///< mode b only: against the previous snapshot
+  uint64_t newest_frame = 0;    ///< frame of the newest snapshot seen
+  bool have_frame = false;      ///< false before the first tick
+  double last_alpha = 0.0;      ///< the previous tick's interpolation weight (modes b, c)
+  double last_tau_s = 0.0;      ///< the previous tick's extrapolation time (mode d)
   bool last_on_newest = false;  ///< modes c, d: the previous tick ran on its newest snapshot
                                 ///< itself (after a gather overflow)
   double pair_displacement_m = 0.0;    ///< max vertex displacement previous -> newest, m
   Vec3 last_proxy_W_m = Vec3::Zero();  ///< the proxy reported last tick (damping velocity), m
-  LocalCloth local;                    ///< the gathered triangles of the tick (scratch)
-  ReactionAccumulator reaction;        ///< two-way coupling: forces on the cloth, drained per frame
+  ProxyContact hand_seed;  ///< the last cloth contact, where the sim's hand sphere stays seeded
+                           ///< while the free proxy is near it (triangle < 0: none)
+  LocalCloth local;        ///< the gathered triangles of the tick (scratch)
+  ReactionAccumulator reaction;  ///< two-way coupling: forces on the cloth, drained per frame
   ProxyCounters counters;
 
   explicit ProxyState(int32_t candidate_capacity, int32_t reaction_capacity = 256)

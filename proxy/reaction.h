@@ -13,8 +13,10 @@
 // hold's limit. So while the proxy is in contact at the frame's last tick, the drain emits the
 // contact itself instead: a unilateral spring from the contact point to the user's hand that the
 // sim evaluates at its substep rate (virtual coupling, Colgate, Stanley & Brown 1995, on the
-// god-object contact of Ruspini, Kolarov & Khatib 1997; ExternalForce::stiffness_N_per_m). Brief
-// contacts that end within the frame (swipes) still get the time-averaged impulse.
+// god-object contact of Ruspini, Kolarov & Khatib 1997; ExternalForce::stiffness_N_per_m). The
+// proxy keeps that spring, as a sphere at the user's hand, while it stays within three radii of
+// where its contact ended (proxy/proxy.cc, ProxyTick). Brief contacts that end within the frame
+// and leave (swipes) still get the time-averaged impulse.
 
 #include <cstdint>
 #include <span>
