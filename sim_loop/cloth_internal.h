@@ -82,8 +82,9 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state);
 void UsePortableProvotKernels(bool portable);
 
 /// Keeps free particles outside every declared obstacle (surface + margin), sweeping the path
-/// from scratch.x_start so a fast particle cannot tunnel through a thin obstacle; removes the
-/// inward normal velocity and applies Coulomb friction to the tangential velocity.
+/// from scratch.x_start so a fast particle cannot tunnel through an obstacle, whether it started
+/// clear of it or resting on it; removes the inward normal velocity and applies Coulomb friction
+/// to the tangential velocity.
 void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state);
 
 /// Sets every pinned particle to rest + PinOffset(t_s) and its velocity to PinVelocity(t_s).
