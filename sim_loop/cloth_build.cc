@@ -556,6 +556,7 @@ ClothState MakeClothState(const ClothModel& model) {
                                &s.kx_sum, &s.kv_sum, &s.x_start, &s.a_last, &s.x_prev}) {
     a->assign(n, Vec3::Zero());
   }
+  s.restart.assign(n, 0);
   s.soa.assign(12 * SoaStride(static_cast<size_t>(n)), 0.0);
   s.provot_soa.assign(6 * SoaStride(n), 0.0);
   if (model.spec.integration.integrator == IntegratorKind::kImplicitEuler) {

@@ -430,15 +430,40 @@ void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state) {
       // is where the particle meets the obstacle, so a fast particle cannot tunnel through a thin
       // one or exit on its far side.
       const bool start_clear = phi_start - o.margin_m > 1e-9;
+      // Resting on or starting inside the shell, the particle is held by the face it started on:
+      // the shell's tangent plane there (normal n_start, margin - phi_start out from the start).
+      // The shell is convex, so it lies wholly behind that plane, and a point projected onto the
+      // plane is outside it. `behind` < 0: the end lies behind the plane by that much.
+      const double behind = phi_start + n_start.dot(x - start) - o.margin_m;
       if (phi >= o.margin_m) {
-        if (!start_clear || phi_start + phi - 2.0 * o.margin_m > path) continue;
-        if (!FirstContact(o, start, x, &hit, &normal)) continue;
-        x = hit;
+        if (start_clear) {
+          if (phi_start + phi - 2.0 * o.margin_m > path) continue;
+          if (!FirstContact(o, start, x, &hit, &normal)) continue;
+          x = hit;
+        } else {
+          // Ended outside, having started on the shell: it left (in front of the plane, or round
+          // an edge), or it went through the obstacle and out of a far side, which the path back
+          // from the end tells by meeting the shell farther than the margin from the start
+          // (Bridson, Fedkiw & Anderson 2002: contacts are resolved along the whole path, not at
+          // its end). A light particle under a frame's held push travels metres in one substep
+          // (TableSlideTest).
+          if (behind >= 0.0 || !FirstContact(o, x, start, &hit, &normal) ||
+              (hit - start).norm() <= o.margin_m + 1e-6) {
+            continue;
+          }
+          x -= behind * n_start;
+          normal = n_start;
+        }
       } else if (start_clear && FirstContact(o, start, x, &hit, &normal)) {
         x = hit;
-      } else {
-        // Resting on or starting inside the shell: out to the nearest surface plus margin.
+      } else if (start_clear || normal.dot(n_start) > 0.0) {
+        // Out to the nearest surface plus margin.
         x += (o.margin_m - phi) * normal;
+      } else {
+        // Started on the shell and ended deep inside, nearest to another face (or the far side):
+        // back onto the plane of the face it started on, not out of the one nearest the end.
+        x -= behind * n_start;
+        normal = n_start;
       }
       ContactVelocity(normal, o.friction, &state->v[p]);
       touched = true;

@@ -108,7 +108,12 @@ void VelocityVerlet(const ClothModel& model, double h, ClothState* st) {
 // Leapfrog Verlet (001 §3.5): the half-step velocity v_{n+1/2} = v_{n-1/2} + h a_n drives
 // x_{n+1} = x_n + h v_{n+1/2}. The state keeps the synchronised velocity v_n = v_{n-1/2} +
 // h/2 a_{n-1} (second order), which the damping force and the snapshots use; v_{n-1/2} is
-// recovered as v_n - h/2 a_{n-1}, so corrections to v (Provot, obstacles) carry over.
+// recovered as v_n - h/2 a_{n-1}, so additive corrections to v (Provot's v += dx / h) carry over.
+// A velocity an obstacle replaced is the particle's synchronised velocity after the contact: the
+// particle restarts from it, v_{n+1/2} = v_n + h/2 a_n (scratch.restart), as every particle does
+// at the start. Recovering v_{n-1/2} from it instead would hand back the half kick h/2 a_{n-1} the
+// contact had removed: a particle pressed into a table by a frame's held push (a = -4401 m/s^2)
+// and stopped there was thrown up at h/2 a = 36.7 m/s (TableSlideTest).
 void LeapfrogVerlet(const ClothModel& model, double h, ClothState* st) {
   ClothState::Scratch& s = *st->scratch;
   const size_t n = st->x.size();
@@ -116,7 +121,9 @@ void LeapfrogVerlet(const ClothModel& model, double h, ClothState* st) {
   // Start: v_{-1/2} = v_0 - h/2 a_0.
   if (!s.history_valid) std::copy(s.accel.begin(), s.accel.end(), s.a_last.begin());
   for (size_t p = 0; p < n; ++p) {
-    const Vec3 v_half = st->v[p] + h * (s.accel[p] - 0.5 * s.a_last[p]);
+    const Vec3 v_half = s.restart[p] ? Vec3(st->v[p] + (0.5 * h) * s.accel[p])
+                                     : Vec3(st->v[p] + h * (s.accel[p] - 0.5 * s.a_last[p]));
+    s.restart[p] = 0;
     st->x[p] += h * v_half;
     st->v[p] = v_half + (0.5 * h) * s.accel[p];
   }
@@ -349,8 +356,9 @@ bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state) {
 }
 
 void SyncVerletHistory(const ClothModel& model, int32_t p, double h_s, ClothState* state) {
-  if (model.spec.integration.integrator != IntegratorKind::kBasicVerlet) return;
   ClothState::Scratch& s = *state->scratch;
+  if (model.spec.integration.integrator == IntegratorKind::kLeapfrogVerlet) s.restart[p] = 1;
+  if (model.spec.integration.integrator != IntegratorKind::kBasicVerlet) return;
   // Invert v = (x - x_prev) / h + h/2 a_last for x_prev.
   s.x_prev[p] = state->x[p] - h_s * (state->v[p] - (0.5 * h_s) * s.a_last[p]);
 }

@@ -41,6 +41,9 @@ struct ClothState::Scratch {
   double history_h_s = 0.0;    ///< substep length the history was made with
   std::vector<Vec3> a_last;    ///< acceleration of the previous substep
   std::vector<Vec3> x_prev;    ///< basic Verlet: positions one substep back
+  /// leapfrog, [n]: 1 where a constraint replaced the particle's velocity (SyncVerletHistory), so
+  /// the next substep restarts it from that velocity
+  std::vector<uint8_t> restart;
 
   // Last good state, restored when a frame produces non-finite values.
   std::vector<Vec3> good_x;
@@ -82,15 +85,17 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state);
 void UsePortableProvotKernels(bool portable);
 
 /// Keeps free particles outside every declared obstacle (surface + margin), sweeping the path
-/// from scratch.x_start so a fast particle cannot tunnel through a thin obstacle; removes the
-/// inward normal velocity and applies Coulomb friction to the tangential velocity.
+/// from scratch.x_start so a fast particle cannot tunnel through an obstacle, whether it started
+/// clear of it or resting on it; removes the inward normal velocity and applies Coulomb friction
+/// to the tangential velocity.
 void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state);
 
 /// Sets every pinned particle to rest + PinOffset(t_s) and its velocity to PinVelocity(t_s).
 void ApplyPins(const ClothModel& model, double t_s, ClothState* state);
 
-/// After a substep moved free particles' positions by hand (obstacles): basic Verlet's previous
-/// position is re-derived from the corrected velocity so the two stay consistent.
+/// After a substep moved a free particle's position and replaced its velocity by hand (obstacles):
+/// basic Verlet's previous position is re-derived from the corrected velocity so the two stay
+/// consistent; leapfrog restarts the particle from it at the next substep (scratch.restart).
 void SyncVerletHistory(const ClothModel& model, int32_t particle, double h_s, ClothState* state);
 
 /// Builds the implicit Euler matrix pattern and offsets in `scratch` (once, in MakeClothState).
