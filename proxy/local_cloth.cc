@@ -113,23 +113,19 @@ SweepHit LocalCloth::Sweep(const Vec3& p0, const Vec3& p1, double r) const {
 SweepHit LocalCloth::SweepMoving(const Vec3& c0, const Vec3& c1, double r,
                                  std::span<const int32_t> skip, double s0, double s1) const {
   SweepHit best;
-  const bool whole = s0 == 0.0 && s1 == 1.0;
+  // Corners at s along the motion; the ends exactly (s = 0, 1: the whole tick's motion).
+  auto at = [](double s, const Vec3& p0, const Vec3& p1) {
+    return s == 0.0 ? p0 : (s == 1.0 ? p1 : Vec3(p0 + s * (p1 - p0)));
+  };
   for (size_t k = 0; k < size_; ++k) {
     const LocalTriangle& t = tris_[k];
     if (std::find(skip.begin(), skip.end(), t.triangle) != skip.end()) continue;
     if (!MayReach(t, c0, c1, r)) continue;  // the bounding sphere holds the whole motion
-    if (whole) {
-      Keep(t.triangle, MovingTriangleSphereContact(c0, c1, r, t.a0, t.b0, t.c0, t.a, t.b, t.c),
-           &best);
-      continue;
-    }
-    const Vec3 a0 = t.a0 + s0 * (t.a - t.a0);
-    const Vec3 b0 = t.b0 + s0 * (t.b - t.b0);
-    const Vec3 cc0 = t.c0 + s0 * (t.c - t.c0);
-    const Vec3 a1 = t.a0 + s1 * (t.a - t.a0);
-    const Vec3 b1 = t.b0 + s1 * (t.b - t.b0);
-    const Vec3 cc1 = t.c0 + s1 * (t.c - t.c0);
-    Keep(t.triangle, MovingTriangleSphereContact(c0, c1, r, a0, b0, cc0, a1, b1, cc1), &best);
+    Keep(t.triangle,
+         MovingTriangleSphereContact(c0, c1, r, at(s0, t.a0, t.a), at(s0, t.b0, t.b),
+                                     at(s0, t.c0, t.c), at(s1, t.a0, t.a), at(s1, t.b0, t.b),
+                                     at(s1, t.c0, t.c)),
+         &best);
   }
   return best;
 }

@@ -49,6 +49,13 @@ const LocalTriangle* FindLocal(const LocalCloth& cloth, int32_t triangle) {
   return nullptr;
 }
 
+// The proxy centre a contact anchors on a triangle with corners a, b, c: the contact's
+// barycentric point plus its offset in the triangle's frame (the carry's rule).
+Vec3 AnchoredAt(const ProxyContact& contact, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3& w = contact.barycentric;
+  return w(0) * a + w(1) * b + w(2) * c + FromLocal(FrameOf(a, b, c), contact.local_m);
+}
+
 // The constraint a contact puts on the proxy centre: n . x >= n . point + r (Ruspini 1997 §3: the
 // plane tangent to the configuration-space obstacle, i.e. the cloth grown by the radius).
 ConstraintPlane PlaneOf(const ProxyContact& c, double r) {
@@ -351,8 +358,9 @@ bool RideCaught(const ClothView& now, const Vec3& p_carried, const Vec3& p_ride,
   // |p_ride - point| = r (the triangle's frame is rigid), so this plane passes through p_ride.
   const Vec3 off = p_ride - caught.point_W_m;
   const double len = off.norm();
-  const Vec3 n = len > 1e-12 * (1.0 + r) ? Vec3(off / len) : caught.normal_W;
-  const ConstraintPlane caught_plane{n, n.dot(caught.point_W_m) + r, caught.triangle};
+  ProxyContact tangent = caught;
+  if (len > 1e-12 * (1.0 + r)) tangent.normal_W = off / len;
+  const ConstraintPlane caught_plane = PlaneOf(tangent, r);
   if (!SettleOnContacts(now, p_carried, r, &caught_plane, &rider)) return false;
   *body = rider;
   return true;
@@ -381,23 +389,20 @@ CarriedSweep SweepCarriedPath(const LocalCloth& local, const ClothView& before,
   const double carry_m = (p_carried - p_prev).norm();
   const int32_t pieces =
       anchor < 0 ? 1 : std::clamp(static_cast<int32_t>(std::ceil(carry_m / r)), 1, 8);
+  Vec3 a0, b0, c0, a1, b1, c1;  // the anchor's corners on both cloths
+  if (pieces > 1) {
+    before.Corners(body.contacts[anchor].triangle, &a0, &b0, &c0);
+    now.Corners(body.contacts[anchor].triangle, &a1, &b1, &c1);
+  }
   CarriedSweep out;
   out.q0 = p_prev;
   for (int32_t k = 0; k < pieces; ++k) {
     out.s0 = static_cast<double>(k) / pieces;
     out.s1 = static_cast<double>(k + 1) / pieces;
-    out.q1 = p_carried;
-    if (k + 1 < pieces) {
-      const ProxyContact& c = body.contacts[anchor];
-      Vec3 a0, b0, c0, a1, b1, c1;
-      before.Corners(c.triangle, &a0, &b0, &c0);
-      now.Corners(c.triangle, &a1, &b1, &c1);
-      const Vec3 a = a0 + out.s1 * (a1 - a0);
-      const Vec3 b = b0 + out.s1 * (b1 - b0);
-      const Vec3 cc = c0 + out.s1 * (c1 - c0);
-      out.q1 = c.barycentric(0) * a + c.barycentric(1) * b + c.barycentric(2) * cc +
-               FromLocal(FrameOf(a, b, cc), c.local_m);
-    }
+    const double s = out.s1;
+    out.q1 = k + 1 < pieces ? AnchoredAt(body.contacts[anchor], a0 + s * (a1 - a0),
+                                         b0 + s * (b1 - b0), c0 + s * (c1 - c0))
+                            : p_carried;
     out.hit = local.SweepMoving(out.q0, out.q1, r, skip, out.s0, out.s1);
     if (out.hit.hit) return out;
     out.q0 = out.q1;
@@ -500,8 +505,7 @@ void CarryGodObject(const ClothView& /*before*/, const ClothView& now, GodObject
   const ProxyContact& c = body->contacts[first];
   Vec3 a, b, cc;
   now.Corners(c.triangle, &a, &b, &cc);
-  const Vec3 point = c.barycentric(0) * a + c.barycentric(1) * b + c.barycentric(2) * cc;
-  body->p_W_m = point + FromLocal(FrameOf(a, b, cc), c.local_m);
+  body->p_W_m = AnchoredAt(c, a, b, cc);
 }
 
 GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, const Vec3& goal_W,
@@ -764,6 +768,8 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
   // this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
   // Obstacle contacts (negative ids) put nothing on the cloth: the spring is the first cloth one.
   const int32_t spring_contact = FirstClothContact(state->body);
+  const double spring_k_W = device.stiffness_N_per_m / (device.scale * device.scale);
+  const double spring_max_W = device.max_force_N / device.scale;
   if (spring_contact >= 0) {
     const ProxyContact& c = state->body.contacts[spring_contact];
     // The sim's sphere: centred on the proxy, its radius grown by how far the hand presses the
@@ -775,9 +781,8 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
     const Vec3& proxy_c = state->body.p_W_m;
     const double reach_m = opts.radius_m + press.depth_m;
     state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
-                                     proxy_c - reach_m * c.normal_W,
-                                     device.stiffness_N_per_m / (device.scale * device.scale),
-                                     device.max_force_N / device.scale, reach_m);
+                                     proxy_c - reach_m * c.normal_W, spring_k_W, spring_max_W,
+                                     reach_m);
     state->hand_seed = c;
   } else if (state->hand_seed.triangle >= 0 && !first) {
     // Free: the hand is still there for the cloth. The haptic side's cloth is a snapshot (or an
@@ -791,17 +796,13 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
     // enters it, continuous with the contact's (whose sphere's far side also lies r beyond the
     // goal). The frame's averaged impulses then give way to it (ReactionAccumulator::DrainInto).
     const ProxyContact& c = state->hand_seed;
-    const Triangle& t = tris[c.triangle];
-    const ClothView view = ClothView::Of(newest);
-    const Vec3 point = c.barycentric(0) * view.Position(t[0]) +
-                       c.barycentric(1) * view.Position(t[1]) +
-                       c.barycentric(2) * view.Position(t[2]);
-    const Vec3 d = goal - point;
+    Vec3 a, b, cc;
+    ClothView::Of(newest).Corners(c.triangle, &a, &b, &cc);
+    const Vec3 d = goal - (c.barycentric(0) * a + c.barycentric(1) * b + c.barycentric(2) * cc);
     if (d.norm() < 3.0 * opts.radius_m && d.dot(c.normal_W) >= 0.0) {
       state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
-                                       goal - opts.radius_m * c.normal_W,
-                                       device.stiffness_N_per_m / (device.scale * device.scale),
-                                       device.max_force_N / device.scale, opts.radius_m);
+                                       goal - opts.radius_m * c.normal_W, spring_k_W, spring_max_W,
+                                       opts.radius_m);
     } else {
       state->hand_seed.triangle = -1;
       state->reaction.ClearContactSpring();
