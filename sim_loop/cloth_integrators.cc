@@ -105,10 +105,16 @@ void VelocityVerlet(const ClothModel& model, double h, ClothState* st) {
   for (size_t p = 0; p < n; ++p) st->v[p] += (0.5 * h) * (s.accel[p] + s.kv_sum[p]);
 }
 
-// Leapfrog Verlet (001 §3.5): the half-step velocity v_{n+1/2} = v_{n-1/2} + h a_n drives
-// x_{n+1} = x_n + h v_{n+1/2}. The state keeps the synchronised velocity v_n = v_{n-1/2} +
-// h/2 a_{n-1} (second order), which the damping force and the snapshots use; v_{n-1/2} is
-// recovered as v_n - h/2 a_{n-1}, so additive corrections to v (Provot's v += dx / h) carry over.
+// Leapfrog Verlet (001 §3.5), kick-drift-kick with variable steps: the half-step velocity
+// v_{n+1/2} = v_{n-1/2} + (h_old + h)/2 a_n drives x_{n+1} = x_n + h v_{n+1/2}, h_old being the
+// previous substep's length (scratch.history_h_s; StepFrame cuts a late frame, or one with a stiff
+// contact spring, into a different number of substeps). The state keeps the synchronised velocity
+// v_{n+1} = v_{n+1/2} + h/2 a_n (second order), which the damping force and the snapshots use;
+// v_{n-1/2} is recovered as v_n - h_old/2 a_{n-1}, so additive corrections to v (Provot's
+// v += dx / h) carry over. Recovering it with the new h instead left a velocity error
+// (h - h_old)/2 a_{n-1} at every change of length: first order when the length keeps changing
+// (LeapfrogStaysSecondOrderWhenTheSubstepChanges). With h_old == h the update is the fixed-step
+// v_n + h (a_n - a_{n-1}/2), bit for bit as before.
 // A velocity an obstacle replaced is the particle's synchronised velocity after the contact: the
 // particle restarts from it, v_{n+1/2} = v_n + h/2 a_n (scratch.restart), as every particle does
 // at the start. Recovering v_{n-1/2} from it instead would hand back the half kick h/2 a_{n-1} the
@@ -120,9 +126,18 @@ void LeapfrogVerlet(const ClothModel& model, double h, ClothState* st) {
   Accel(model, st->x, st->v, &s, &s.accel);
   // Start: v_{-1/2} = v_0 - h/2 a_0.
   if (!s.history_valid) std::copy(s.accel.begin(), s.accel.end(), s.a_last.begin());
+  const double h_old = s.history_valid ? s.history_h_s : h;
+  const double kick = 0.5 * (h_old + h);  // from t_n - h_old/2 to t_n + h/2
+  const double back = 0.5 * h_old;        // from v_n back to v_{n-1/2}
   for (size_t p = 0; p < n; ++p) {
-    const Vec3 v_half = s.restart[p] ? Vec3(st->v[p] + (0.5 * h) * s.accel[p])
-                                     : Vec3(st->v[p] + h * (s.accel[p] - 0.5 * s.a_last[p]));
+    Vec3 v_half;
+    if (s.restart[p]) {
+      v_half = st->v[p] + (0.5 * h) * s.accel[p];
+    } else if (h_old == h) {
+      v_half = st->v[p] + h * (s.accel[p] - 0.5 * s.a_last[p]);
+    } else {
+      v_half = st->v[p] + (kick * s.accel[p] - back * s.a_last[p]);
+    }
     s.restart[p] = 0;
     st->x[p] += h * v_half;
     st->v[p] = v_half + (0.5 * h) * s.accel[p];
