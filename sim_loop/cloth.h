@@ -44,7 +44,7 @@ struct SpringFamily {
 /// stencil: particle (col, row) and particle (col + dc, row + dr) may be at most max_length_m
 /// apart, for every (col, row) where both are on the grid. A violation is removed by moving the two
 /// ends by equal shares (the free end alone if the other is pinned). `level` 1 is a spring family
-/// (structural or shear); level s > 1 joins particles s apart along a row or column (see
+/// (structural or shear); level s > 1 joins particles s apart along a row, column or diagonal (see
 /// ProvotSpec::multiresolution).
 struct ProvotFamily {
   /// Particles [lo, hi) of one row, whose pairs a sweep projects together (see runs).
@@ -87,11 +87,11 @@ struct PinAttachment {
 /// -dE/dx of E = 1/2 k_eff pen^2 (|F| <= max_force_N), each face its share of the gradient split
 /// over its particles by the barycentric weights of its nearest point (pinned particles get
 /// nothing), so the coupling is conservative however the cloth moves under it; `barycentric`
-/// only names where the haptic side found the contact, and force_N is not applied. A frame holding a spring too stiff for its substep is cut into up to 4 times
-/// its substeps (ClothCounters::coupling_substepped_frames); beyond that k_eff = min(k, the
-/// largest stiffness the integrator is stable with at the substep; see
-/// ClothCounters::coupling_reduced_frames). At most 16 springs per frame (more are counted and
-/// dropped).
+/// only names where the haptic side found the contact, and force_N is not applied. A frame holding
+/// a spring too stiff for its substep is cut into up to 4 times its substeps
+/// (ClothCounters::coupling_substepped_frames); beyond that k_eff = min(k, the largest stiffness
+/// the integrator is stable with at the substep; see ClothCounters::coupling_reduced_frames). At
+/// most 16 springs per frame (more are counted and dropped).
 struct ExternalForce {
   int32_t triangle = 0;
   Vec3 barycentric = Vec3(1.0 / 3, 1.0 / 3, 1.0 / 3);  ///< non-negative, sums to 1
@@ -123,7 +123,7 @@ struct ClothModel {
   /// Provot's constraint families in sweep order: multiresolution ones coarsest first, then the
   /// structural (+ shear) spring families. Empty when Provot is off.
   std::vector<ProvotFamily> provot_families;
-  std::vector<double> provot_movable;         ///< [width*height] 1 for a free particle, 0 for a pin
+  std::vector<float> provot_movable;          ///< [width*height] 1 for a free particle, 0 for a pin
   std::vector<PinAttachment> attachments;     ///< each free particle to its nearest pin (if any)
   std::vector<SpringFamily> spring_families;  ///< `springs` grouped by type and direction
   /// Bound on the highest natural frequency of the linearised spring system, rad/s, for every
@@ -202,6 +202,9 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
 
 /// Largest length / rest length over the structural springs (1.0 = unstretched).
 double MaxStretch(const ClothModel& model, const ClothState& state);
+
+/// Largest length / rest length over the springs of `type` (1.0 if the cloth has none).
+double MaxStretchOf(const ClothModel& model, const ClothState& state, SpringType type);
 
 /// Kinetic + gravitational + spring potential energy, joules (pins excluded from kinetic).
 double TotalEnergy(const ClothModel& model, const ClothState& state);

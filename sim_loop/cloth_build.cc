@@ -253,8 +253,10 @@ std::vector<ProvotFamily::Run> ProvotRuns(const ProvotFamily& f, int32_t width, 
 
 // Provot's constraint families in sweep order. Coarse before fine, like the descent of a multigrid
 // V-cycle (Briggs, Henson & McCormick 2000, ch. 3): the multiresolution families (stride s = the
-// largest power of two below the grid's side, down to 2, along rows then columns) move whole
-// regions back within reach, then the spring families fix the springs themselves.
+// largest power of two below the grid's side, down to 2, along rows, columns and, where shear
+// springs are constrained, both diagonals) move whole regions back within reach, then the spring
+// families fix the springs themselves. The diagonal levels matter on a cloth hung from points: its
+// tension runs along diagonals from each pin, where row and column levels only reach it in steps.
 std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const ProvotSpec& spec) {
   std::vector<ProvotFamily> out;
   const auto limit = [&](const SpringFamily& f) {
@@ -262,7 +264,9 @@ std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const Pro
   };
   const SpringFamily* along_row = nullptr;
   const SpringFamily* along_column = nullptr;
+  std::vector<const SpringFamily*> diagonals;  // the constrained shear families, (1, 1), (-1, 1)
   for (const SpringFamily& f : model.spring_families) {
+    if (f.type == SpringType::kShear && spec.shear) diagonals.push_back(&f);
     if (f.type != SpringType::kStructural) continue;
     (f.dr == 0 ? along_row : along_column) = &f;
   }
@@ -278,6 +282,12 @@ std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const Pro
       }
       if (along_column != nullptr && stride < model.height) {
         out.push_back({0, stride, stride * limit(*along_column), stride, {}});
+      }
+      // A diagonal chain of s shear springs, likewise (only when shear springs are constrained).
+      for (const SpringFamily* d : diagonals) {
+        if (stride < model.width && stride < model.height) {
+          out.push_back({d->dc * stride, d->dr * stride, stride * limit(*d), stride, {}});
+        }
       }
     }
   }
@@ -511,7 +521,7 @@ ClothModel BuildClothModel(const SimSpec& spec) {
     model.provot_families = BuildProvotFamilies(model, spec.provot);
     model.provot_movable.resize(model.inv_mass_per_kg.size());
     for (size_t p = 0; p < model.inv_mass_per_kg.size(); ++p) {
-      model.provot_movable[p] = model.inv_mass_per_kg[p] > 0.0 ? 1.0 : 0.0;
+      model.provot_movable[p] = model.inv_mass_per_kg[p] > 0.0 ? 1.0f : 0.0f;
     }
     if (spec.provot.long_range_attachments)
       model.attachments = BuildAttachments(model, spec.provot);
@@ -558,7 +568,7 @@ ClothState MakeClothState(const ClothModel& model) {
   }
   s.restart.assign(n, 0);
   s.soa.assign(12 * SoaStride(static_cast<size_t>(n)), 0.0);
-  s.provot_soa.assign(6 * SoaStride(n), 0.0);
+  s.provot_soa.assign(3 * ProvotSoaStride(n), 0.0f);
   if (model.spec.integration.integrator == IntegratorKind::kImplicitEuler) {
     BuildImplicitPattern(model, &s);
   }

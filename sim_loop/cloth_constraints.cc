@@ -19,17 +19,18 @@ namespace {
 static_assert(sizeof(Vec3) == 3 * sizeof(double));
 
 // Provot stops sweeping once the worst excess in a sweep is below this fraction of the limit.
-constexpr double kProvotConverged = 1e-3;
-// Each violated constraint is shortened by this multiple of its excess, ending it up to 50 % of
-// the excess below the limit: projected successive over-relaxation (Cryer 1971), as position-based
-// solvers use it (Macklin, Mueller, Chentanez & Kim 2014, §4.2). Gauss-Seidel with plain
-// projection (1.0) carries a correction only slowly down the chains of constraints that hold a
-// hanging cloth; measured on the two-corner curtain (10 sweeps, first second after release), 1.5
-// lowers the peak stretch from 1.154 to 1.131 at 32 x 32, from 1.169 to about 1.13 at 64 x 64, at
-// the same cost. An inequality constraint left below its limit is inactive, so nothing is pushed.
-constexpr double kProvotOverRelaxation = 1.5;
+constexpr float kProvotConverged = 1e-3f;
+// Each violated constraint is shortened by this multiple of its excess: 1 is plain projection
+// (Provot 1995); above 1, projected successive over-relaxation (Cryer 1971; Macklin, Mueller,
+// Chentanez & Kim 2014, §4.2). With row and column multiresolution families only, 1.5 carried a
+// correction faster down the chains that hold a hanging cloth (64 x 64 two-corner curtain, 10
+// sweeps: release peak 1.169 -> about 1.13). With the diagonal families too, plain projection is
+// best: 64 x 64 curtain, 2 sweeps per substep, structural / shear stretch once settled 1.1145 /
+// 1.1088 at 1.7, 1.1100 / 1.1057 at 1.5, 1.1068 / 1.1038 at 1.3, 1.1042 / 1.1023 at 1.0 (and
+// 1.1042 / 1.1022 at 0.9).
+constexpr float kProvotRelaxation = 1.0f;
 // (1 + kProvotConverged)^2: a pair is loose if its squared length exceeds this times its limit's.
-constexpr double kLoose2 = (1.0 + kProvotConverged) * (1.0 + kProvotConverged);
+constexpr float kLoose2 = (1.0f + kProvotConverged) * (1.0f + kProvotConverged);
 // Sphere-tracing steps along a substep's path before it is taken as a graze.
 constexpr int kMaxMarchSteps = 48;
 
@@ -71,35 +72,35 @@ bool FirstContact(const ObstacleSpec& o, const Vec3& a, const Vec3& b, Vec3* hit
 // Set by UsePortableProvotKernels: the sweeps ignore AVX2.
 std::atomic<bool> g_provot_portable{false};
 
-// Positions of ApplyProvot in structure-of-arrays form, and each particle's movability (1 free,
-// 0 pinned: ClothModel::provot_movable).
+// Positions of ApplyProvot in structure-of-arrays form, single precision, relative to the
+// first particle (ProvotFrame), and each particle's movability (1 free, 0 pinned:
+// ClothModel::provot_movable).
 struct ProvotSoa {
-  double* x;
-  double* y;
-  double* z;
-  const double* w;
+  float* x;
+  float* y;
+  float* z;
+  const float* w;
 };
 
 // Provot 1995 (000_25210a744b053ca5.txt slides 9-10) on one pair p, q: a pair longer than its limit
-// is shortened by kProvotOverRelaxation times its excess, split equally between its free ends (the
+// is shortened by kProvotRelaxation times its excess, split equally between its free ends (the
 // free end alone if the other is pinned). Branch-free; the same operations in the same order as
 // ProjectLanes, so both give the same bits. Returns true if the pair was loose (over the limit by
-// more than kProvotConverged).
-inline bool ProjectPair(const ProvotSoa& a, ptrdiff_t p, ptrdiff_t q, double max_len,
-                        double loose2) {
-  const double dx = a.x[q] - a.x[p], dy = a.y[q] - a.y[p], dz = a.z[q] - a.z[p];
-  const double len2 = dx * dx + dy * dy + dz * dz;
-  const double max2 = max_len * max_len;
+// more than kProvotConverged). `max2` is the squared limit, `loose2` kLoose2 times it
+// (ProvotLimits).
+inline bool ProjectPair(const ProvotSoa& a, ptrdiff_t p, ptrdiff_t q, float max2, float loose2) {
+  const float dx = a.x[q] - a.x[p], dy = a.y[q] - a.y[p], dz = a.z[q] - a.z[p];
+  const float len2 = dx * dx + dy * dy + dz * dz;
   // (len - max) / len without a square root: (len^2 - max^2) / (len^2 + max^2), one Newton step
   // for the square root from len = max (Jakobsen 2001, "Advanced Character Physics"): the same to
   // first order, 4.5 % more at 10 % over the limit.
-  const double over = len2 - max2;
-  const double excess = over > 0.0 ? over : 0.0;
-  const double wp = a.w[p], wq = a.w[q];
+  const float over = len2 - max2;
+  const float excess = over > 0.0f ? over : 0.0f;
+  const float wp = a.w[p], wq = a.w[q];
   // 1 / (number of free ends): 0.5 for two, 1 for one (and moot for none: both weights are 0).
-  const double share = 1.0 - 0.5 * (wp * wq);
-  const double s = kProvotOverRelaxation * excess / (len2 + max2) * share;
-  const double sp = wp * s, sq = wq * s;
+  const float share = 1.0f - 0.5f * (wp * wq);
+  const float s = kProvotRelaxation * excess / (len2 + max2) * share;
+  const float sp = wp * s, sq = wq * s;
   a.x[p] += sp * dx;
   a.y[p] += sp * dy;
   a.z[p] += sp * dz;
@@ -110,28 +111,27 @@ inline bool ProjectPair(const ProvotSoa& a, ptrdiff_t p, ptrdiff_t q, double max
 }
 
 // Pairs (p, p + off) for p in [lo, hi); the two ranges must not overlap.
-bool ProjectRun(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, ptrdiff_t off, double max_len,
-                double loose2) {
+bool ProjectRun(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, ptrdiff_t off, float max2,
+                float loose2) {
   bool loose = false;
-  for (ptrdiff_t p = lo; p < hi; ++p) loose = ProjectPair(a, p, p + off, max_len, loose2) || loose;
+  for (ptrdiff_t p = lo; p < hi; ++p) loose = ProjectPair(a, p, p + off, max2, loose2) || loose;
   return loose;
 }
 
 // Pairs (c, c + 1) for c = lo, lo + 2, ... < hi.
-bool ProjectNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, double max_len,
-                       double loose2) {
+bool ProjectNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, float max2, float loose2) {
   bool loose = false;
-  for (ptrdiff_t c = lo; c < hi; c += 2) loose = ProjectPair(a, c, c + 1, max_len, loose2) || loose;
+  for (ptrdiff_t c = lo; c < hi; c += 2) loose = ProjectPair(a, c, c + 1, max2, loose2) || loose;
   return loose;
 }
 
 // Pairs (c, c + 2) for c in {lo, lo + 1} + 4 k, c < hi.
-bool ProjectSecondNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, double max_len,
-                             double loose2) {
+bool ProjectSecondNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, float max2,
+                             float loose2) {
   bool loose = false;
   for (ptrdiff_t c = lo; c < hi; c += 4) {
-    loose = ProjectPair(a, c, c + 2, max_len, loose2) || loose;
-    if (c + 1 < hi) loose = ProjectPair(a, c + 1, c + 3, max_len, loose2) || loose;
+    loose = ProjectPair(a, c, c + 2, max2, loose2) || loose;
+    if (c + 1 < hi) loose = ProjectPair(a, c + 1, c + 3, max2, loose2) || loose;
   }
   return loose;
 }
@@ -139,162 +139,220 @@ bool ProjectSecondNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, dou
 // One Gauss-Seidel sweep over a family's runs, one pair at a time. Returns true if any pair was
 // loose.
 bool SweepFamilyPortable(const ProvotSoa& a, int32_t width, const ProvotFamily& f) {
-  const double loose2 = kLoose2 * f.max_length_m * f.max_length_m;
+  const ProvotLimits lim = ProvotLimitsOf(f);
   const ptrdiff_t off = static_cast<ptrdiff_t>(f.dr) * width + f.dc;
   bool loose = false;
   for (const ProvotFamily::Run& run : f.runs) {
     if (f.dr == 0 && f.dc == 1) {
-      loose = ProjectNeighbours(a, run.lo, run.hi, f.max_length_m, loose2) || loose;
+      loose = ProjectNeighbours(a, run.lo, run.hi, lim.max2, lim.loose2) || loose;
     } else if (f.dr == 0 && f.dc == 2) {
-      loose = ProjectSecondNeighbours(a, run.lo, run.hi, f.max_length_m, loose2) || loose;
+      loose = ProjectSecondNeighbours(a, run.lo, run.hi, lim.max2, lim.loose2) || loose;
     } else {
-      loose = ProjectRun(a, run.lo, run.hi, off, f.max_length_m, loose2) || loose;
+      loose = ProjectRun(a, run.lo, run.hi, off, lim.max2, lim.loose2) || loose;
     }
   }
   return loose;
 }
 
 #if defined(__x86_64__)
-// Four pairs at once: ProjectPair on registers (p ends px.., q ends qx..), updated in place.
+// Eight pairs at once: ProjectPair on registers (p ends px.., q ends qx..), updated in place.
 // Returns the lanes' loose mask.
-__attribute__((target("avx2"), always_inline)) inline __m256d ProjectLanes(
-    __m256d* px, __m256d* py, __m256d* pz, __m256d* qx, __m256d* qy, __m256d* qz, __m256d wp,
-    __m256d wq, __m256d max2, __m256d loose2) {
-  const __m256d dx = _mm256_sub_pd(*qx, *px);
-  const __m256d dy = _mm256_sub_pd(*qy, *py);
-  const __m256d dz = _mm256_sub_pd(*qz, *pz);
-  const __m256d len2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
-                                     _mm256_mul_pd(dz, dz));
-  const __m256d excess = _mm256_max_pd(_mm256_sub_pd(len2, max2), _mm256_setzero_pd());
-  const __m256d share =
-      _mm256_sub_pd(_mm256_set1_pd(1.0), _mm256_mul_pd(_mm256_set1_pd(0.5), _mm256_mul_pd(wp, wq)));
-  const __m256d s =
-      _mm256_mul_pd(_mm256_div_pd(_mm256_mul_pd(_mm256_set1_pd(kProvotOverRelaxation), excess),
-                                  _mm256_add_pd(len2, max2)),
+__attribute__((target("avx2"), always_inline)) inline __m256 ProjectLanes(
+    __m256* px, __m256* py, __m256* pz, __m256* qx, __m256* qy, __m256* qz, __m256 wp, __m256 wq,
+    __m256 max2, __m256 loose2) {
+  const __m256 dx = _mm256_sub_ps(*qx, *px);
+  const __m256 dy = _mm256_sub_ps(*qy, *py);
+  const __m256 dz = _mm256_sub_ps(*qz, *pz);
+  const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                                    _mm256_mul_ps(dz, dz));
+  const __m256 excess = _mm256_max_ps(_mm256_sub_ps(len2, max2), _mm256_setzero_ps());
+  const __m256 share = _mm256_sub_ps(_mm256_set1_ps(1.0f),
+                                     _mm256_mul_ps(_mm256_set1_ps(0.5f), _mm256_mul_ps(wp, wq)));
+  const __m256 s =
+      _mm256_mul_ps(_mm256_div_ps(_mm256_mul_ps(_mm256_set1_ps(kProvotRelaxation), excess),
+                                  _mm256_add_ps(len2, max2)),
                     share);
-  const __m256d sp = _mm256_mul_pd(wp, s), sq = _mm256_mul_pd(wq, s);
-  *px = _mm256_add_pd(*px, _mm256_mul_pd(sp, dx));
-  *py = _mm256_add_pd(*py, _mm256_mul_pd(sp, dy));
-  *pz = _mm256_add_pd(*pz, _mm256_mul_pd(sp, dz));
-  *qx = _mm256_sub_pd(*qx, _mm256_mul_pd(sq, dx));
-  *qy = _mm256_sub_pd(*qy, _mm256_mul_pd(sq, dy));
-  *qz = _mm256_sub_pd(*qz, _mm256_mul_pd(sq, dz));
-  return _mm256_cmp_pd(len2, loose2, _CMP_GT_OQ);
+  const __m256 sp = _mm256_mul_ps(wp, s), sq = _mm256_mul_ps(wq, s);
+  *px = _mm256_add_ps(*px, _mm256_mul_ps(sp, dx));
+  *py = _mm256_add_ps(*py, _mm256_mul_ps(sp, dy));
+  *pz = _mm256_add_ps(*pz, _mm256_mul_ps(sp, dz));
+  *qx = _mm256_sub_ps(*qx, _mm256_mul_ps(sq, dx));
+  *qy = _mm256_sub_ps(*qy, _mm256_mul_ps(sq, dy));
+  *qz = _mm256_sub_ps(*qz, _mm256_mul_ps(sq, dz));
+  return _mm256_cmp_ps(len2, loose2, _CMP_GT_OQ);
 }
 
-// The lane shuffles that split two loads of eight particles of a row into the four pairs (c,
-// c + kDc) of one colour, p ends and q ends; the same shuffles join them back. kDc = 1: the even
-// lanes against the odd ones; kDc = 2: the low halves against the high halves. The lane order
-// does not matter: the pairs are independent.
+// The lane shuffles that split two loads of eight particles of a row (c .. c + 15) into the eight
+// pairs (c, c + kDc) of one colour, p ends and q ends, and join them back. kDc = 1: the even
+// particles against the odd ones; kDc = 2: the first two of every four against the last two. The
+// lane order does not matter: the pairs are independent.
 template <int kDc>
 struct PairShuffle;
 
 template <>
 struct PairShuffle<1> {
-  __attribute__((target("avx2"), always_inline)) static __m256d First(__m256d a, __m256d b) {
-    return _mm256_unpacklo_pd(a, b);  // c, c + 4, c + 2, c + 6 (split) / c .. c + 3 (join)
+  __attribute__((target("avx2"), always_inline)) static __m256 P(__m256 lo, __m256 hi) {
+    return _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(2, 0, 2, 0));  // c, c + 2, c + 8, c + 10 | ..
   }
-  __attribute__((target("avx2"), always_inline)) static __m256d Second(__m256d a, __m256d b) {
-    return _mm256_unpackhi_pd(a, b);  // c + 1, c + 5, c + 3, c + 7 / c + 4 .. c + 7
+  __attribute__((target("avx2"), always_inline)) static __m256 Q(__m256 lo, __m256 hi) {
+    return _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 1, 3, 1));  // c + 1, c + 3, c + 9, ..
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Lo(__m256 p, __m256 q) {
+    return _mm256_unpacklo_ps(p, q);  // c .. c + 7
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Hi(__m256 p, __m256 q) {
+    return _mm256_unpackhi_ps(p, q);  // c + 8 .. c + 15
   }
 };
 
 template <>
 struct PairShuffle<2> {
-  __attribute__((target("avx2"), always_inline)) static __m256d First(__m256d a, __m256d b) {
-    return _mm256_permute2f128_pd(a, b, 0x20);  // c, c + 1, c + 4, c + 5 / c .. c + 3
+  __attribute__((target("avx2"), always_inline)) static __m256 P(__m256 lo, __m256 hi) {
+    return _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(1, 0, 1, 0));  // c, c + 1, c + 8, c + 9 | ..
   }
-  __attribute__((target("avx2"), always_inline)) static __m256d Second(__m256d a, __m256d b) {
-    return _mm256_permute2f128_pd(a, b, 0x31);  // c + 2, c + 3, c + 6, c + 7 / c + 4 .. c + 7
+  __attribute__((target("avx2"), always_inline)) static __m256 Q(__m256 lo, __m256 hi) {
+    return _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 2, 3, 2));  // c + 2, c + 3, c + 10, ..
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Lo(__m256 p, __m256 q) {
+    return _mm256_shuffle_ps(p, q, _MM_SHUFFLE(1, 0, 1, 0));  // c .. c + 7
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Hi(__m256 p, __m256 q) {
+    return _mm256_shuffle_ps(p, q, _MM_SHUFFLE(3, 2, 3, 2));  // c + 8 .. c + 15
   }
 };
 
-// The runs of a family along a row with dc = kDc (1 or 2), eight particles and four pairs per
-// step (PairShuffle), the rest one pair at a time; sets *tail if a pair of the rest was loose.
-// Returns the lanes' loose mask.
+// Lane offsets, from the step's first particle c, of the p end of each pair PairShuffle<kDc>::P
+// puts in a lane: a pair takes part in a step's last, partial group if its p end is in the run.
 template <int kDc>
-__attribute__((target("avx2"))) __m256d SweepShuffledRunsAvx2(const ProvotSoa& a,
-                                                              const ProvotFamily& f, __m256d max2,
-                                                              __m256d loose2, bool* tail) {
+__attribute__((target("avx2"), always_inline)) inline __m256i PairStarts() {
+  if constexpr (kDc == 1) return _mm256_setr_epi32(0, 2, 8, 10, 4, 6, 12, 14);
+  return _mm256_setr_epi32(0, 1, 8, 9, 4, 5, 12, 13);
+}
+
+// Lanes k of eight whose offset[k] < count, as a mask (all bits set in a taken lane).
+__attribute__((target("avx2"), always_inline)) inline __m256 LanesBelow(__m256i offsets,
+                                                                        ptrdiff_t count) {
+  return _mm256_castsi256_ps(_mm256_cmpgt_epi32(
+      _mm256_set1_epi32(static_cast<int>(std::min<ptrdiff_t>(count, 1 << 30))), offsets));
+}
+
+// Projects eight pairs in registers and keeps the result only in the lanes of `take` (the others
+// keep their bits exactly, so storing all eight lanes back writes their own values). Returns the
+// taken lanes' loose mask.
+__attribute__((target("avx2"), always_inline)) inline __m256 ProjectTaken(
+    __m256 take, __m256* px, __m256* py, __m256* pz, __m256* qx, __m256* qy, __m256* qz, __m256 wp,
+    __m256 wq, __m256 max2, __m256 loose2) {
+  __m256 p[3] = {*px, *py, *pz}, q[3] = {*qx, *qy, *qz};
+  const __m256 loose = ProjectLanes(&p[0], &p[1], &p[2], &q[0], &q[1], &q[2], wp, wq, max2, loose2);
+  *px = _mm256_blendv_ps(*px, p[0], take);
+  *py = _mm256_blendv_ps(*py, p[1], take);
+  *pz = _mm256_blendv_ps(*pz, p[2], take);
+  *qx = _mm256_blendv_ps(*qx, q[0], take);
+  *qy = _mm256_blendv_ps(*qy, q[1], take);
+  *qz = _mm256_blendv_ps(*qz, q[2], take);
+  return _mm256_and_ps(loose, take);
+}
+
+// The runs of a family along a row with dc = kDc (1 or 2), sixteen particles and eight pairs per
+// step (PairShuffle); a run's last, partial step projects only the pairs that start in the run
+// (ProjectTaken; its loads may reach up to 15 floats past the run, inside ProvotSoaStride's
+// padding). Returns the lanes' loose mask.
+template <int kDc>
+__attribute__((target("avx2"))) __m256 SweepShuffledRunsAvx2(const ProvotSoa& a,
+                                                             const ProvotFamily& f,
+                                                             const ProvotLimits& lim) {
   using S = PairShuffle<kDc>;
-  const double loose2_s = kLoose2 * f.max_length_m * f.max_length_m;
-  double* const coords[3] = {a.x, a.y, a.z};
-  const double* __restrict w = a.w;
+  const __m256 max2 = _mm256_set1_ps(lim.max2), loose2 = _mm256_set1_ps(lim.loose2);
+  float* const coords[3] = {a.x, a.y, a.z};
+  const float* __restrict w = a.w;
   // Movability of a run without pins: every end moves (the same values the loads would give).
-  const __m256d one = _mm256_set1_pd(1.0);
-  __m256d loose = _mm256_setzero_pd();
+  const __m256 one = _mm256_set1_ps(1.0f);
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256 loose = _mm256_setzero_ps();
   for (const ProvotFamily::Run& run : f.runs) {
-    ptrdiff_t c = run.lo;
-    // The step's last pair starts at c + 7 - kDc, which must be below run.hi.
-    for (; c + 7 < run.hi + kDc; c += 8) {
-      __m256d p[3], q[3];
+    for (ptrdiff_t c = run.lo; c < run.hi; c += 16) {
+      // Full step: the last pair starts at c + 15 - kDc, below run.hi.
+      const bool full = c + 15 < run.hi + kDc;
+      __m256 p[3], q[3];
       for (int k = 0; k < 3; ++k) {
-        const __m256d lo = _mm256_loadu_pd(coords[k] + c), hi = _mm256_loadu_pd(coords[k] + c + 4);
-        p[k] = S::First(lo, hi);
-        q[k] = S::Second(lo, hi);
+        const __m256 lo = _mm256_loadu_ps(coords[k] + c), hi = _mm256_loadu_ps(coords[k] + c + 8);
+        p[k] = S::P(lo, hi);
+        q[k] = S::Q(lo, hi);
       }
-      const __m256d w0 = run.pinned ? _mm256_loadu_pd(w + c) : one;
-      const __m256d w1 = run.pinned ? _mm256_loadu_pd(w + c + 4) : one;
-      loose = _mm256_or_pd(loose, ProjectLanes(&p[0], &p[1], &p[2], &q[0], &q[1], &q[2],
-                                               S::First(w0, w1), S::Second(w0, w1), max2, loose2));
+      __m256 w0 = one, w1 = one;
+      if (run.pinned) {
+        // Only the run's particles, [c, run.hi + kDc): movability has no padding.
+        const ptrdiff_t count = run.hi + kDc - c;
+        w0 = _mm256_maskload_ps(w + c, _mm256_castps_si256(LanesBelow(lanes, count)));
+        w1 = _mm256_maskload_ps(w + c + 8, _mm256_castps_si256(LanesBelow(lanes, count - 8)));
+      }
+      const __m256 wp = S::P(w0, w1), wq = S::Q(w0, w1);
+      if (full) {
+        loose = _mm256_or_ps(
+            loose, ProjectLanes(&p[0], &p[1], &p[2], &q[0], &q[1], &q[2], wp, wq, max2, loose2));
+      } else {
+        const __m256 take = LanesBelow(PairStarts<kDc>(), run.hi - c);
+        loose = _mm256_or_ps(loose, ProjectTaken(take, &p[0], &p[1], &p[2], &q[0], &q[1], &q[2], wp,
+                                                 wq, max2, loose2));
+      }
       for (int k = 0; k < 3; ++k) {
-        _mm256_storeu_pd(coords[k] + c, S::First(p[k], q[k]));
-        _mm256_storeu_pd(coords[k] + c + 4, S::Second(p[k], q[k]));
+        _mm256_storeu_ps(coords[k] + c, S::Lo(p[k], q[k]));
+        _mm256_storeu_ps(coords[k] + c + 8, S::Hi(p[k], q[k]));
       }
-    }
-    if (c < run.hi) {
-      const bool rest = kDc == 1 ? ProjectNeighbours(a, c, run.hi, f.max_length_m, loose2_s)
-                                 : ProjectSecondNeighbours(a, c, run.hi, f.max_length_m, loose2_s);
-      *tail = rest || *tail;
     }
   }
   return loose;
 }
 
-// SweepFamilyPortable four pairs at a time (the same operations in the same order per pair, no
+// SweepFamilyPortable eight pairs at a time (the same operations in the same order per pair, no
 // fused multiply-add: the same bits).
 __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t width,
                                                      const ProvotFamily& f) {
-  const double max2_s = f.max_length_m * f.max_length_m;
-  const double loose2_s = kLoose2 * max2_s;
-  const __m256d max2 = _mm256_set1_pd(max2_s), loose2 = _mm256_set1_pd(loose2_s);
-  double* __restrict x = a.x;
-  double* __restrict y = a.y;
-  double* __restrict z = a.z;
-  const double* __restrict w = a.w;
+  const ProvotLimits lim = ProvotLimitsOf(f);
+  if (f.dr == 0 && f.dc == 1) return _mm256_movemask_ps(SweepShuffledRunsAvx2<1>(a, f, lim)) != 0;
+  if (f.dr == 0 && f.dc == 2) return _mm256_movemask_ps(SweepShuffledRunsAvx2<2>(a, f, lim)) != 0;
+  const __m256 max2 = _mm256_set1_ps(lim.max2), loose2 = _mm256_set1_ps(lim.loose2);
+  float* __restrict x = a.x;
+  float* __restrict y = a.y;
+  float* __restrict z = a.z;
+  const float* __restrict w = a.w;
   // Movability of a run without pins: every end moves (the same values the loads would give).
-  const __m256d one = _mm256_set1_pd(1.0);
-  __m256d loose = _mm256_setzero_pd();
-  bool tail = false;
-  if (f.dr == 0 && f.dc == 1) {
-    loose = SweepShuffledRunsAvx2<1>(a, f, max2, loose2, &tail);
-  } else if (f.dr == 0 && f.dc == 2) {
-    loose = SweepShuffledRunsAvx2<2>(a, f, max2, loose2, &tail);
-  } else {
-    // Contiguous ends: p in the run, q = p + off in another row or run.
-    const ptrdiff_t off = static_cast<ptrdiff_t>(f.dr) * width + f.dc;
-    for (const ProvotFamily::Run& run : f.runs) {
-      ptrdiff_t p = run.lo;
-      for (; p + 4 <= run.hi; p += 4) {
-        const ptrdiff_t q = p + off;
-        __m256d px = _mm256_loadu_pd(x + p), py = _mm256_loadu_pd(y + p);
-        __m256d pz = _mm256_loadu_pd(z + p), qx = _mm256_loadu_pd(x + q);
-        __m256d qy = _mm256_loadu_pd(y + q), qz = _mm256_loadu_pd(z + q);
-        loose = _mm256_or_pd(
-            loose,
-            ProjectLanes(&px, &py, &pz, &qx, &qy, &qz, run.pinned ? _mm256_loadu_pd(w + p) : one,
-                         run.pinned ? _mm256_loadu_pd(w + q) : one, max2, loose2));
-        _mm256_storeu_pd(x + p, px);
-        _mm256_storeu_pd(y + p, py);
-        _mm256_storeu_pd(z + p, pz);
-        _mm256_storeu_pd(x + q, qx);
-        _mm256_storeu_pd(y + q, qy);
-        _mm256_storeu_pd(z + q, qz);
+  const __m256 one = _mm256_set1_ps(1.0f);
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256 loose = _mm256_setzero_ps();
+  // Contiguous ends: p in the run, q = p + off in another row or run. A run's last, partial group
+  // projects only its pairs (ProjectTaken; loads up to 7 floats past the run, in the padding).
+  // Where off < 8 the two ends' lanes overlap: the q ends are stored last, so a p lane that is
+  // also a taken q end ends with the q result, and an untaken lane writes back its own bits.
+  const ptrdiff_t off = static_cast<ptrdiff_t>(f.dr) * width + f.dc;
+  for (const ProvotFamily::Run& run : f.runs) {
+    for (ptrdiff_t p = run.lo; p < run.hi; p += 8) {
+      const ptrdiff_t q = p + off;
+      __m256 px = _mm256_loadu_ps(x + p), py = _mm256_loadu_ps(y + p);
+      __m256 pz = _mm256_loadu_ps(z + p), qx = _mm256_loadu_ps(x + q);
+      __m256 qy = _mm256_loadu_ps(y + q), qz = _mm256_loadu_ps(z + q);
+      __m256 wp = one, wq = one;
+      const __m256 take = LanesBelow(lanes, run.hi - p);
+      if (run.pinned) {
+        wp = _mm256_maskload_ps(w + p, _mm256_castps_si256(take));
+        wq = _mm256_maskload_ps(w + q, _mm256_castps_si256(take));
       }
-      if (p < run.hi) tail = ProjectRun(a, p, run.hi, off, f.max_length_m, loose2_s) || tail;
+      if (p + 8 <= run.hi) {
+        loose =
+            _mm256_or_ps(loose, ProjectLanes(&px, &py, &pz, &qx, &qy, &qz, wp, wq, max2, loose2));
+      } else {
+        loose = _mm256_or_ps(
+            loose, ProjectTaken(take, &px, &py, &pz, &qx, &qy, &qz, wp, wq, max2, loose2));
+      }
+      _mm256_storeu_ps(x + p, px);
+      _mm256_storeu_ps(y + p, py);
+      _mm256_storeu_ps(z + p, pz);
+      _mm256_storeu_ps(x + q, qx);
+      _mm256_storeu_ps(y + q, qy);
+      _mm256_storeu_ps(z + q, qz);
     }
   }
-  return _mm256_movemask_pd(loose) != 0 || tail;
+  return _mm256_movemask_ps(loose) != 0;
 }
 
 // True if this CPU runs AVX2 and the tests have not asked for the portable loops.
@@ -358,30 +416,37 @@ void UsePortableProvotKernels(bool portable) {
   g_provot_portable.store(portable, std::memory_order_relaxed);
 }
 
+ProvotLimits ProvotLimitsOf(const ProvotFamily& f) {
+  const float max_len = static_cast<float>(f.max_length_m);
+  const float max2 = max_len * max_len;
+  return {max2, kLoose2 * max2};
+}
+
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   const size_t n = static_cast<size_t>(model.num_particles());
-  const size_t stride = SoaStride(n);
-  double* soa = state->scratch->provot_soa.data();
+  const size_t stride = ProvotSoaStride(n);
+  float* soa = state->scratch->provot_soa.data();
   const ProvotSoa a{soa, soa + stride, soa + 2 * stride, model.provot_movable.data()};
-  double* __restrict bx = soa + 3 * stride;
-  double* __restrict by = soa + 4 * stride;
-  double* __restrict bz = soa + 5 * stride;
-  // Into structure-of-arrays, and a copy of where the particles started.
-  const double* __restrict x = state->x.data()->data();
+  // Into structure-of-arrays, single precision, relative to the first particle (so the precision
+  // does not depend on where the cloth is in the world): ~6e-8 of the cloth's size, 1e-4 of a
+  // 64 x 64 curtain's spacing against the 1e-3 convergence tolerance.
+  double* __restrict xo = state->x.data()->data();
+  const double ox = xo[0], oy = xo[1], oz = xo[2];
   for (size_t p = 0; p < n; ++p) {
-    a.x[p] = bx[p] = x[3 * p];
-    a.y[p] = by[p] = x[3 * p + 1];
-    a.z[p] = bz[p] = x[3 * p + 2];
+    a.x[p] = static_cast<float>(xo[3 * p] - ox);
+    a.y[p] = static_cast<float>(xo[3 * p + 1] - oy);
+    a.z[p] = static_cast<float>(xo[3 * p + 2] - oz);
   }
   // Long range attachments first: each free particle back into the ball around its pin (Kim,
   // Chentanez & Mueller 2012); the pin is kinematic, so only the particle moves.
   for (const PinAttachment& at : model.attachments) {
     const size_t p = static_cast<size_t>(at.particle), q = static_cast<size_t>(at.pin);
-    const double dx = a.x[p] - a.x[q], dy = a.y[p] - a.y[q], dz = a.z[p] - a.z[q];
-    const double len2 = dx * dx + dy * dy + dz * dz;
-    if (len2 <= at.max_length_m * at.max_length_m) continue;
-    const double len = std::sqrt(len2);
-    const double scale = (len - at.max_length_m) / len;
+    const float dx = a.x[p] - a.x[q], dy = a.y[p] - a.y[q], dz = a.z[p] - a.z[q];
+    const float len2 = dx * dx + dy * dy + dz * dz;
+    const float max_len = static_cast<float>(at.max_length_m);
+    if (len2 <= max_len * max_len) continue;
+    const float len = std::sqrt(len2);
+    const float scale = (len - max_len) / len;
     a.x[p] -= scale * dx;
     a.y[p] -= scale * dy;
     a.z[p] -= scale * dz;
@@ -395,17 +460,23 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
     }
     if (!loose) break;
   }
-  // Back to the state; velocities follow the positions, v += dx / h, so (x, v) stay consistent.
+  // Back to the state as the move each particle made (exact in double; 0 for one not moved, so
+  // its position keeps every bit); velocities follow, v += dx / h, so (x, v) stay consistent.
   const double inv_h = 1.0 / h_s;
-  double* __restrict xo = state->x.data()->data();
   double* __restrict vo = state->v.data()->data();
   for (size_t p = 0; p < n; ++p) {
-    xo[3 * p] = a.x[p];
-    xo[3 * p + 1] = a.y[p];
-    xo[3 * p + 2] = a.z[p];
-    vo[3 * p] += inv_h * (a.x[p] - bx[p]);
-    vo[3 * p + 1] += inv_h * (a.y[p] - by[p]);
-    vo[3 * p + 2] += inv_h * (a.z[p] - bz[p]);
+    const double mx =
+        static_cast<double>(a.x[p]) - static_cast<double>(static_cast<float>(xo[3 * p] - ox));
+    const double my =
+        static_cast<double>(a.y[p]) - static_cast<double>(static_cast<float>(xo[3 * p + 1] - oy));
+    const double mz =
+        static_cast<double>(a.z[p]) - static_cast<double>(static_cast<float>(xo[3 * p + 2] - oz));
+    xo[3 * p] += mx;
+    xo[3 * p + 1] += my;
+    xo[3 * p + 2] += mz;
+    vo[3 * p] += inv_h * mx;
+    vo[3 * p + 1] += inv_h * my;
+    vo[3 * p + 2] += inv_h * mz;
   }
 }
 

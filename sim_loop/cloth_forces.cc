@@ -75,9 +75,10 @@ SoaViews Views(std::vector<double>* soa, size_t particles) {
           b + 6 * n, b + 7 * n, b + 8 * n, b + 9 * n, b + 10 * n, b + 11 * n};
 }
 
-// The force of every spring of `family` into s[p] (the spring whose end i is particle p), over
-// the particle range [lo, hi): Hooke plus dashpot along the spring, 001 §2 (as AddSpringForces).
-// Branch-free, so the compiler vectorises it; springs shorter than kMinSpringLength_m get 0.
+// The force of every spring of `family` into s[p] (the spring whose end i is particle p), and
+// added to end i's force, f[p] += s[p], over the particle range [lo, hi): Hooke plus dashpot
+// along the spring, 001 §2 (as AddSpringForces). Branch-free, so the compiler vectorises it;
+// springs shorter than kMinSpringLength_m get 0.
 void FamilySpringForces(const SoaViews& a, const SpringFamily& family, ptrdiff_t off, ptrdiff_t lo,
                         ptrdiff_t hi) {
   const double* __restrict x = a.x;
@@ -89,6 +90,9 @@ void FamilySpringForces(const SoaViews& a, const SpringFamily& family, ptrdiff_t
   double* __restrict sx = a.sx;
   double* __restrict sy = a.sy;
   double* __restrict sz = a.sz;
+  double* __restrict fx = a.fx;
+  double* __restrict fy = a.fy;
+  double* __restrict fz = a.fz;
   const double k = family.stiffness_N_per_m, c = family.damping_N_s_per_m;
   const double rest = family.rest_length_m;
   constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
@@ -105,6 +109,9 @@ void FamilySpringForces(const SoaViews& a, const SpringFamily& family, ptrdiff_t
     sx[p] = scale * dx;
     sy[p] = scale * dy;
     sz[p] = scale * dz;
+    fx[p] += sx[p];
+    fy[p] += sy[p];
+    fz[p] += sz[p];
   }
 }
 
@@ -144,9 +151,15 @@ __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
     const __m256d magnitude =
         _mm256_add_pd(_mm256_mul_pd(k, _mm256_sub_pd(len, rest)), _mm256_mul_pd(c, rel_speed));
     const __m256d scale = _mm256_mul_pd(_mm256_mul_pd(live, magnitude), inv_len);
-    _mm256_storeu_pd(a.sx + p, _mm256_mul_pd(scale, dx));
-    _mm256_storeu_pd(a.sy + p, _mm256_mul_pd(scale, dy));
-    _mm256_storeu_pd(a.sz + p, _mm256_mul_pd(scale, dz));
+    const __m256d sx = _mm256_mul_pd(scale, dx);
+    const __m256d sy = _mm256_mul_pd(scale, dy);
+    const __m256d sz = _mm256_mul_pd(scale, dz);
+    _mm256_storeu_pd(a.sx + p, sx);
+    _mm256_storeu_pd(a.sy + p, sy);
+    _mm256_storeu_pd(a.sz + p, sz);
+    _mm256_storeu_pd(a.fx + p, _mm256_add_pd(_mm256_loadu_pd(a.fx + p), sx));
+    _mm256_storeu_pd(a.fy + p, _mm256_add_pd(_mm256_loadu_pd(a.fy + p), sy));
+    _mm256_storeu_pd(a.fz + p, _mm256_add_pd(_mm256_loadu_pd(a.fz + p), sz));
   }
   if (p < hi) FamilySpringForces(a, family, off, p, hi);
 }
@@ -165,14 +178,32 @@ void FamilySpringForcesBest(const SoaViews& a, const SpringFamily& family, ptrdi
   FamilySpringForces(a, family, off, lo, hi);
 }
 
-// f[k] += s[k] for k < count (restrict parameters: the compiler vectorises it).
-void AddTo(double* __restrict f, const double* __restrict s, ptrdiff_t count) {
-  for (ptrdiff_t k = 0; k < count; ++k) f[k] += s[k];
-}
-
-// f[k] -= s[k] for k < count.
+// f[k] -= s[k] for k < count (restrict parameters: the compiler vectorises it).
 void SubtractFrom(double* __restrict f, const double* __restrict s, ptrdiff_t count) {
   for (ptrdiff_t k = 0; k < count; ++k) f[k] -= s[k];
+}
+
+#if defined(__x86_64__)
+// SubtractFrom four at a time with AVX2 (the same bits).
+__attribute__((target("avx2"))) void SubtractFromAvx2(double* __restrict f,
+                                                      const double* __restrict s, ptrdiff_t count) {
+  ptrdiff_t k = 0;
+  for (; k + 4 <= count; k += 4) {
+    _mm256_storeu_pd(f + k, _mm256_sub_pd(_mm256_loadu_pd(f + k), _mm256_loadu_pd(s + k)));
+  }
+  for (; k < count; ++k) f[k] -= s[k];
+}
+#endif
+
+// f[k] -= s[k] for k < count: AVX2 where available, else the portable loop.
+void SubtractFromBest(double* f, const double* s, ptrdiff_t count) {
+#if defined(__x86_64__)
+  if (CpuHasAvx2()) {
+    SubtractFromAvx2(f, s, count);
+    return;
+  }
+#endif
+  SubtractFrom(f, s, count);
 }
 
 // Splits n packed (x, y, z) triples into three arrays, and sets f = e - drag v per coordinate.
@@ -201,32 +232,25 @@ void SplitState(const double* __restrict x, const double* __restrict v, const do
 }
 
 // Adds every spring of `family` to the forces: f_i += s, f_j -= s (grid stencil, no indices).
+// Row by row over the columns [c_lo, c_hi) where springs start: every end i first (fused into the
+// kernel), then every end j = i + off, so each particle's sum takes its terms in the same order
+// as one pass of each over the whole grid.
 void AddFamilyForces(const SoaViews& a, int32_t width, int32_t height, const SpringFamily& family) {
-  // Springs start at columns [c_lo, c_hi) of rows [0, height - dr); over the contiguous particle
-  // range that spans them, the few wrapped pairs at row ends are computed and then zeroed.
   const int32_t c_lo = std::max(0, -family.dc), c_hi = width - std::max(0, family.dc);
   const int32_t rows = height - family.dr;
   if (rows <= 0 || c_hi <= c_lo) return;
   const ptrdiff_t off = static_cast<ptrdiff_t>(family.dr) * width + family.dc;
-  const ptrdiff_t lo = c_lo, hi = static_cast<ptrdiff_t>(rows - 1) * width + c_hi;
-  FamilySpringForcesBest(a, family, off, lo, hi);
   for (int32_t r = 0; r < rows; ++r) {
     const ptrdiff_t row = static_cast<ptrdiff_t>(r) * width;
-    for (ptrdiff_t p = std::max(lo, row); p < std::min(hi, row + c_lo); ++p) {
-      a.sx[p] = a.sy[p] = a.sz[p] = 0.0;
-    }
-    for (ptrdiff_t p = std::max(lo, row + c_hi); p < std::min(hi, row + width); ++p) {
-      a.sx[p] = a.sy[p] = a.sz[p] = 0.0;
-    }
+    FamilySpringForcesBest(a, family, off, row + c_lo, row + c_hi);
   }
-  // Scatter: end i gets +s, end j = i + off gets -s; separate loops, so neither aliases itself.
-  const ptrdiff_t count = hi - lo;
-  AddTo(a.fx + lo, a.sx + lo, count);
-  AddTo(a.fy + lo, a.sy + lo, count);
-  AddTo(a.fz + lo, a.sz + lo, count);
-  SubtractFrom(a.fx + lo + off, a.sx + lo, count);
-  SubtractFrom(a.fy + lo + off, a.sy + lo, count);
-  SubtractFrom(a.fz + lo + off, a.sz + lo, count);
+  const ptrdiff_t count = c_hi - c_lo;
+  for (int32_t r = 0; r < rows; ++r) {
+    const ptrdiff_t lo = static_cast<ptrdiff_t>(r) * width + c_lo;
+    SubtractFromBest(a.fx + lo + off, a.sx + lo, count);
+    SubtractFromBest(a.fy + lo + off, a.sy + lo, count);
+    SubtractFromBest(a.fz + lo + off, a.sz + lo, count);
+  }
 }
 
 }  // namespace
@@ -262,10 +286,14 @@ void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std:
 }
 
 double MaxStretch(const ClothModel& model, const ClothState& state) {
+  return MaxStretchOf(model, state, SpringType::kStructural);
+}
+
+double MaxStretchOf(const ClothModel& model, const ClothState& state, SpringType type) {
   double worst = 1.0;
   bool any = false;
   for (const Spring& s : model.springs) {
-    if (s.type != SpringType::kStructural) continue;
+    if (s.type != type) continue;
     const double ratio = (state.x[s.j] - state.x[s.i]).norm() / s.rest_length_m;
     worst = any ? std::max(worst, ratio) : ratio;
     any = true;

@@ -33,8 +33,9 @@ struct ClothState::Scratch {
   /// [12 SoaStride(n)] structure-of-arrays work space of the force kernel: x, y, z, vx, vy, vz,
   /// then the force fx, fy, fz, then one spring family's forces (cloth_forces.cc).
   std::vector<double> soa;
-  /// [6 SoaStride(n)] ApplyProvot's positions x, y, z as it moves them, then the positions before.
-  std::vector<double> provot_soa;
+  /// [3 ProvotSoaStride(n)] ApplyProvot's positions x, y, z as it moves them: single precision,
+  /// metres from the first particle.
+  std::vector<float> provot_soa;
 
   // Integrator history (leapfrog, basic Verlet), [n] each.
   bool history_valid = false;  ///< false: restart from x, v at the next substep
@@ -64,6 +65,14 @@ struct ClothState::Scratch {
 /// apart (with n = 4096 the twelve arrays would share the same L1 sets and alias on 4 KiB pages).
 constexpr size_t SoaStride(size_t n) { return (n + 7) / 8 * 8 + 8; }
 
+/// Distance, in floats, between ApplyProvot's single-precision arrays x, y, z for n particles: n
+/// rounded up to 1024 floats (4 KiB) plus 344 (1376 bytes), so the three arrays start about a
+/// third of a 4 KiB page apart. Arrays a multiple of 4 KiB apart (or a few lines from it) make a
+/// load of one alias a store to another in the low 12 address bits, which the CPU treats as a
+/// possible store-to-load dependency ("4K aliasing", Intel optimization manual §3.6.8; AMD's
+/// Zen cores match on the same bits).
+constexpr size_t ProvotSoaStride(size_t n) { return (n + 1023) / 1024 * 1024 + 344; }
+
 /// Accelerations [m/s^2] at positions x and velocities v: gravity, drag, springs, and the frame's
 /// external forces (scratch.external_N); zero for pinned particles. Works in scratch.soa (spring
 /// families as grid stencils, AVX2 where the CPU has it).
@@ -79,6 +88,17 @@ bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state);
 /// model.provot_families, shortening every pair longer than its limit; velocities are corrected by
 /// the move / h_s.
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state);
+
+/// A Provot family's limit as ApplyProvot's single-precision sweeps use it: max2 = the squared
+/// limit (m^2), loose2 = (1 + 1e-3)^2 max2, the squared length above which a pair keeps the sweeps
+/// going.
+struct ProvotLimits {
+  float max2;
+  float loose2;
+};
+
+/// The limits of family f (computed one way for the kernels and the tests' reference).
+ProvotLimits ProvotLimitsOf(const ProvotFamily& f);
 
 /// Tests only: true makes ApplyProvot use its portable loops even where the CPU has AVX2 (both
 /// give the same bits; this lets one machine check both).

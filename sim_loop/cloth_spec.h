@@ -131,7 +131,7 @@ struct ProvotSpec {
   double max_elongation = 0.10;  ///< a spring never ends a substep longer than (1 + this) * rest
   /// Relaxation sweeps per substep at most, >= 1; sweeping stops early once no pair exceeds its
   /// limit by more than 0.1 %. With the multiresolution families, 3 sweeps hold the release
-  /// transient of a 64 x 64 two-corner curtain to about 12 % and the hanging cloth to about 11 %
+  /// transient of a 64 x 64 two-corner curtain to about 12 % and the hanging cloth to about 10.4 %
   /// (bench/results/cloth.md); without them 10 sweeps let the transient reach 17 %.
   int32_t iterations = 3;
   bool shear = true;  ///< also constrain shear springs (structural always)
@@ -140,8 +140,8 @@ struct ProvotSpec {
   /// before Provot's sweeps. Pins are kinematic, so this only removes energy; it stops the
   /// stretch that Gauss-Seidel sweeps carry only O(1/N^2) per sweep down an N-row hanging cloth.
   bool long_range_attachments = true;
-  /// Also limit particles 2, 4, 8, ... apart along a row or column to (1 + max_elongation) times
-  /// their rest distance, swept coarsest first. Implied by the spring limits (so never an extra
+  /// Also limit particles 2, 4, 8, ... apart along a row, a column or (with `shear`) a diagonal to
+  /// (1 + max_elongation) times their rest distance, swept coarsest first. Implied by the spring limits (so never an extra
   /// restriction), they carry a correction across the cloth in one sweep instead of one spring
   /// per sweep: the coarse levels of multigrid (Briggs, Henson & McCormick 2000) and of
   /// hierarchical position based dynamics (Mueller 2008), as stencils on the grid.
