@@ -72,8 +72,8 @@ bool FirstContact(const ObstacleSpec& o, const Vec3& a, const Vec3& b, Vec3* hit
 // Set by UsePortableProvotKernels: the sweeps ignore AVX2.
 std::atomic<bool> g_provot_portable{false};
 
-// Positions of ApplyProvot in structure-of-arrays form, single precision, relative to the
-// first particle (ProvotFrame), and each particle's movability (1 free, 0 pinned:
+// Positions of ApplyProvot in structure-of-arrays form, single precision, metres from the first
+// particle (see ApplyProvot), and each particle's movability (1 free, 0 pinned:
 // ClothModel::provot_movable).
 struct ProvotSoa {
   float* x;
