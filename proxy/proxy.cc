@@ -49,11 +49,16 @@ const LocalTriangle* FindLocal(const LocalCloth& cloth, int32_t triangle) {
   return nullptr;
 }
 
+// The contact's barycentric point on a triangle with corners a, b, c, m.
+Vec3 ContactPointOn(const ProxyContact& contact, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3& w = contact.barycentric;
+  return w(0) * a + w(1) * b + w(2) * c;
+}
+
 // The proxy centre a contact anchors on a triangle with corners a, b, c: the contact's
 // barycentric point plus its offset in the triangle's frame (the carry's rule).
 Vec3 AnchoredAt(const ProxyContact& contact, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3& w = contact.barycentric;
-  return w(0) * a + w(1) * b + w(2) * c + FromLocal(FrameOf(a, b, c), contact.local_m);
+  return ContactPointOn(contact, a, b, c) + FromLocal(FrameOf(a, b, c), contact.local_m);
 }
 
 // The constraint a contact puts on the proxy centre: n . x >= n . point + r (Ruspini 1997 §3: the
@@ -798,7 +803,7 @@ ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
     const ProxyContact& c = state->hand_seed;
     Vec3 a, b, cc;
     ClothView::Of(newest).Corners(c.triangle, &a, &b, &cc);
-    const Vec3 d = goal - (c.barycentric(0) * a + c.barycentric(1) * b + c.barycentric(2) * cc);
+    const Vec3 d = goal - ContactPointOn(c, a, b, cc);
     if (d.norm() < 3.0 * opts.radius_m && d.dot(c.normal_W) >= 0.0) {
       state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
                                        goal - opts.radius_m * c.normal_W, spring_k_W, spring_max_W,
