@@ -6,7 +6,8 @@
 // reference: the proxy sees the exact cloth every tick) and is published to the four modes as
 // 60 Hz snapshots, as the server's sim thread would. Every mode runs on the same input; the table
 // gives, per mode, the RMS force error against the reference, the largest force jump between
-// consecutive ticks, the pop-through count and the cost per tick.
+// consecutive ticks, the pop-through count, how deep the proxy sphere reached into the cloth it
+// was rendered against, and the cost per tick.
 //
 // Cloth sources:
 //  - "sim": the real cloth (sim_loop/cloth.h) stepped at 1 kHz, coupled both ways with the
@@ -42,6 +43,9 @@ namespace {
 
 constexpr double kTickS = 1e-3;
 constexpr double kFrameS = 1.0 / 60.0;
+// A tick is counted deep when the proxy sphere reaches more than this fraction of its radius into
+// the cloth it was rendered against.
+constexpr double kDeepFraction = 0.1;
 constexpr SnapshotMode kModes[] = {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
                                    SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate};
 
@@ -59,6 +63,8 @@ struct ModeStats {
   int64_t ticks = 0;
   double max_jump_N = 0.0;
   int64_t pop_through = 0;
+  double max_penetration_m = 0.0;  ///< deepest reach of the proxy sphere into its cloth, m
+  int64_t deep_ticks = 0;          ///< ticks reaching deeper than kDeepFraction of the radius
   std::vector<double> tick_us;
   uint64_t overflow_ticks = 0;
   uint64_t catches = 0;
@@ -80,6 +86,7 @@ struct RunResult {
   std::string source;
   bool sim_healthy = true;
   double reference_max_jump_N = 0.0;
+  double reference_max_penetration_m = 0.0;  ///< the reference proxy's, against the exact cloth
   ModeStats modes[4];
 };
 
@@ -152,6 +159,30 @@ struct SideTracker {
   }
 };
 
+// How deep the proxy sphere (centre p, radius r, m) reaches into the cloth `view`: r less the
+// distance from p to the nearest triangle, 0 when no triangle is nearer than r. Exact over every
+// triangle; one is skipped only when its nearest corner is farther from p than r plus its longest
+// edge (then no point of it is within r). The god-object keeps this at 0 up to its tolerances; a
+// proxy that went through the cloth reaches into it on the way (unless it crossed a whole sphere
+// in one tick). `dist` is scratch, one entry per particle.
+double Penetration(const ClothView& view, std::span<const Triangle> tris, const Vec3& p, double r,
+                   std::vector<double>* dist) {
+  for (size_t i = 0; i < dist->size(); ++i) {
+    (*dist)[i] = (view.Position(static_cast<int32_t>(i)) - p).norm();
+  }
+  double nearest2 = r * r;
+  for (size_t t = 0; t < tris.size(); ++t) {
+    const Triangle& tri = tris[t];
+    const double corner = std::min({(*dist)[tri[0]], (*dist)[tri[1]], (*dist)[tri[2]]});
+    Vec3 a, b, c;
+    view.Corners(static_cast<int32_t>(t), &a, &b, &c);
+    const double edge = std::max({(a - b).norm(), (b - c).norm(), (c - a).norm()});
+    if (corner - edge > r) continue;
+    nearest2 = std::min(nearest2, ClosestPointOnTriangle(p, a, b, c).distance_sq);
+  }
+  return r - std::sqrt(nearest2);
+}
+
 RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& samples,
                  const std::string& source, const Args& args) {
   RunResult res;
@@ -205,6 +236,8 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
   std::vector<Vec3> x_published = x;
   std::vector<Vec3> v_published(x.size(), Vec3::Zero());
   SideTracker trackers[4];
+  std::vector<double> dist(x.size());
+  ClothView views[4];
   Vec3 last_force[4];
   Vec3 last_ref = Vec3::Zero();
   uint64_t frame = 1;
@@ -258,6 +291,19 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
       if (trackers[m].Check(view, states[m].body)) {
         ++ms.pop_through;
       }
+      views[m] = view;
+    }
+    // How deep each proxy reached into its cloth, measured after every mode's tick so that the
+    // measurement's memory traffic does not land between two timed ticks.
+    res.reference_max_penetration_m = std::max(
+        res.reference_max_penetration_m, Penetration(ClothView::Of(ref_snap), model.triangles,
+                                                     ref_state.body.p_W_m, device.radius_m, &dist));
+    for (int m = 0; m < 4; ++m) {
+      const double depth =
+          Penetration(views[m], model.triangles, states[m].body.p_W_m, device.radius_m, &dist);
+      ModeStats& ms = res.modes[m];
+      ms.max_penetration_m = std::max(ms.max_penetration_m, depth);
+      if (depth > kDeepFraction * device.radius_m) ++ms.deep_ticks;
     }
   }
   for (int m = 0; m < 4; ++m) {
@@ -295,6 +341,8 @@ struct Aggregate {
   int64_t ticks = 0;
   double max_jump = 0.0;
   int64_t pops = 0;
+  double max_penetration_m = 0.0;
+  int64_t deep_ticks = 0;
   std::vector<double> us;
   double max_us = 0.0;
 };
@@ -324,6 +372,8 @@ int Run(const Args& args) {
         a->ticks += r.modes[m].ticks;
         a->max_jump = std::max(a->max_jump, r.modes[m].max_jump_N);
         a->pops += r.modes[m].pop_through;
+        a->max_penetration_m = std::max(a->max_penetration_m, r.modes[m].max_penetration_m);
+        a->deep_ticks += r.modes[m].deep_ticks;
         a->us.insert(a->us.end(), r.modes[m].tick_us.begin(), r.modes[m].tick_us.end());
       }
     }
@@ -337,28 +387,33 @@ int Run(const Args& args) {
   // Markdown and CSV tables.
   std::string md = fmt::format(
       "| trace | cloth | mode | force_rms_error_N | max_force_jump_N | pop_through | "
-      "tick_us_median "
-      "| tick_us_max | overflow_ticks | catches |\n|---|---|---|---|---|---|---|---|---|---|\n");
+      "max_penetration_um | deep_ticks | tick_us_median | tick_us_max | overflow_ticks | catches "
+      "|\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::string csv =
-      "trace,cloth,mode,force_rms_error_N,max_force_jump_N,pop_through,tick_us_median,tick_us_max,"
-      "overflow_ticks,catches,reference_max_jump_N,sim_healthy\n";
+      "trace,cloth,mode,force_rms_error_N,max_force_jump_N,pop_through,max_penetration_um,"
+      "deep_ticks,tick_us_median,tick_us_max,overflow_ticks,catches,reference_max_jump_N,"
+      "reference_max_penetration_um,sim_healthy\n";
   for (const RunResult& r : runs) {
     for (int m = 0; m < 4; ++m) {
       const ModeStats& s = r.modes[m];
       const std::string cloth = r.source + (r.sim_healthy ? "" : " (sim went non-finite)");
-      md += fmt::format("| {} | {} | {} | {:.4f} | {:.4f} | {} | {:.2f} | {:.1f} | {} | {} |\n",
-                        r.trace, cloth, SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N,
-                        s.pop_through, s.median_us(), s.max_us(), s.overflow_ticks, s.catches);
-      csv += fmt::format("{},{},{},{:.6f},{:.6f},{},{:.3f},{:.3f},{},{},{:.6f},{}\n", r.trace,
-                         r.source, SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N,
-                         s.pop_through, s.median_us(), s.max_us(), s.overflow_ticks, s.catches,
-                         r.reference_max_jump_N, r.sim_healthy ? 1 : 0);
+      md += fmt::format(
+          "| {} | {} | {} | {:.4f} | {:.4f} | {} | {:.3f} | {} | {:.2f} | {:.1f} | {} | {} |\n",
+          r.trace, cloth, SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N, s.pop_through,
+          1e6 * s.max_penetration_m, s.deep_ticks, s.median_us(), s.max_us(), s.overflow_ticks,
+          s.catches);
+      csv +=
+          fmt::format("{},{},{},{:.6f},{:.6f},{},{:.6f},{},{:.3f},{:.3f},{},{},{:.6f},{:.6f},{}\n",
+                      r.trace, r.source, SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N,
+                      s.pop_through, 1e6 * s.max_penetration_m, s.deep_ticks, s.median_us(),
+                      s.max_us(), s.overflow_ticks, s.catches, r.reference_max_jump_N,
+                      1e6 * r.reference_max_penetration_m, r.sim_healthy ? 1 : 0);
     }
   }
   md +=
       "\nPer mode over every trace (and, after the slash, over the swinging-cloth traces):\n\n"
-      "| mode | force_rms_error_N | max_force_jump_N | pop_through | tick_us_median | "
-      "tick_us_max |\n|---|---|---|---|---|---|\n";
+      "| mode | force_rms_error_N | max_force_jump_N | pop_through | max_penetration_um | "
+      "deep_ticks | tick_us_median | tick_us_max |\n|---|---|---|---|---|---|---|---|\n";
   std::string json = "{\n  \"grid\": " + std::to_string(args.grid) + ",\n  \"modes\": [\n";
   std::string json_swing = "  \"swing_modes\": [\n";
   for (int m = 0; m < 4; ++m) {
@@ -366,34 +421,41 @@ int Run(const Args& args) {
       const double max_us = a.us.empty() ? 0.0 : *std::max_element(a.us.begin(), a.us.end());
       return fmt::format(
           "    {{\"mode\": \"{}\", \"force_rms_error_N\": {:.6f}, \"max_force_jump_N\": {:.6f}, "
-          "\"pop_through\": {}, \"tick_us_median\": {:.3f}, \"tick_us_max\": {:.3f}}}",
+          "\"pop_through\": {}, \"max_penetration_um\": {:.6f}, \"deep_ticks\": {}, "
+          "\"tick_us_median\": {:.3f}, \"tick_us_max\": {:.3f}}}",
           SnapshotModeName(kModes[m]), a.ticks > 0 ? std::sqrt(a.err2 / a.ticks) : 0.0, a.max_jump,
-          a.pops, median(a.us), max_us);
+          a.pops, 1e6 * a.max_penetration_m, a.deep_ticks, median(a.us), max_us);
     };
     json += obj(all[m]) + (m < 3 ? ",\n" : "\n");
     json_swing += obj(swing[m]) + (m < 3 ? ",\n" : "\n");
     const double max_us_all =
         all[m].us.empty() ? 0.0 : *std::max_element(all[m].us.begin(), all[m].us.end());
     md += fmt::format(
-        "| {} | {:.4f} / {:.4f} | {:.4f} / {:.4f} | {} / {} | {:.2f} | {:.1f} |\n",
+        "| {} | {:.4f} / {:.4f} | {:.4f} / {:.4f} | {} / {} | {:.3f} / {:.3f} | {} / {} | {:.2f} | "
+        "{:.1f} |\n",
         SnapshotModeName(kModes[m]), all[m].ticks ? std::sqrt(all[m].err2 / all[m].ticks) : 0.0,
         swing[m].ticks ? std::sqrt(swing[m].err2 / swing[m].ticks) : 0.0, all[m].max_jump,
-        swing[m].max_jump, all[m].pops, swing[m].pops, median(all[m].us), max_us_all);
+        swing[m].max_jump, all[m].pops, swing[m].pops, 1e6 * all[m].max_penetration_m,
+        1e6 * swing[m].max_penetration_m, all[m].deep_ticks, swing[m].deep_ticks, median(all[m].us),
+        max_us_all);
   }
   json += "  ],\n" + json_swing + "  ],\n  \"runs\": [\n";
   for (size_t k = 0; k < runs.size(); ++k) {
     const RunResult& r = runs[k];
     json += fmt::format(
         "    {{\"trace\": \"{}\", \"cloth\": \"{}\", \"sim_healthy\": {}, "
-        "\"reference_max_jump_N\": {:.6f}, \"modes\": [\n",
-        r.trace, r.source, r.sim_healthy ? "true" : "false", r.reference_max_jump_N);
+        "\"reference_max_jump_N\": {:.6f}, \"reference_max_penetration_um\": {:.6f}, "
+        "\"modes\": [\n",
+        r.trace, r.source, r.sim_healthy ? "true" : "false", r.reference_max_jump_N,
+        1e6 * r.reference_max_penetration_m);
     for (int m = 0; m < 4; ++m) {
       const ModeStats& s = r.modes[m];
       json += fmt::format(
           "      {{\"mode\": \"{}\", \"force_rms_error_N\": {:.6f}, \"max_force_jump_N\": {:.6f}, "
-          "\"pop_through\": {}, \"tick_us_median\": {:.3f}, \"tick_us_max\": {:.3f}}}{}\n",
-          SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N, s.pop_through, s.median_us(),
-          s.max_us(), m < 3 ? "," : "");
+          "\"pop_through\": {}, \"max_penetration_um\": {:.6f}, \"deep_ticks\": {}, "
+          "\"tick_us_median\": {:.3f}, \"tick_us_max\": {:.3f}}}{}\n",
+          SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N, s.pop_through,
+          1e6 * s.max_penetration_m, s.deep_ticks, s.median_us(), s.max_us(), m < 3 ? "," : "");
     }
     json += std::string("    ]}") + (k + 1 < runs.size() ? ",\n" : "\n");
   }
