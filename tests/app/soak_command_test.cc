@@ -124,6 +124,23 @@ TEST_F(SoakCommand, ShortRunWritesEveryFieldAndACrossedThresholdExitsThree) {
   std::filesystem::remove(md);
 }
 
+TEST_F(SoakCommand, ReportOnlyReportsACrossedThresholdAndExitsZero) {
+  // The `make run` demo's mode: the same crossed threshold is reported as such, not as a failure.
+  const Outcome outcome = RunFelt("soak --minutes 0.03 --scene " + kScene + " --trace " +
+                                  kPokeHoldTrace + " --domain " + Domain() +
+                                  " --no-realtime --report-only --max-dropped 1e9 "
+                                  "--max-rss-growth-kb 1e9 --max-lateness-p999-us 1e9 "
+                                  "--max-lateness-p99-us 0");
+  EXPECT_EQ(outcome.exit_code, 0) << outcome.output;
+  EXPECT_NE(outcome.output.find("check         over haptic lateness p99 us"), std::string::npos)
+      << outcome.output;
+  EXPECT_NE(
+      outcome.output.find("felt soak: over a threshold, reported only (--report-only: exit 0)"),
+      std::string::npos)
+      << outcome.output;
+  EXPECT_EQ(outcome.output.find("FAIL"), std::string::npos) << outcome.output;
+}
+
 TEST_F(SoakCommand, SigtermStopsBothChildrenAndLeavesNoOrphan) {
   // Start a long soak, wait (deadline) until both children run, then SIGTERM it.
   const std::string log = TempPath("soak_sigterm.log");
