@@ -141,10 +141,12 @@ struct ProvotSpec {
   /// stretch that Gauss-Seidel sweeps carry only O(1/N^2) per sweep down an N-row hanging cloth.
   bool long_range_attachments = true;
   /// Also limit particles 2, 4, 8, ... apart along a row, a column or (with `shear`) a diagonal to
-  /// (1 + max_elongation) times their rest distance, swept coarsest first. Implied by the spring limits (so never an extra
-  /// restriction), they carry a correction across the cloth in one sweep instead of one spring
-  /// per sweep: the coarse levels of multigrid (Briggs, Henson & McCormick 2000) and of
-  /// hierarchical position based dynamics (Mueller 2008), as stencils on the grid.
+  /// (1 + max_elongation) times their rest distance, swept coarsest first: up to 8 apart with
+  /// long_range_attachments (which hold the rest), else up to the grid's size. Implied by the
+  /// spring limits (so never an extra restriction), they carry a correction across the cloth in
+  /// one sweep instead of one spring per sweep: the coarse levels of multigrid (Briggs, Henson &
+  /// McCormick 2000) and of hierarchical position based dynamics (Mueller 2008), as stencils on
+  /// the grid.
   bool multiresolution = true;
 };
 
