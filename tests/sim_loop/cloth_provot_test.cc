@@ -3,11 +3,13 @@
 // called directly through sim_loop/cloth_internal.h.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <random>
 #include <set>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -220,6 +222,33 @@ TEST(ProvotTest, MultiresolutionLowersTheReleasePeakAtEqualSweeps) {
   }
   EXPECT_LT(peak[1], peak[0] - 0.03) << "without " << peak[0] << ", with " << peak[1];
   EXPECT_LT(peak[1], 1.15);
+}
+
+TEST(ProvotTest, AttachmentsStopTheMultiresolutionLevelsAtStrideEight) {
+  // With long range attachments the levels go 8, 4, 2 (the attachments hold what coarser levels
+  // did: sim_loop/cloth_build.cc, kMaxAttachedStride); without them, or with no pin to attach to,
+  // up to the largest power of two below the grid's side (32 at 64 x 64). Sweep order: coarse
+  // to fine, the spring families (level 1) last.
+  const auto levels = [](bool attachments, bool pins) {
+    SimSpec spec = Curtain(64);
+    spec.provot.long_range_attachments = attachments;
+    if (!pins) spec.cloth.pins.clear();
+    const ClothModel model = BuildClothModel(spec);
+    std::vector<int32_t> out;
+    for (const ProvotFamily& f : model.provot_families) out.push_back(f.level);
+    return out;
+  };
+  for (const auto& [attachments, pins, coarsest] :
+       {std::tuple{true, true, 8}, std::tuple{false, true, 32}, std::tuple{true, false, 32}}) {
+    const std::vector<int32_t> l = levels(attachments, pins);
+    ASSERT_FALSE(l.empty());
+    EXPECT_EQ(l.front(), coarsest) << "attachments " << attachments << " pins " << pins;
+    EXPECT_TRUE(std::is_sorted(l.rbegin(), l.rend())) << "coarse to fine";
+    EXPECT_EQ(l.back(), 1);
+    // Rows, columns and both diagonals (shear is constrained) at every level above 1.
+    for (int32_t s = 2; s <= coarsest; s *= 2) EXPECT_EQ(std::count(l.begin(), l.end(), s), 4) << s;
+    EXPECT_EQ(std::count(l.begin(), l.end(), 2 * coarsest), 0);
+  }
 }
 
 TEST(ProvotTest, MultiresolutionHoldsTheShearSpringsOfAHangingCurtain) {
