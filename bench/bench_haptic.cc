@@ -159,25 +159,15 @@ struct SideTracker {
   }
 };
 
-// How deep the proxy sphere (centre p, radius r, m) reaches into the cloth `view`: r less the
-// distance from p to the nearest triangle, 0 when no triangle is nearer than r. Exact over every
-// triangle; one is skipped only when its nearest corner is farther from p than r plus its longest
-// edge (then no point of it is within r). The god-object keeps this at 0 up to its tolerances; a
-// proxy that went through the cloth reaches into it on the way (unless it crossed a whole sphere
-// in one tick). `dist` is scratch, one entry per particle.
-double Penetration(const ClothView& view, std::span<const Triangle> tris, const Vec3& p, double r,
-                   std::vector<double>* dist) {
-  for (size_t i = 0; i < dist->size(); ++i) {
-    (*dist)[i] = (view.Position(static_cast<int32_t>(i)) - p).norm();
-  }
+// How deep the proxy sphere (centre p, radius r, m) reaches into the cloth `view` of `triangles`
+// triangles: r less the distance from p to the nearest triangle, 0 when no triangle is nearer than
+// r. Exact, over every triangle. The god-object keeps this at 0 up to its tolerances; a proxy that
+// went through the cloth reaches into it on the way (unless it crossed a whole sphere in one tick).
+double Penetration(const ClothView& view, size_t triangles, const Vec3& p, double r) {
   double nearest2 = r * r;
-  for (size_t t = 0; t < tris.size(); ++t) {
-    const Triangle& tri = tris[t];
-    const double corner = std::min({(*dist)[tri[0]], (*dist)[tri[1]], (*dist)[tri[2]]});
+  for (size_t t = 0; t < triangles; ++t) {
     Vec3 a, b, c;
     view.Corners(static_cast<int32_t>(t), &a, &b, &c);
-    const double edge = std::max({(a - b).norm(), (b - c).norm(), (c - a).norm()});
-    if (corner - edge > r) continue;
     nearest2 = std::min(nearest2, ClosestPointOnTriangle(p, a, b, c).distance_sq);
   }
   return r - std::sqrt(nearest2);
@@ -236,7 +226,6 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
   std::vector<Vec3> x_published = x;
   std::vector<Vec3> v_published(x.size(), Vec3::Zero());
   SideTracker trackers[4];
-  std::vector<double> dist(x.size());
   ClothView views[4];
   Vec3 last_force[4];
   Vec3 last_ref = Vec3::Zero();
@@ -295,12 +284,13 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
     }
     // How deep each proxy reached into its cloth, measured after every mode's tick so that the
     // measurement's memory traffic does not land between two timed ticks.
-    res.reference_max_penetration_m = std::max(
-        res.reference_max_penetration_m, Penetration(ClothView::Of(ref_snap), model.triangles,
-                                                     ref_state.body.p_W_m, device.radius_m, &dist));
+    res.reference_max_penetration_m =
+        std::max(res.reference_max_penetration_m,
+                 Penetration(ClothView::Of(ref_snap), model.triangles.size(), ref_state.body.p_W_m,
+                             device.radius_m));
     for (int m = 0; m < 4; ++m) {
       const double depth =
-          Penetration(views[m], model.triangles, states[m].body.p_W_m, device.radius_m, &dist);
+          Penetration(views[m], model.triangles.size(), states[m].body.p_W_m, device.radius_m);
       ModeStats& ms = res.modes[m];
       ms.max_penetration_m = std::max(ms.max_penetration_m, depth);
       if (depth > kDeepFraction * device.radius_m) ++ms.deep_ticks;
