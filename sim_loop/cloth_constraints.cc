@@ -69,8 +69,8 @@ bool FirstContact(const ObstacleSpec& o, const Vec3& a, const Vec3& b, Vec3* hit
   return false;
 }
 
-// Set by UsePortableProvotKernels: the sweeps ignore AVX2.
-std::atomic<bool> g_provot_portable{false};
+// Set by LimitProvotKernels: the widest kernels the sweeps may use.
+std::atomic<ProvotKernels> g_provot_kernels{ProvotKernels::kWidest};
 
 // Positions of ApplyProvot in structure-of-arrays form, single precision, metres from the first
 // particle (see ApplyProvot), and each particle's movability (1 free, 0 pinned:
@@ -355,14 +355,107 @@ __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t
   return _mm256_movemask_ps(loose) != 0;
 }
 
+// AVX-512F brings fused multiply-add, which GCC would contract a * b + c into (GNU mode's
+// -ffp-contract=fast): these kernels must round every operation as ProjectPair does.
+#pragma GCC push_options
+#pragma GCC optimize("fp-contract=off")
+
+// ProjectLanes on sixteen pairs (AVX-512F): the same operations in the same order, so the same
+// bits. Returns the lanes' loose mask.
+__attribute__((target("avx512f"), always_inline)) inline __mmask16 ProjectLanes16(
+    __m512* px, __m512* py, __m512* pz, __m512* qx, __m512* qy, __m512* qz, __m512 wp, __m512 wq,
+    __m512 max2, __m512 loose2) {
+  const __m512 dx = _mm512_sub_ps(*qx, *px);
+  const __m512 dy = _mm512_sub_ps(*qy, *py);
+  const __m512 dz = _mm512_sub_ps(*qz, *pz);
+  const __m512 len2 = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy)),
+                                    _mm512_mul_ps(dz, dz));
+  // (maskz with every lane: _mm512_max_ps's undefined source trips GCC 12's uninitialised warning)
+  const __m512 excess =
+      _mm512_maskz_max_ps(__mmask16{0xFFFF}, _mm512_sub_ps(len2, max2), _mm512_setzero_ps());
+  const __m512 share = _mm512_sub_ps(_mm512_set1_ps(1.0f),
+                                     _mm512_mul_ps(_mm512_set1_ps(0.5f), _mm512_mul_ps(wp, wq)));
+  const __m512 s =
+      _mm512_mul_ps(_mm512_div_ps(_mm512_mul_ps(_mm512_set1_ps(kProvotRelaxation), excess),
+                                  _mm512_add_ps(len2, max2)),
+                    share);
+  const __m512 sp = _mm512_mul_ps(wp, s), sq = _mm512_mul_ps(wq, s);
+  *px = _mm512_add_ps(*px, _mm512_mul_ps(sp, dx));
+  *py = _mm512_add_ps(*py, _mm512_mul_ps(sp, dy));
+  *pz = _mm512_add_ps(*pz, _mm512_mul_ps(sp, dz));
+  *qx = _mm512_sub_ps(*qx, _mm512_mul_ps(sq, dx));
+  *qy = _mm512_sub_ps(*qy, _mm512_mul_ps(sq, dy));
+  *qz = _mm512_sub_ps(*qz, _mm512_mul_ps(sq, dz));
+  return _mm512_cmp_ps_mask(len2, loose2, _CMP_GT_OQ);
+}
+
+// SweepFamilyAvx2's loop over contiguous ends sixteen pairs at a time, for the families across
+// rows (dr > 0): their runs lie in one row, so a run is no longer than its offset and the taken
+// lanes of a step are independent pairs. A run's last, partial step keeps the untaken lanes' bits
+// (loads up to 15 floats past the run, inside ProvotSoaStride's padding; the q ends are stored
+// last, as in SweepFamilyAvx2).
+__attribute__((target("avx512f"))) bool SweepAcrossRowsAvx512(const ProvotSoa& a, int32_t width,
+                                                              const ProvotFamily& f) {
+  const ProvotLimits lim = ProvotLimitsOf(f);
+  const __m512 max2 = _mm512_set1_ps(lim.max2), loose2 = _mm512_set1_ps(lim.loose2);
+  float* __restrict x = a.x;
+  float* __restrict y = a.y;
+  float* __restrict z = a.z;
+  const float* __restrict w = a.w;
+  const __m512 one = _mm512_set1_ps(1.0f);
+  __mmask16 loose = 0;
+  const ptrdiff_t off = static_cast<ptrdiff_t>(f.dr) * width + f.dc;
+  for (const ProvotFamily::Run& run : f.runs) {
+    for (ptrdiff_t p = run.lo; p < run.hi; p += 16) {
+      const ptrdiff_t q = p + off;
+      const ptrdiff_t count = run.hi - p;
+      const __mmask16 take =
+          count >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << count) - 1u);
+      __m512 px = _mm512_loadu_ps(x + p), py = _mm512_loadu_ps(y + p);
+      __m512 pz = _mm512_loadu_ps(z + p), qx = _mm512_loadu_ps(x + q);
+      __m512 qy = _mm512_loadu_ps(y + q), qz = _mm512_loadu_ps(z + q);
+      __m512 wp = one, wq = one;
+      if (run.pinned) {
+        wp = _mm512_maskz_loadu_ps(take, w + p);
+        wq = _mm512_maskz_loadu_ps(take, w + q);
+      }
+      __m512 np[3] = {px, py, pz}, nq[3] = {qx, qy, qz};
+      loose |= static_cast<__mmask16>(
+          ProjectLanes16(&np[0], &np[1], &np[2], &nq[0], &nq[1], &nq[2], wp, wq, max2, loose2) &
+          take);
+      _mm512_storeu_ps(x + p, _mm512_mask_blend_ps(take, px, np[0]));
+      _mm512_storeu_ps(y + p, _mm512_mask_blend_ps(take, py, np[1]));
+      _mm512_storeu_ps(z + p, _mm512_mask_blend_ps(take, pz, np[2]));
+      _mm512_storeu_ps(x + q, _mm512_mask_blend_ps(take, qx, nq[0]));
+      _mm512_storeu_ps(y + q, _mm512_mask_blend_ps(take, qy, nq[1]));
+      _mm512_storeu_ps(z + q, _mm512_mask_blend_ps(take, qz, nq[2]));
+    }
+  }
+  return loose != 0;
+}
+#pragma GCC pop_options
+
 // True if this CPU runs AVX2 and the tests have not asked for the portable loops.
-bool ProvotUsesAvx2() { return CpuHasAvx2() && !g_provot_portable.load(std::memory_order_relaxed); }
+bool ProvotUsesAvx2() {
+  return CpuHasAvx2() &&
+         g_provot_kernels.load(std::memory_order_relaxed) != ProvotKernels::kPortable;
+}
+
+// True if this CPU runs AVX-512F and the tests have not asked for narrower kernels.
+bool ProvotUsesAvx512() {
+  return CpuHasAvx512f() &&
+         g_provot_kernels.load(std::memory_order_relaxed) == ProvotKernels::kWidest;
+}
 #endif
 
-// One Gauss-Seidel sweep over a family: AVX2 where the CPU has it, else the portable loop.
+// One Gauss-Seidel sweep over a family: AVX-512 (families across rows) or AVX2 where the CPU has
+// it, else the portable loop.
 bool SweepFamily(const ProvotSoa& a, int32_t width, const ProvotFamily& f) {
 #if defined(__x86_64__)
-  if (ProvotUsesAvx2()) return SweepFamilyAvx2(a, width, f);
+  if (ProvotUsesAvx2()) {
+    if (f.dr > 0 && ProvotUsesAvx512()) return SweepAcrossRowsAvx512(a, width, f);
+    return SweepFamilyAvx2(a, width, f);
+  }
 #endif
   return SweepFamilyPortable(a, width, f);
 }
@@ -412,8 +505,8 @@ double ObstacleDistance(const ObstacleSpec& o, const Vec3& p, Vec3* normal) {
   return len - capsule.radius_m;
 }
 
-void UsePortableProvotKernels(bool portable) {
-  g_provot_portable.store(portable, std::memory_order_relaxed);
+void LimitProvotKernels(ProvotKernels widest) {
+  g_provot_kernels.store(widest, std::memory_order_relaxed);
 }
 
 ProvotLimits ProvotLimitsOf(const ProvotFamily& f) {

@@ -100,9 +100,16 @@ struct ProvotLimits {
 /// The limits of family f (computed one way for the kernels and the tests' reference).
 ProvotLimits ProvotLimitsOf(const ProvotFamily& f);
 
-/// Tests only: true makes ApplyProvot use its portable loops even where the CPU has AVX2 (both
-/// give the same bits; this lets one machine check both).
-void UsePortableProvotKernels(bool portable);
+/// The widest vector kernels ApplyProvot's sweeps may use; the CPU may allow fewer. Every level
+/// gives the same bits.
+enum class ProvotKernels {
+  kPortable,  ///< the scalar loops only
+  kAvx2,      ///< AVX2, eight pairs a step
+  kWidest,    ///< also AVX-512F, sixteen pairs a step, for the families across rows (the default)
+};
+
+/// Tests only: limits ApplyProvot's sweeps to `widest` (so one machine checks every level).
+void LimitProvotKernels(ProvotKernels widest);
 
 /// Keeps free particles outside every declared obstacle (surface + margin), sweeping the path
 /// from scratch.x_start so a fast particle cannot tunnel through an obstacle, whether it started

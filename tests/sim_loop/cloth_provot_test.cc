@@ -156,11 +156,12 @@ TEST(ProvotTest, RunsVisitEveryPairOfEveryFamilyOnceAndColoursShareNoParticle) {
 }
 
 TEST(ProvotTest, ColouredSweepsGiveTheBitsOfNaiveGaussSeidel) {
-  // The vector kernels (where the CPU has AVX2) and the portable loops; odd and even grids (the
-  // vector kernels' tails), with and without the multiresolution families and attachments, one
-  // sweep and several.
-  for (bool portable : {false, true}) {
-    UsePortableProvotKernels(portable);
+  // Every kernel level (AVX-512 and AVX2 where the CPU has them) and the portable loops; odd and
+  // even grids (the vector kernels' tails), with and without the multiresolution families and
+  // attachments, one sweep and several.
+  for (ProvotKernels kernels :
+       {ProvotKernels::kWidest, ProvotKernels::kAvx2, ProvotKernels::kPortable}) {
+    LimitProvotKernels(kernels);
     for (int32_t grid : {7, 13, 32, 64}) {
       for (bool multiresolution : {false, true}) {
         for (int32_t iterations : {1, 4}) {
@@ -175,14 +176,16 @@ TEST(ProvotTest, ColouredSweepsGiveTheBitsOfNaiveGaussSeidel) {
           ApplyProvot(model, h, &fast);
           ReferenceProvot(model, h, &naive);
           EXPECT_TRUE(BitwiseEqual(fast.x, naive.x))
-              << grid << " multiresolution " << multiresolution << " sweeps " << iterations;
+              << grid << " multiresolution " << multiresolution << " sweeps " << iterations
+              << " kernels " << static_cast<int>(kernels);
           EXPECT_TRUE(BitwiseEqual(fast.v, naive.v))
-              << grid << " multiresolution " << multiresolution << " sweeps " << iterations;
+              << grid << " multiresolution " << multiresolution << " sweeps " << iterations
+              << " kernels " << static_cast<int>(kernels);
         }
       }
     }
   }
-  UsePortableProvotKernels(false);
+  LimitProvotKernels(ProvotKernels::kWidest);
 }
 
 TEST(ProvotTest, SweepsNeverMovePinsAndOnlyShortenPairs) {
