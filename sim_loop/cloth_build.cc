@@ -245,8 +245,8 @@ std::vector<ProvotFamily::Run> ProvotRuns(const ProvotFamily& f, int32_t width, 
     }
     // Along a row, pairs (c, c + dc): colour (c / dc) mod 2 never holds both ends of two pairs.
     for (int32_t r = 0; r < height; ++r) {
-      if (f.dc <= 2) {
-        // Every second (dc 1) or every other two (dc 2) particle from the first of the colour.
+      if (f.strided()) {
+        // The first dc of every 2 dc particles from the first of the colour (ProvotFamily::runs).
         if (colour * f.dc + f.dc < width) {
           runs.push_back({r * width + colour * f.dc, r * width + width - f.dc});
         }
@@ -317,8 +317,8 @@ std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const Pro
     // A run whose pairs are all free skips the pinned-end shares (most runs of most cloths).
     const auto pinned = [&](int32_t p) { return model.inv_mass_per_kg[p] == 0.0; };
     for (ProvotFamily::Run& run : f.runs) {
-      if (f.dr == 0 && f.dc <= 2) {
-        // Every second (other two) particle of [lo, hi) and its partner: within [lo, hi + dc).
+      if (f.strided()) {
+        // The strided pairs' ends all lie within [lo, hi + dc).
         for (int32_t p = run.lo; p < run.hi + f.dc; ++p) run.pinned |= pinned(p) ? 1 : 0;
         continue;
       }

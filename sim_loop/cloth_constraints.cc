@@ -118,20 +118,14 @@ bool ProjectRun(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, ptrdiff_t off, f
   return loose;
 }
 
-// Pairs (c, c + 1) for c = lo, lo + 2, ... < hi.
-bool ProjectNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, float max2, float loose2) {
+// Pairs (c + k, c + k + dc) for c = lo, lo + 2 dc, ... and k < dc, c + k < hi (a strided run).
+bool ProjectStrided(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, ptrdiff_t dc, float max2,
+                    float loose2) {
   bool loose = false;
-  for (ptrdiff_t c = lo; c < hi; c += 2) loose = ProjectPair(a, c, c + 1, max2, loose2) || loose;
-  return loose;
-}
-
-// Pairs (c, c + 2) for c in {lo, lo + 1} + 4 k, c < hi.
-bool ProjectSecondNeighbours(const ProvotSoa& a, ptrdiff_t lo, ptrdiff_t hi, float max2,
-                             float loose2) {
-  bool loose = false;
-  for (ptrdiff_t c = lo; c < hi; c += 4) {
-    loose = ProjectPair(a, c, c + 2, max2, loose2) || loose;
-    if (c + 1 < hi) loose = ProjectPair(a, c + 1, c + 3, max2, loose2) || loose;
+  for (ptrdiff_t c = lo; c < hi; c += 2 * dc) {
+    for (ptrdiff_t p = c; p < std::min(c + dc, hi); ++p) {
+      loose = ProjectPair(a, p, p + dc, max2, loose2) || loose;
+    }
   }
   return loose;
 }
@@ -143,10 +137,8 @@ bool SweepFamilyPortable(const ProvotSoa& a, int32_t width, const ProvotFamily& 
   const ptrdiff_t off = static_cast<ptrdiff_t>(f.dr) * width + f.dc;
   bool loose = false;
   for (const ProvotFamily::Run& run : f.runs) {
-    if (f.dr == 0 && f.dc == 1) {
-      loose = ProjectNeighbours(a, run.lo, run.hi, lim.max2, lim.loose2) || loose;
-    } else if (f.dr == 0 && f.dc == 2) {
-      loose = ProjectSecondNeighbours(a, run.lo, run.hi, lim.max2, lim.loose2) || loose;
+    if (f.strided()) {
+      loose = ProjectStrided(a, run.lo, run.hi, f.dc, lim.max2, lim.loose2) || loose;
     } else {
       loose = ProjectRun(a, run.lo, run.hi, off, lim.max2, lim.loose2) || loose;
     }
@@ -184,8 +176,9 @@ __attribute__((target("avx2"), always_inline)) inline __m256 ProjectLanes(
 
 // The lane shuffles that split two loads of eight particles of a row (c .. c + 15) into the eight
 // pairs (c, c + kDc) of one colour, p ends and q ends, and join them back. kDc = 1: the even
-// particles against the odd ones; kDc = 2: the first two of every four against the last two. The
-// lane order does not matter: the pairs are independent.
+// particles against the odd ones; kDc = 2: the first two of every four against the last two;
+// kDc = 4: the first four of every eight against the last four; kDc = 8: the first eight against
+// the last eight. The lane order does not matter: the pairs are independent.
 template <int kDc>
 struct PairShuffle;
 
@@ -221,12 +214,42 @@ struct PairShuffle<2> {
   }
 };
 
+template <>
+struct PairShuffle<4> {
+  __attribute__((target("avx2"), always_inline)) static __m256 P(__m256 lo, __m256 hi) {
+    return _mm256_permute2f128_ps(lo, hi, 0x20);  // c .. c + 3 | c + 8 .. c + 11
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Q(__m256 lo, __m256 hi) {
+    return _mm256_permute2f128_ps(lo, hi, 0x31);  // c + 4 .. c + 7 | c + 12 .. c + 15
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Lo(__m256 p, __m256 q) {
+    return _mm256_permute2f128_ps(p, q, 0x20);  // c .. c + 7
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Hi(__m256 p, __m256 q) {
+    return _mm256_permute2f128_ps(p, q, 0x31);  // c + 8 .. c + 15
+  }
+};
+
+template <>
+struct PairShuffle<8> {
+  __attribute__((target("avx2"), always_inline)) static __m256 P(__m256 lo, __m256) {
+    return lo;  // c .. c + 7
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Q(__m256, __m256 hi) {
+    return hi;  // c + 8 .. c + 15
+  }
+  __attribute__((target("avx2"), always_inline)) static __m256 Lo(__m256 p, __m256) { return p; }
+  __attribute__((target("avx2"), always_inline)) static __m256 Hi(__m256, __m256 q) { return q; }
+};
+
 // Lane offsets, from the step's first particle c, of the p end of each pair PairShuffle<kDc>::P
 // puts in a lane: a pair takes part in a step's last, partial group if its p end is in the run.
 template <int kDc>
 __attribute__((target("avx2"), always_inline)) inline __m256i PairStarts() {
   if constexpr (kDc == 1) return _mm256_setr_epi32(0, 2, 8, 10, 4, 6, 12, 14);
-  return _mm256_setr_epi32(0, 1, 8, 9, 4, 5, 12, 13);
+  if constexpr (kDc == 2) return _mm256_setr_epi32(0, 1, 8, 9, 4, 5, 12, 13);
+  if constexpr (kDc == 4) return _mm256_setr_epi32(0, 1, 2, 3, 8, 9, 10, 11);
+  return _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
 }
 
 // Lanes k of eight whose offset[k] < count, as a mask (all bits set in a taken lane).
@@ -253,10 +276,10 @@ __attribute__((target("avx2"), always_inline)) inline __m256 ProjectTaken(
   return _mm256_and_ps(loose, take);
 }
 
-// The runs of a family along a row with dc = kDc (1 or 2), sixteen particles and eight pairs per
-// step (PairShuffle); a run's last, partial step projects only the pairs that start in the run
-// (ProjectTaken; its loads may reach up to 15 floats past the run, inside ProvotSoaStride's
-// padding). Returns the lanes' loose mask.
+// The strided runs of a family along a row with dc = kDc (1, 2, 4 or 8), sixteen particles and
+// eight pairs per step (PairShuffle); a run's last, partial step projects only the pairs that start
+// in the run (ProjectTaken; its loads may reach up to 15 floats past the run, inside
+// ProvotSoaStride's padding). Returns the lanes' loose mask.
 template <int kDc>
 __attribute__((target("avx2"))) __m256 SweepShuffledRunsAvx2(const ProvotSoa& a,
                                                              const ProvotFamily& f,
@@ -309,8 +332,20 @@ __attribute__((target("avx2"))) __m256 SweepShuffledRunsAvx2(const ProvotSoa& a,
 __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t width,
                                                      const ProvotFamily& f) {
   const ProvotLimits lim = ProvotLimitsOf(f);
-  if (f.dr == 0 && f.dc == 1) return _mm256_movemask_ps(SweepShuffledRunsAvx2<1>(a, f, lim)) != 0;
-  if (f.dr == 0 && f.dc == 2) return _mm256_movemask_ps(SweepShuffledRunsAvx2<2>(a, f, lim)) != 0;
+  if (f.strided()) {
+    switch (f.dc) {
+      case 1:
+        return _mm256_movemask_ps(SweepShuffledRunsAvx2<1>(a, f, lim)) != 0;
+      case 2:
+        return _mm256_movemask_ps(SweepShuffledRunsAvx2<2>(a, f, lim)) != 0;
+      case 4:
+        return _mm256_movemask_ps(SweepShuffledRunsAvx2<4>(a, f, lim)) != 0;
+      case 8:
+        return _mm256_movemask_ps(SweepShuffledRunsAvx2<8>(a, f, lim)) != 0;
+      default:
+        return SweepFamilyPortable(a, width, f);  // not reached: strided() is 1, 2, 4, 8
+    }
+  }
   const __m256 max2 = _mm256_set1_ps(lim.max2), loose2 = _mm256_set1_ps(lim.loose2);
   float* __restrict x = a.x;
   float* __restrict y = a.y;

@@ -31,12 +31,9 @@ std::vector<std::pair<int32_t, int32_t>> PairsOf(const ProvotFamily& f, int32_t 
   std::vector<std::pair<int32_t, int32_t>> pairs;
   const int32_t off = f.dr * width + f.dc;
   for (const ProvotFamily::Run& run : f.runs) {
-    if (f.dr == 0 && f.dc == 1) {
-      for (int32_t c = run.lo; c < run.hi; c += 2) pairs.emplace_back(c, c + 1);
-    } else if (f.dr == 0 && f.dc == 2) {
-      for (int32_t c = run.lo; c < run.hi; c += 4) {
-        pairs.emplace_back(c, c + 2);
-        if (c + 1 < run.hi) pairs.emplace_back(c + 1, c + 3);
+    if (f.strided()) {
+      for (int32_t c = run.lo; c < run.hi; c += 2 * f.dc) {
+        for (int32_t k = 0; k < f.dc && c + k < run.hi; ++k) pairs.emplace_back(c + k, c + k + f.dc);
       }
     } else {
       for (int32_t p = run.lo; p < run.hi; ++p) pairs.emplace_back(p, p + off);
