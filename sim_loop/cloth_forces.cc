@@ -164,6 +164,79 @@ __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
   if (p < hi) FamilySpringForces(a, family, off, p, hi);
 }
 
+// One spring of FamilySpringForces (end i at p, end j at p + off) added to both ends at once:
+// f_i += s, f_j -= s, with the same operations as the portable loop (the same s, bit for bit).
+inline void SpringForceBothEnds(const SoaViews& a, const SpringFamily& family, ptrdiff_t off,
+                                ptrdiff_t p) {
+  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
+  const double k = family.stiffness_N_per_m, c = family.damping_N_s_per_m;
+  const double rest = family.rest_length_m;
+  const ptrdiff_t q = p + off;
+  const double dx = a.x[q] - a.x[p], dy = a.y[q] - a.y[p], dz = a.z[q] - a.z[p];
+  const double len2 = dx * dx + dy * dy + dz * dz;
+  const double live = len2 > kMinLength2 ? 1.0 : 0.0;
+  const double len = std::sqrt(len2 > kMinLength2 ? len2 : kMinLength2);
+  const double inv_len = 1.0 / len;
+  const double rel_speed =
+      ((a.vx[q] - a.vx[p]) * dx + (a.vy[q] - a.vy[p]) * dy + (a.vz[q] - a.vz[p]) * dz) * inv_len;
+  const double scale = live * (k * (len - rest) + c * rel_speed) * inv_len;
+  const double sx = scale * dx, sy = scale * dy, sz = scale * dz;
+  a.fx[p] += sx;
+  a.fy[p] += sy;
+  a.fz[p] += sz;
+  a.fx[q] -= sx;
+  a.fy[q] -= sy;
+  a.fz[q] -= sz;
+}
+
+// FamilySpringForcesAvx2 and the end-j pass of AddFamilyForces in one, for off >= 4 (a step's four
+// j ends are never its own i ends). The springs go from the highest i down, so that each particle
+// still takes its term as end i (when i = p) before its term as end j (when i = p - off, later):
+// the same order, so the same bits, as the two passes. Saves storing s and reading it back.
+__attribute__((target("avx2"))) void FamilySpringForcesBothEndsAvx2(const SoaViews& a,
+                                                                    const SpringFamily& family,
+                                                                    ptrdiff_t off, ptrdiff_t lo,
+                                                                    ptrdiff_t hi) {
+  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
+  const __m256d k = _mm256_set1_pd(family.stiffness_N_per_m);
+  const __m256d c = _mm256_set1_pd(family.damping_N_s_per_m);
+  const __m256d rest = _mm256_set1_pd(family.rest_length_m);
+  const __m256d min2 = _mm256_set1_pd(kMinLength2);
+  const __m256d one = _mm256_set1_pd(1.0);
+  const ptrdiff_t vector_end = lo + (hi - lo) / 4 * 4;
+  for (ptrdiff_t p = hi - 1; p >= vector_end; --p) SpringForceBothEnds(a, family, off, p);
+  for (ptrdiff_t p = vector_end - 4; p >= lo; p -= 4) {
+    const ptrdiff_t q = p + off;
+    const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(a.x + q), _mm256_loadu_pd(a.x + p));
+    const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(a.y + q), _mm256_loadu_pd(a.y + p));
+    const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(a.z + q), _mm256_loadu_pd(a.z + p));
+    const __m256d len2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+                                       _mm256_mul_pd(dz, dz));
+    const __m256d live_mask = _mm256_cmp_pd(len2, min2, _CMP_GT_OQ);
+    const __m256d live = _mm256_and_pd(live_mask, one);
+    const __m256d len = _mm256_sqrt_pd(_mm256_blendv_pd(min2, len2, live_mask));
+    const __m256d inv_len = _mm256_div_pd(one, len);
+    const __m256d dvx = _mm256_sub_pd(_mm256_loadu_pd(a.vx + q), _mm256_loadu_pd(a.vx + p));
+    const __m256d dvy = _mm256_sub_pd(_mm256_loadu_pd(a.vy + q), _mm256_loadu_pd(a.vy + p));
+    const __m256d dvz = _mm256_sub_pd(_mm256_loadu_pd(a.vz + q), _mm256_loadu_pd(a.vz + p));
+    const __m256d rel_speed =
+        _mm256_mul_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dvx, dx), _mm256_mul_pd(dvy, dy)),
+                                    _mm256_mul_pd(dvz, dz)),
+                      inv_len);
+    const __m256d magnitude =
+        _mm256_add_pd(_mm256_mul_pd(k, _mm256_sub_pd(len, rest)), _mm256_mul_pd(c, rel_speed));
+    const __m256d scale = _mm256_mul_pd(_mm256_mul_pd(live, magnitude), inv_len);
+    const __m256d sx = _mm256_mul_pd(scale, dx);
+    const __m256d sy = _mm256_mul_pd(scale, dy);
+    const __m256d sz = _mm256_mul_pd(scale, dz);
+    _mm256_storeu_pd(a.fx + p, _mm256_add_pd(_mm256_loadu_pd(a.fx + p), sx));
+    _mm256_storeu_pd(a.fy + p, _mm256_add_pd(_mm256_loadu_pd(a.fy + p), sy));
+    _mm256_storeu_pd(a.fz + p, _mm256_add_pd(_mm256_loadu_pd(a.fz + p), sz));
+    _mm256_storeu_pd(a.fx + q, _mm256_sub_pd(_mm256_loadu_pd(a.fx + q), sx));
+    _mm256_storeu_pd(a.fy + q, _mm256_sub_pd(_mm256_loadu_pd(a.fy + q), sy));
+    _mm256_storeu_pd(a.fz + q, _mm256_sub_pd(_mm256_loadu_pd(a.fz + q), sz));
+  }
+}
 #endif
 
 // The family's spring forces into s[lo, hi): AVX2 where available, else the portable loop.
@@ -234,12 +307,23 @@ void SplitState(const double* __restrict x, const double* __restrict v, const do
 // Adds every spring of `family` to the forces: f_i += s, f_j -= s (grid stencil, no indices).
 // Row by row over the columns [c_lo, c_hi) where springs start: every end i first (fused into the
 // kernel), then every end j = i + off, so each particle's sum takes its terms in the same order
-// as one pass of each over the whole grid.
+// as one pass of each over the whole grid. With AVX2 and off >= 4, one pass does both ends in
+// that same order per particle (FamilySpringForcesBothEndsAvx2).
 void AddFamilyForces(const SoaViews& a, int32_t width, int32_t height, const SpringFamily& family) {
   const int32_t c_lo = std::max(0, -family.dc), c_hi = width - std::max(0, family.dc);
   const int32_t rows = height - family.dr;
   if (rows <= 0 || c_hi <= c_lo) return;
   const ptrdiff_t off = static_cast<ptrdiff_t>(family.dr) * width + family.dc;
+#if defined(__x86_64__)
+  if (off >= 4 && CpuHasAvx2()) {
+    // Both ends in one pass, from the last row and column down (FamilySpringForcesBothEndsAvx2).
+    for (int32_t r = rows - 1; r >= 0; --r) {
+      const ptrdiff_t row = static_cast<ptrdiff_t>(r) * width;
+      FamilySpringForcesBothEndsAvx2(a, family, off, row + c_lo, row + c_hi);
+    }
+    return;
+  }
+#endif
   for (int32_t r = 0; r < rows; ++r) {
     const ptrdiff_t row = static_cast<ptrdiff_t>(r) * width;
     FamilySpringForcesBest(a, family, off, row + c_lo, row + c_hi);
