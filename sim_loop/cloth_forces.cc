@@ -116,44 +116,60 @@ void FamilySpringForces(const SoaViews& a, const SpringFamily& family, ptrdiff_t
 }
 
 #if defined(__x86_64__)
+// A spring family's constants in AVX2 lanes.
+struct FamilyLanes {
+  __m256d k, c, rest, min2, one;
+};
+
+__attribute__((target("avx2"), always_inline)) inline FamilyLanes LanesOf(
+    const SpringFamily& family) {
+  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
+  return {_mm256_set1_pd(family.stiffness_N_per_m), _mm256_set1_pd(family.damping_N_s_per_m),
+          _mm256_set1_pd(family.rest_length_m), _mm256_set1_pd(kMinLength2), _mm256_set1_pd(1.0)};
+}
+
+// The forces s of the four springs with end i at p .. p + 3 and end j at q = p + off .. q + 3:
+// FamilySpringForces' operations in the same order, no fused multiply-add (the same bits).
+__attribute__((target("avx2"), always_inline)) inline void SpringLanes(const SoaViews& a,
+                                                                       const FamilyLanes& f,
+                                                                       ptrdiff_t p, ptrdiff_t q,
+                                                                       __m256d* sx, __m256d* sy,
+                                                                       __m256d* sz) {
+  const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(a.x + q), _mm256_loadu_pd(a.x + p));
+  const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(a.y + q), _mm256_loadu_pd(a.y + p));
+  const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(a.z + q), _mm256_loadu_pd(a.z + p));
+  const __m256d len2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+                                     _mm256_mul_pd(dz, dz));
+  const __m256d live_mask = _mm256_cmp_pd(len2, f.min2, _CMP_GT_OQ);
+  const __m256d live = _mm256_and_pd(live_mask, f.one);
+  const __m256d len = _mm256_sqrt_pd(_mm256_blendv_pd(f.min2, len2, live_mask));
+  const __m256d inv_len = _mm256_div_pd(f.one, len);
+  const __m256d dvx = _mm256_sub_pd(_mm256_loadu_pd(a.vx + q), _mm256_loadu_pd(a.vx + p));
+  const __m256d dvy = _mm256_sub_pd(_mm256_loadu_pd(a.vy + q), _mm256_loadu_pd(a.vy + p));
+  const __m256d dvz = _mm256_sub_pd(_mm256_loadu_pd(a.vz + q), _mm256_loadu_pd(a.vz + p));
+  const __m256d rel_speed =
+      _mm256_mul_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dvx, dx), _mm256_mul_pd(dvy, dy)),
+                                  _mm256_mul_pd(dvz, dz)),
+                    inv_len);
+  const __m256d magnitude =
+      _mm256_add_pd(_mm256_mul_pd(f.k, _mm256_sub_pd(len, f.rest)), _mm256_mul_pd(f.c, rel_speed));
+  const __m256d scale = _mm256_mul_pd(_mm256_mul_pd(live, magnitude), inv_len);
+  *sx = _mm256_mul_pd(scale, dx);
+  *sy = _mm256_mul_pd(scale, dy);
+  *sz = _mm256_mul_pd(scale, dz);
+}
+
 // FamilySpringForces four springs at a time with AVX2, where the CPU has it (the build targets
-// baseline x86-64, whose SSE2 has no 4-wide double). The same operations in the same order, no
-// fused multiply-add: the same bits as the portable loop.
+// baseline x86-64, whose SSE2 has no 4-wide double): the same bits as the portable loop.
 __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
                                                             const SpringFamily& family,
                                                             ptrdiff_t off, ptrdiff_t lo,
                                                             ptrdiff_t hi) {
-  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
-  const __m256d k = _mm256_set1_pd(family.stiffness_N_per_m);
-  const __m256d c = _mm256_set1_pd(family.damping_N_s_per_m);
-  const __m256d rest = _mm256_set1_pd(family.rest_length_m);
-  const __m256d min2 = _mm256_set1_pd(kMinLength2);
-  const __m256d one = _mm256_set1_pd(1.0);
+  const FamilyLanes f = LanesOf(family);
   ptrdiff_t p = lo;
   for (; p + 4 <= hi; p += 4) {
-    const ptrdiff_t q = p + off;
-    const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(a.x + q), _mm256_loadu_pd(a.x + p));
-    const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(a.y + q), _mm256_loadu_pd(a.y + p));
-    const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(a.z + q), _mm256_loadu_pd(a.z + p));
-    const __m256d len2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
-                                       _mm256_mul_pd(dz, dz));
-    const __m256d live_mask = _mm256_cmp_pd(len2, min2, _CMP_GT_OQ);
-    const __m256d live = _mm256_and_pd(live_mask, one);
-    const __m256d len = _mm256_sqrt_pd(_mm256_blendv_pd(min2, len2, live_mask));
-    const __m256d inv_len = _mm256_div_pd(one, len);
-    const __m256d dvx = _mm256_sub_pd(_mm256_loadu_pd(a.vx + q), _mm256_loadu_pd(a.vx + p));
-    const __m256d dvy = _mm256_sub_pd(_mm256_loadu_pd(a.vy + q), _mm256_loadu_pd(a.vy + p));
-    const __m256d dvz = _mm256_sub_pd(_mm256_loadu_pd(a.vz + q), _mm256_loadu_pd(a.vz + p));
-    const __m256d rel_speed =
-        _mm256_mul_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dvx, dx), _mm256_mul_pd(dvy, dy)),
-                                    _mm256_mul_pd(dvz, dz)),
-                      inv_len);
-    const __m256d magnitude =
-        _mm256_add_pd(_mm256_mul_pd(k, _mm256_sub_pd(len, rest)), _mm256_mul_pd(c, rel_speed));
-    const __m256d scale = _mm256_mul_pd(_mm256_mul_pd(live, magnitude), inv_len);
-    const __m256d sx = _mm256_mul_pd(scale, dx);
-    const __m256d sy = _mm256_mul_pd(scale, dy);
-    const __m256d sz = _mm256_mul_pd(scale, dz);
+    __m256d sx, sy, sz;
+    SpringLanes(a, f, p, p + off, &sx, &sy, &sz);
     _mm256_storeu_pd(a.sx + p, sx);
     _mm256_storeu_pd(a.sy + p, sy);
     _mm256_storeu_pd(a.sz + p, sz);
@@ -197,38 +213,13 @@ __attribute__((target("avx2"))) void FamilySpringForcesBothEndsAvx2(const SoaVie
                                                                     const SpringFamily& family,
                                                                     ptrdiff_t off, ptrdiff_t lo,
                                                                     ptrdiff_t hi) {
-  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
-  const __m256d k = _mm256_set1_pd(family.stiffness_N_per_m);
-  const __m256d c = _mm256_set1_pd(family.damping_N_s_per_m);
-  const __m256d rest = _mm256_set1_pd(family.rest_length_m);
-  const __m256d min2 = _mm256_set1_pd(kMinLength2);
-  const __m256d one = _mm256_set1_pd(1.0);
+  const FamilyLanes f = LanesOf(family);
   const ptrdiff_t vector_end = lo + (hi - lo) / 4 * 4;
   for (ptrdiff_t p = hi - 1; p >= vector_end; --p) SpringForceBothEnds(a, family, off, p);
   for (ptrdiff_t p = vector_end - 4; p >= lo; p -= 4) {
     const ptrdiff_t q = p + off;
-    const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(a.x + q), _mm256_loadu_pd(a.x + p));
-    const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(a.y + q), _mm256_loadu_pd(a.y + p));
-    const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(a.z + q), _mm256_loadu_pd(a.z + p));
-    const __m256d len2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
-                                       _mm256_mul_pd(dz, dz));
-    const __m256d live_mask = _mm256_cmp_pd(len2, min2, _CMP_GT_OQ);
-    const __m256d live = _mm256_and_pd(live_mask, one);
-    const __m256d len = _mm256_sqrt_pd(_mm256_blendv_pd(min2, len2, live_mask));
-    const __m256d inv_len = _mm256_div_pd(one, len);
-    const __m256d dvx = _mm256_sub_pd(_mm256_loadu_pd(a.vx + q), _mm256_loadu_pd(a.vx + p));
-    const __m256d dvy = _mm256_sub_pd(_mm256_loadu_pd(a.vy + q), _mm256_loadu_pd(a.vy + p));
-    const __m256d dvz = _mm256_sub_pd(_mm256_loadu_pd(a.vz + q), _mm256_loadu_pd(a.vz + p));
-    const __m256d rel_speed =
-        _mm256_mul_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dvx, dx), _mm256_mul_pd(dvy, dy)),
-                                    _mm256_mul_pd(dvz, dz)),
-                      inv_len);
-    const __m256d magnitude =
-        _mm256_add_pd(_mm256_mul_pd(k, _mm256_sub_pd(len, rest)), _mm256_mul_pd(c, rel_speed));
-    const __m256d scale = _mm256_mul_pd(_mm256_mul_pd(live, magnitude), inv_len);
-    const __m256d sx = _mm256_mul_pd(scale, dx);
-    const __m256d sy = _mm256_mul_pd(scale, dy);
-    const __m256d sz = _mm256_mul_pd(scale, dz);
+    __m256d sx, sy, sz;
+    SpringLanes(a, f, p, q, &sx, &sy, &sz);
     _mm256_storeu_pd(a.fx + p, _mm256_add_pd(_mm256_loadu_pd(a.fx + p), sx));
     _mm256_storeu_pd(a.fy + p, _mm256_add_pd(_mm256_loadu_pd(a.fy + p), sy));
     _mm256_storeu_pd(a.fz + p, _mm256_add_pd(_mm256_loadu_pd(a.fz + p), sz));
