@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "haptic_loop/json_writer.h"
+#include "sim_loop/cpu_features.h"
 #include "sim_loop/scene_file.h"
 
 namespace felt::bench {
@@ -83,6 +84,7 @@ MachineInfo ReadMachineInfo() {
     }
   }
   if (info.affinity.empty()) info.affinity = "unknown";
+  info.vector_kernels = CpuHasAvx2() ? (CpuHasAvx512f() ? "avx512f+avx2" : "avx2") : "portable";
   return info;
 }
 
@@ -92,7 +94,8 @@ std::string ReportHeader(std::string_view title, std::string_view command, const
   out << "# " << title << "\n\n"
       << "Command: `" << command << "` (Release build, one thread)\n\n"
       << "- Machine: " << start.cpus_online << " CPUs online (nproc), " << start.cpu_model
-      << "; this process: niceness " << start.niceness << ", CPUs " << start.affinity << "\n"
+      << "; this process: niceness " << start.niceness << ", CPUs " << start.affinity
+      << "; sim vector kernels: " << start.vector_kernels << "\n"
       << "- Date: " << start.date_utc << "\n"
       << "- Load average (1, 5, 15 min) at the start: " << start.load_average
       << "; at the end: " << load_at_end << "\n\n";
@@ -169,6 +172,7 @@ std::string MachineJson(const MachineInfo& machine) {
       .String("load_average", machine.load_average)
       .Integer("niceness", machine.niceness)
       .String("affinity", machine.affinity)
+      .String("vector_kernels", machine.vector_kernels)
       .str();
 }
 

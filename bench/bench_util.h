@@ -34,6 +34,9 @@ struct MachineInfo {
   std::string load_average;  ///< the first three fields of /proc/loadavg
   int niceness = 0;          ///< getpriority(PRIO_PROCESS, 0)
   std::string affinity;      ///< CPUs this process may run on, e.g. "0-1" or "1"
+  /// The widest vector kernels the sim's run-time dispatch picks on this CPU: "avx512f+avx2"
+  /// (Provot's families across rows on AVX-512F, the rest on AVX2), "avx2" or "portable".
+  std::string vector_kernels;
 };
 
 /// Reads the machine's description now.
@@ -79,7 +82,7 @@ class JsonRecord {
 std::string JsonArray(const std::vector<std::string>& items, int indent);
 
 /// A JSON object of the machine's description (cpus_online, cpu_model, date_utc, load_average,
-/// niceness, affinity).
+/// niceness, affinity, vector_kernels).
 std::string MachineJson(const MachineInfo& machine);
 
 /// A Markdown table: a header row, the alignment row (numbers right-aligned: `right` per column),
