@@ -115,6 +115,11 @@ void FamilySpringForces(const SoaViews& a, const SpringFamily& family, ptrdiff_t
   }
 }
 
+// f[k] -= s[k] for k < count (restrict parameters: the compiler vectorises it).
+void SubtractFrom(double* __restrict f, const double* __restrict s, ptrdiff_t count) {
+  for (ptrdiff_t k = 0; k < count; ++k) f[k] -= s[k];
+}
+
 #if defined(__x86_64__)
 // A spring family's constants in AVX2 lanes.
 struct FamilyLanes {
@@ -180,31 +185,6 @@ __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
   if (p < hi) FamilySpringForces(a, family, off, p, hi);
 }
 
-// One spring of FamilySpringForces (end i at p, end j at p + off) added to both ends at once:
-// f_i += s, f_j -= s, with the same operations as the portable loop (the same s, bit for bit).
-inline void SpringForceBothEnds(const SoaViews& a, const SpringFamily& family, ptrdiff_t off,
-                                ptrdiff_t p) {
-  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
-  const double k = family.stiffness_N_per_m, c = family.damping_N_s_per_m;
-  const double rest = family.rest_length_m;
-  const ptrdiff_t q = p + off;
-  const double dx = a.x[q] - a.x[p], dy = a.y[q] - a.y[p], dz = a.z[q] - a.z[p];
-  const double len2 = dx * dx + dy * dy + dz * dz;
-  const double live = len2 > kMinLength2 ? 1.0 : 0.0;
-  const double len = std::sqrt(len2 > kMinLength2 ? len2 : kMinLength2);
-  const double inv_len = 1.0 / len;
-  const double rel_speed =
-      ((a.vx[q] - a.vx[p]) * dx + (a.vy[q] - a.vy[p]) * dy + (a.vz[q] - a.vz[p]) * dz) * inv_len;
-  const double scale = live * (k * (len - rest) + c * rel_speed) * inv_len;
-  const double sx = scale * dx, sy = scale * dy, sz = scale * dz;
-  a.fx[p] += sx;
-  a.fy[p] += sy;
-  a.fz[p] += sz;
-  a.fx[q] -= sx;
-  a.fy[q] -= sy;
-  a.fz[q] -= sz;
-}
-
 // FamilySpringForcesAvx2 and the end-j pass of AddFamilyForces in one, for off >= 4 (a step's four
 // j ends are never its own i ends). The springs go from the highest i down, so that each particle
 // still takes its term as end i (when i = p) before its term as end j (when i = p - off, later):
@@ -215,7 +195,14 @@ __attribute__((target("avx2"))) void FamilySpringForcesBothEndsAvx2(const SoaVie
                                                                     ptrdiff_t hi) {
   const FamilyLanes f = LanesOf(family);
   const ptrdiff_t vector_end = lo + (hi - lo) / 4 * 4;
-  for (ptrdiff_t p = hi - 1; p >= vector_end; --p) SpringForceBothEnds(a, family, off, p);
+  // The tail first (the highest i): its end-i terms, then its end-j terms (fewer than four
+  // springs, so none of their j ends is one of their i ends).
+  if (vector_end < hi) {
+    FamilySpringForces(a, family, off, vector_end, hi);
+    SubtractFrom(a.fx + vector_end + off, a.sx + vector_end, hi - vector_end);
+    SubtractFrom(a.fy + vector_end + off, a.sy + vector_end, hi - vector_end);
+    SubtractFrom(a.fz + vector_end + off, a.sz + vector_end, hi - vector_end);
+  }
   for (ptrdiff_t p = vector_end - 4; p >= lo; p -= 4) {
     const ptrdiff_t q = p + off;
     __m256d sx, sy, sz;
@@ -240,11 +227,6 @@ void FamilySpringForcesBest(const SoaViews& a, const SpringFamily& family, ptrdi
   }
 #endif
   FamilySpringForces(a, family, off, lo, hi);
-}
-
-// f[k] -= s[k] for k < count (restrict parameters: the compiler vectorises it).
-void SubtractFrom(double* __restrict f, const double* __restrict s, ptrdiff_t count) {
-  for (ptrdiff_t k = 0; k < count; ++k) f[k] -= s[k];
 }
 
 #if defined(__x86_64__)
