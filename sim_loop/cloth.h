@@ -129,8 +129,9 @@ struct ClothModel {
   /// Provot's constraint families in sweep order: multiresolution ones coarsest first, then the
   /// structural (+ shear) spring families. Empty when Provot is off.
   std::vector<ProvotFamily> provot_families;
-  std::vector<float> provot_movable;          ///< [width*height] 1 for a free particle, 0 for a pin
-  std::vector<PinAttachment> attachments;     ///< each free particle to its nearest pin (if any)
+  std::vector<float> provot_movable;  ///< [width*height] 1 for a free particle, 0 for a pin
+  /// Each free particle to the nearest pin of each group of touching pins.
+  std::vector<PinAttachment> attachments;
   std::vector<SpringFamily> spring_families;  ///< `springs` grouped by type and direction
   /// Bound on the highest natural frequency of the linearised spring system, rad/s, for every
   /// configuration: omega_max^2 = max over wave vectors of the grid Laplacian's symbol / m (see

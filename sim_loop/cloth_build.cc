@@ -21,8 +21,9 @@ namespace {
 // settled structural stretch, frame CPU ms): 64 x 64 with every level (up to 32) 1.1171 / 1.1037,
 // 6.94 ms; up to 16 1.1170 / 1.1038, 6.92 ms; up to 8 1.1152 / 1.1039, 6.24 ms; up to 4 1.1276 /
 // 1.1039, 5.64 ms. 128 x 128: every level (up to 64) 1.1310 / 1.1158, 58.9 ms; up to 8 1.1297 /
-// 1.1136, 50.4 ms. Without the attachments the coarse levels do matter (64 x 64: 1.435 with every
-// level, 1.569 up to 8), so there every level is kept.
+// 1.1136, 50.4 ms (with one attachment per group of pins, two here, rather than to the nearest pin
+// only: 1.1257 / 1.1076). Without the attachments the coarse levels do matter (64 x 64: 1.435 with
+// every level, 1.569 up to 8), so there every level is kept.
 constexpr int32_t kMaxAttachedStride = 8;
 
 constexpr int64_t kMaxParticles = int64_t{1} << 22;  // 2048 x 2048; keeps 3n in int32 range
@@ -329,23 +330,54 @@ std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const Pro
   return out;
 }
 
-// Long range attachments: each free particle to the pinned particle nearest its rest place (ties:
-// the first pinned). Rest distances are geodesic on the flat rest grid.
-std::vector<PinAttachment> BuildAttachments(const ClothModel& model, const ProvotSpec& spec) {
-  std::vector<PinAttachment> out;
-  if (model.pinned.empty()) return out;
-  for (int32_t p = 0; p < model.num_particles(); ++p) {
-    if (model.inv_mass_per_kg[p] == 0.0) continue;
-    double best = std::numeric_limits<double>::infinity();
-    int32_t best_pin = model.pinned.front();
-    for (int32_t q : model.pinned) {
-      const double d = (model.rest_position_m[q] - model.rest_position_m[p]).squaredNorm();
-      if (d < best) {
-        best = d;
-        best_pin = q;
+// The pinned particles in groups that touch on the grid (8-neighbours): a corner, an edge, a rail.
+std::vector<std::vector<int32_t>> PinGroups(const ClothModel& model) {
+  const int32_t w = model.width, h = model.height;
+  std::vector<int32_t> group(static_cast<size_t>(model.num_particles()), -1);
+  std::vector<std::vector<int32_t>> groups;
+  for (int32_t seed : model.pinned) {
+    if (group[static_cast<size_t>(seed)] >= 0) continue;
+    const int32_t g = static_cast<int32_t>(groups.size());
+    std::vector<int32_t>& members = groups.emplace_back(1, seed);
+    group[static_cast<size_t>(seed)] = g;
+    for (size_t head = 0; head < members.size(); ++head) {
+      const int32_t r = members[head] / w, c = members[head] % w;
+      for (int32_t nr = std::max(0, r - 1); nr <= std::min(h - 1, r + 1); ++nr) {
+        for (int32_t nc = std::max(0, c - 1); nc <= std::min(w - 1, c + 1); ++nc) {
+          const size_t q = static_cast<size_t>(nr * w + nc);
+          if (group[q] >= 0 || model.inv_mass_per_kg[q] != 0.0) continue;
+          group[q] = g;
+          members.push_back(static_cast<int32_t>(q));
+        }
       }
     }
-    out.push_back({p, best_pin, (1.0 + spec.max_elongation) * std::sqrt(best)});
+  }
+  return groups;
+}
+
+// Long range attachments (Kim, Chentanez & Mueller 2012): each free particle to the pinned particle
+// nearest its rest place in every group of touching pins (ties: the first in the group), the
+// nearest group first. Rest distances are straight lines on the flat rest grid. One attachment per
+// group: a cloth hung from two corners holds its middle from both (the weight there hangs from
+// both), while the other pins of an edge add little to its nearest one.
+std::vector<PinAttachment> BuildAttachments(const ClothModel& model, const ProvotSpec& spec) {
+  std::vector<PinAttachment> out;
+  const std::vector<std::vector<int32_t>> groups = PinGroups(model);
+  std::vector<std::pair<double, int32_t>> nearest(groups.size());  // per group: (distance^2, pin)
+  for (int32_t p = 0; p < model.num_particles(); ++p) {
+    if (model.inv_mass_per_kg[p] == 0.0) continue;
+    for (size_t g = 0; g < groups.size(); ++g) {
+      nearest[g] = {std::numeric_limits<double>::infinity(), groups[g].front()};
+      for (int32_t q : groups[g]) {
+        const double d = (model.rest_position_m[q] - model.rest_position_m[p]).squaredNorm();
+        if (d < nearest[g].first) nearest[g] = {d, q};
+      }
+    }
+    std::stable_sort(nearest.begin(), nearest.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [d2, pin] : nearest) {
+      out.push_back({p, pin, (1.0 + spec.max_elongation) * std::sqrt(d2)});
+    }
   }
   return out;
 }

@@ -33,7 +33,8 @@ std::vector<std::pair<int32_t, int32_t>> PairsOf(const ProvotFamily& f, int32_t 
   for (const ProvotFamily::Run& run : f.runs) {
     if (f.strided()) {
       for (int32_t c = run.lo; c < run.hi; c += 2 * f.dc) {
-        for (int32_t k = 0; k < f.dc && c + k < run.hi; ++k) pairs.emplace_back(c + k, c + k + f.dc);
+        for (int32_t k = 0; k < f.dc && c + k < run.hi; ++k)
+          pairs.emplace_back(c + k, c + k + f.dc);
       }
     } else {
       for (int32_t p = run.lo; p < run.hi; ++p) pairs.emplace_back(p, p + off);
@@ -149,6 +150,62 @@ TEST(ProvotTest, RunsVisitEveryPairOfEveryFamilyOnceAndColoursShareNoParticle) {
       }
     }
     EXPECT_EQ(ProvotPairCount(model), total);
+  }
+}
+
+TEST(ProvotTest, AttachmentsHoldEveryFreeParticleToTheNearestPinOfEachPinGroup) {
+  // Against a brute-force reference: the groups are the corners or edges declared, each particle
+  // attached to the nearest pin of every group, the nearest group first, at (1 + e) times the
+  // straight rest distance.
+  struct Case {
+    std::vector<PinSpec> pins;
+    std::vector<std::vector<int32_t>> groups;  // by particle index on a 9 x 9 grid
+  };
+  PinSpec top_edge;
+  top_edge.kind = PinKind::kEdge;
+  top_edge.name = "top";
+  PinSpec single;
+  single.kind = PinKind::kParticle;
+  single.col = 4;
+  single.row = 6;
+  std::vector<int32_t> top_row(9);
+  for (int32_t c = 0; c < 9; ++c) top_row[static_cast<size_t>(c)] = c;
+  const std::vector<Case> cases = {
+      {{cloth_test::Corner("top_left"), cloth_test::Corner("top_right")}, {{0}, {8}}},
+      {{top_edge}, {top_row}},
+      {{top_edge, single}, {top_row, {6 * 9 + 4}}},
+      {{cloth_test::Corner("top_left"), cloth_test::Corner("top_right"),
+        cloth_test::Corner("bottom_left")},
+       {{0}, {8}, {72}}},
+  };
+  for (size_t k = 0; k < cases.size(); ++k) {
+    SimSpec spec = Curtain(9);
+    spec.cloth.pins = cases[k].pins;
+    const ClothModel model = BuildClothModel(spec);
+    std::vector<PinAttachment> expected;
+    for (int32_t p = 0; p < model.num_particles(); ++p) {
+      if (model.inv_mass_per_kg[p] == 0.0) continue;
+      std::vector<std::pair<double, int32_t>> nearest;
+      for (const std::vector<int32_t>& group : cases[k].groups) {
+        std::pair<double, int32_t> best{1e300, -1};
+        for (int32_t q : group) {
+          best = std::min(best, {(model.rest_position_m[q] - model.rest_position_m[p]).norm(), q});
+        }
+        nearest.push_back(best);
+      }
+      std::stable_sort(nearest.begin(), nearest.end(),
+                       [](const auto& a, const auto& b) { return a.first < b.first; });
+      for (const auto& [d, q] : nearest) {
+        expected.push_back({p, q, (1.0 + spec.provot.max_elongation) * d});
+      }
+    }
+    ASSERT_EQ(model.attachments.size(), expected.size()) << "case " << k;
+    for (size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_EQ(model.attachments[i].particle, expected[i].particle) << "case " << k << " " << i;
+      EXPECT_EQ(model.attachments[i].pin, expected[i].pin) << "case " << k << " " << i;
+      EXPECT_NEAR(model.attachments[i].max_length_m, expected[i].max_length_m, 1e-12)
+          << "case " << k << " " << i;
+    }
   }
 }
 
