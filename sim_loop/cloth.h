@@ -130,8 +130,15 @@ struct ClothModel {
   /// structural (+ shear) spring families. Empty when Provot is off.
   std::vector<ProvotFamily> provot_families;
   std::vector<float> provot_movable;  ///< [width*height] 1 for a free particle, 0 for a pin
-  /// Each free particle to the nearest pin of each group of touching pins.
+  /// Each free particle to the nearest pin of each group of touching pins (of the four groups
+  /// nearest it at most), particle by particle, the nearest first.
   std::vector<PinAttachment> attachments;
+  /// The same attachments as dense ranks for the vector kernels: rank k < attachment_ranks of
+  /// particle p at [k * width * height + p] is its k-th attachment, pin index and limit length (m,
+  /// single precision); a pinned particle is attached to itself with limit 0, so it never moves.
+  int32_t attachment_ranks = 0;
+  std::vector<int32_t> attachment_pin;
+  std::vector<float> attachment_max_m;        ///< see attachment_pin
   std::vector<SpringFamily> spring_families;  ///< `springs` grouped by type and direction
   /// Bound on the highest natural frequency of the linearised spring system, rad/s, for every
   /// configuration: omega_max^2 = max over wave vectors of the grid Laplacian's symbol / m (see

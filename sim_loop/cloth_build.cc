@@ -25,6 +25,10 @@ namespace {
 // only: 1.1257 / 1.1076). Without the attachments the coarse levels do matter (64 x 64: 1.435 with
 // every level, 1.569 up to 8), so there every level is kept.
 constexpr int32_t kMaxAttachedStride = 8;
+// Long range attachments per free particle at most: to the nearest pin of each of the groups of
+// touching pins nearest it. Every rank costs a pass over the cloth; four covers a cloth hung from
+// its corners, and a scene with many separate pins pays for four.
+constexpr size_t kMaxAttachedGroups = 4;
 
 constexpr int64_t kMaxParticles = int64_t{1} << 22;  // 2048 x 2048; keeps 3n in int32 range
 constexpr int32_t kMaxSubsteps = 100000;             // per nominal frame
@@ -357,9 +361,10 @@ std::vector<std::vector<int32_t>> PinGroups(const ClothModel& model) {
 
 // Long range attachments (Kim, Chentanez & Mueller 2012): each free particle to the pinned particle
 // nearest its rest place in every group of touching pins (ties: the first in the group), the
-// nearest group first. Rest distances are straight lines on the flat rest grid. One attachment per
-// group: a cloth hung from two corners holds its middle from both (the weight there hangs from
-// both), while the other pins of an edge add little to its nearest one.
+// nearest group first, kMaxAttachedGroups groups at most. Rest distances are straight lines on the
+// flat rest grid. One attachment per group: a cloth hung from two corners holds its middle from
+// both (the weight there hangs from both), while the other pins of an edge add little to its
+// nearest one.
 std::vector<PinAttachment> BuildAttachments(const ClothModel& model, const ProvotSpec& spec) {
   std::vector<PinAttachment> out;
   const std::vector<std::vector<int32_t>> groups = PinGroups(model);
@@ -375,11 +380,34 @@ std::vector<PinAttachment> BuildAttachments(const ClothModel& model, const Provo
     }
     std::stable_sort(nearest.begin(), nearest.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (const auto& [d2, pin] : nearest) {
-      out.push_back({p, pin, (1.0 + spec.max_elongation) * std::sqrt(d2)});
+    for (size_t k = 0; k < std::min(nearest.size(), kMaxAttachedGroups); ++k) {
+      out.push_back(
+          {p, nearest[k].second, (1.0 + spec.max_elongation) * std::sqrt(nearest[k].first)});
     }
   }
   return out;
+}
+
+// model->attachments as dense ranks (ClothModel::attachment_pin): every free particle has the same
+// number of attachments, one per pin group up to kMaxAttachedGroups.
+void DenseAttachments(ClothModel* model) {
+  const size_t n = static_cast<size_t>(model->num_particles());
+  size_t free_particles = 0;
+  for (double im : model->inv_mass_per_kg) free_particles += im > 0.0 ? 1 : 0;
+  if (free_particles == 0 || model->attachments.empty()) return;
+  const size_t ranks = model->attachments.size() / free_particles;
+  model->attachment_ranks = static_cast<int32_t>(ranks);
+  model->attachment_pin.resize(ranks * n);
+  model->attachment_max_m.assign(ranks * n, 0.0f);
+  for (size_t k = 0; k < ranks; ++k) {
+    for (size_t p = 0; p < n; ++p) model->attachment_pin[k * n + p] = static_cast<int32_t>(p);
+  }
+  for (size_t i = 0; i < model->attachments.size(); ++i) {
+    const PinAttachment& at = model->attachments[i];
+    const size_t slot = (i % ranks) * n + static_cast<size_t>(at.particle);
+    model->attachment_pin[slot] = at.pin;
+    model->attachment_max_m[slot] = static_cast<float>(at.max_length_m);
+  }
 }
 
 // Largest value over wave vectors theta of the symbol of the grid's weighted Laplacian,
@@ -571,8 +599,10 @@ ClothModel BuildClothModel(const SimSpec& spec) {
     for (size_t p = 0; p < model.inv_mass_per_kg.size(); ++p) {
       model.provot_movable[p] = model.inv_mass_per_kg[p] > 0.0 ? 1.0f : 0.0f;
     }
-    if (spec.provot.long_range_attachments)
+    if (spec.provot.long_range_attachments) {
       model.attachments = BuildAttachments(model, spec.provot);
+      DenseAttachments(&model);
+    }
   }
 
   // Substeps: fixed, or derived from the integrator's stability limit with the safety factor.

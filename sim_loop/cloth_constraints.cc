@@ -146,6 +146,23 @@ bool SweepFamilyPortable(const ProvotSoa& a, int32_t width, const ProvotFamily& 
   return loose;
 }
 
+// Long range attachments of particles [lo, hi), one rank: each particle p outside the ball of
+// radius max_len[p] around particle pin[p] back onto it (Kim, Chentanez & Mueller 2012).
+void ProjectAttachments(const ProvotSoa& a, const int32_t* pin, const float* max_len, size_t lo,
+                        size_t hi) {
+  for (size_t p = lo; p < hi; ++p) {
+    const size_t q = static_cast<size_t>(pin[p]);
+    const float dx = a.x[p] - a.x[q], dy = a.y[p] - a.y[q], dz = a.z[p] - a.z[q];
+    const float len2 = dx * dx + dy * dy + dz * dz;
+    if (len2 <= max_len[p] * max_len[p]) continue;
+    const float len = std::sqrt(len2);
+    const float scale = (len - max_len[p]) / len;
+    a.x[p] -= scale * dx;
+    a.y[p] -= scale * dy;
+    a.z[p] -= scale * dz;
+  }
+}
+
 #if defined(__x86_64__)
 // Eight pairs at once: ProjectPair on registers (p ends px.., q ends qx..), updated in place.
 // Returns the lanes' loose mask.
@@ -559,6 +576,37 @@ bool ProvotUsesAvx512() {
 }
 #endif
 
+// ProjectAttachments eight particles a step: the same operations per lane (a correctly rounded
+// square root and division, no fused multiply-add), so the same bits.
+__attribute__((target("avx2"))) size_t ProjectAttachmentsAvx2(const ProvotSoa& a,
+                                                              const int32_t* pin,
+                                                              const float* max_len, size_t n) {
+  size_t p = 0;
+  for (; p + 8 <= n; p += 8) {
+    const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(pin + p));
+    const __m256 px = _mm256_loadu_ps(a.x + p), py = _mm256_loadu_ps(a.y + p),
+                 pz = _mm256_loadu_ps(a.z + p);
+    const __m256 dx = _mm256_sub_ps(px, _mm256_i32gather_ps(a.x, q, 4));
+    const __m256 dy = _mm256_sub_ps(py, _mm256_i32gather_ps(a.y, q, 4));
+    const __m256 dz = _mm256_sub_ps(pz, _mm256_i32gather_ps(a.z, q, 4));
+    const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                                      _mm256_mul_ps(dz, dz));
+    const __m256 ml = _mm256_loadu_ps(max_len + p);
+    // Moved where not len2 <= max^2 (NaN included), as the scalar test.
+    const __m256 move = _mm256_cmp_ps(len2, _mm256_mul_ps(ml, ml), _CMP_NLE_UQ);
+    if (_mm256_movemask_ps(move) == 0) continue;
+    const __m256 len = _mm256_sqrt_ps(len2);
+    const __m256 scale = _mm256_div_ps(_mm256_sub_ps(len, ml), len);
+    _mm256_storeu_ps(a.x + p,
+                     _mm256_blendv_ps(px, _mm256_sub_ps(px, _mm256_mul_ps(scale, dx)), move));
+    _mm256_storeu_ps(a.y + p,
+                     _mm256_blendv_ps(py, _mm256_sub_ps(py, _mm256_mul_ps(scale, dy)), move));
+    _mm256_storeu_ps(a.z + p,
+                     _mm256_blendv_ps(pz, _mm256_sub_ps(pz, _mm256_mul_ps(scale, dz)), move));
+  }
+  return p;
+}
+
 // One Gauss-Seidel sweep over a family: AVX-512 (families across rows) or AVX2 where the CPU has
 // it, else the portable loop.
 bool SweepFamily(const ProvotSoa& a, int32_t width, const ProvotFamily& f) {
@@ -646,19 +694,16 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
     a.y[p] = static_cast<float>(xo[3 * p + 1] - oy);
     a.z[p] = static_cast<float>(xo[3 * p + 2] - oz);
   }
-  // Long range attachments first: each free particle back into the ball around its pin (Kim,
-  // Chentanez & Mueller 2012); the pin is kinematic, so only the particle moves.
-  for (const PinAttachment& at : model.attachments) {
-    const size_t p = static_cast<size_t>(at.particle), q = static_cast<size_t>(at.pin);
-    const float dx = a.x[p] - a.x[q], dy = a.y[p] - a.y[q], dz = a.z[p] - a.z[q];
-    const float len2 = dx * dx + dy * dy + dz * dz;
-    const float max_len = static_cast<float>(at.max_length_m);
-    if (len2 <= max_len * max_len) continue;
-    const float len = std::sqrt(len2);
-    const float scale = (len - max_len) / len;
-    a.x[p] -= scale * dx;
-    a.y[p] -= scale * dy;
-    a.z[p] -= scale * dz;
+  // Long range attachments first: each free particle back into the ball around its pins (Kim,
+  // Chentanez & Mueller 2012), nearest first; the pins are kinematic, so only the particle moves.
+  for (size_t k = 0; k < static_cast<size_t>(model.attachment_ranks); ++k) {
+    const int32_t* pin = model.attachment_pin.data() + k * n;
+    const float* max_len = model.attachment_max_m.data() + k * n;
+    size_t done = 0;
+#if defined(__x86_64__)
+    if (ProvotUsesAvx2()) done = ProjectAttachmentsAvx2(a, pin, max_len, n);
+#endif
+    ProjectAttachments(a, pin, max_len, done, n);
   }
   // Sweeps over every family, coarse to fine; converged once no pair of a sweep was more than
   // kProvotConverged over its limit.

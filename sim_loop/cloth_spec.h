@@ -136,7 +136,8 @@ struct ProvotSpec {
   int32_t iterations = 3;
   bool shear = true;  ///< also constrain shear springs (structural always)
   /// Also keep every free particle within (1 + max_elongation) times its rest distance of the
-  /// nearest pinned particle of each group of touching pins (long range attachments, Kim,
+  /// nearest pinned particle of each group of touching pins, of the four groups nearest it at
+  /// most (long range attachments, Kim,
   /// Chentanez & Mueller 2012), projected before Provot's sweeps. Pins are kinematic, so this only
   /// removes energy; it stops the stretch that Gauss-Seidel sweeps carry only O(1/N^2) per sweep
   /// down an N-row hanging cloth.

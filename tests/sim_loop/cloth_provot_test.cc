@@ -155,8 +155,8 @@ TEST(ProvotTest, RunsVisitEveryPairOfEveryFamilyOnceAndColoursShareNoParticle) {
 
 TEST(ProvotTest, AttachmentsHoldEveryFreeParticleToTheNearestPinOfEachPinGroup) {
   // Against a brute-force reference: the groups are the corners or edges declared, each particle
-  // attached to the nearest pin of every group, the nearest group first, at (1 + e) times the
-  // straight rest distance.
+  // attached to the nearest pin of every group (of the four nearest groups), the nearest group
+  // first, at (1 + e) times the straight rest distance; and the dense ranks hold the same.
   struct Case {
     std::vector<PinSpec> pins;
     std::vector<std::vector<int32_t>> groups;  // by particle index on a 9 x 9 grid
@@ -177,6 +177,10 @@ TEST(ProvotTest, AttachmentsHoldEveryFreeParticleToTheNearestPinOfEachPinGroup) 
       {{cloth_test::Corner("top_left"), cloth_test::Corner("top_right"),
         cloth_test::Corner("bottom_left")},
        {{0}, {8}, {72}}},
+      // Five groups: the four nearest of each particle.
+      {{cloth_test::Corner("top_left"), cloth_test::Corner("top_right"),
+        cloth_test::Corner("bottom_left"), cloth_test::Corner("bottom_right"), single},
+       {{0}, {8}, {72}, {80}, {6 * 9 + 4}}},
   };
   for (size_t k = 0; k < cases.size(); ++k) {
     SimSpec spec = Curtain(9);
@@ -195,6 +199,7 @@ TEST(ProvotTest, AttachmentsHoldEveryFreeParticleToTheNearestPinOfEachPinGroup) 
       }
       std::stable_sort(nearest.begin(), nearest.end(),
                        [](const auto& a, const auto& b) { return a.first < b.first; });
+      nearest.resize(std::min<size_t>(nearest.size(), 4));
       for (const auto& [d, q] : nearest) {
         expected.push_back({p, q, (1.0 + spec.provot.max_elongation) * d});
       }
@@ -206,6 +211,25 @@ TEST(ProvotTest, AttachmentsHoldEveryFreeParticleToTheNearestPinOfEachPinGroup) 
       EXPECT_NEAR(model.attachments[i].max_length_m, expected[i].max_length_m, 1e-12)
           << "case " << k << " " << i;
     }
+    const size_t n = static_cast<size_t>(model.num_particles());
+    const size_t ranks = std::min<size_t>(cases[k].groups.size(), 4);
+    ASSERT_EQ(model.attachment_ranks, static_cast<int32_t>(ranks)) << "case " << k;
+    size_t next = 0;
+    for (size_t p = 0; p < n; ++p) {
+      for (size_t r = 0; r < ranks; ++r) {
+        const int32_t pin = model.attachment_pin[r * n + p];
+        const float max_len = model.attachment_max_m[r * n + p];
+        if (model.inv_mass_per_kg[p] == 0.0) {
+          EXPECT_EQ(pin, static_cast<int32_t>(p));
+          EXPECT_EQ(max_len, 0.0f);
+          continue;
+        }
+        EXPECT_EQ(pin, expected[next].pin) << "case " << k << " particle " << p << " rank " << r;
+        EXPECT_EQ(max_len, static_cast<float>(expected[next].max_length_m));
+        ++next;
+      }
+    }
+    EXPECT_EQ(next, expected.size());
   }
 }
 
