@@ -137,10 +137,9 @@ struct ProvotSpec {
   bool shear = true;  ///< also constrain shear springs (structural always)
   /// Also keep every free particle within (1 + max_elongation) times its rest distance of the
   /// nearest pinned particle of each group of touching pins, of the four groups nearest it at
-  /// most (long range attachments, Kim,
-  /// Chentanez & Mueller 2012), projected before Provot's sweeps. Pins are kinematic, so this only
-  /// removes energy; it stops the stretch that Gauss-Seidel sweeps carry only O(1/N^2) per sweep
-  /// down an N-row hanging cloth.
+  /// most (long range attachments, Kim, Chentanez & Mueller 2012), projected before Provot's
+  /// sweeps. Pins are kinematic, so this only removes energy; it stops the stretch that
+  /// Gauss-Seidel sweeps carry only O(1/N^2) per sweep down an N-row hanging cloth.
   bool long_range_attachments = true;
   /// Also limit particles 2, 4, 8, ... apart along a row, a column or (with `shear`) a diagonal to
   /// (1 + max_elongation) times their rest distance, swept coarsest first: up to 8 apart with
