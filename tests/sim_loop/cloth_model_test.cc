@@ -186,14 +186,8 @@ TEST(ClothModelTest, BuildsOnlyTheDeclaredSpringsAndTheGrid) {
 TEST(ClothModelTest, PinsHoldCornersEdgesAndParticles) {
   SimSpec spec = Curtain(6);
   spec.cloth.height = 4;
-  PinSpec edge;
-  edge.kind = PinKind::kEdge;
-  edge.name = "left";
-  PinSpec one;
-  one.kind = PinKind::kParticle;
-  one.col = 3;
-  one.row = 2;
-  spec.cloth.pins = {Corner("bottom_right"), edge, one, Corner("top_left")};
+  spec.cloth.pins = {Corner("bottom_right"), cloth_test::EdgePin("left"),
+                     cloth_test::ParticlePin(3, 2), Corner("top_left")};
   const ClothModel model = BuildClothModel(spec);
   std::vector<int32_t> expected = {GridIndex(6, 5, 3), GridIndex(6, 0, 0), GridIndex(6, 0, 1),
                                    GridIndex(6, 0, 2), GridIndex(6, 0, 3), GridIndex(6, 3, 2)};

@@ -161,13 +161,8 @@ TEST(ProvotTest, AttachmentsHoldEveryFreeParticleToTheNearestPinOfEachPinGroup) 
     std::vector<PinSpec> pins;
     std::vector<std::vector<int32_t>> groups;  // by particle index on a 9 x 9 grid
   };
-  PinSpec top_edge;
-  top_edge.kind = PinKind::kEdge;
-  top_edge.name = "top";
-  PinSpec single;
-  single.kind = PinKind::kParticle;
-  single.col = 4;
-  single.row = 6;
+  const PinSpec top_edge = cloth_test::EdgePin("top");
+  const PinSpec single = cloth_test::ParticlePin(4, 6);
   std::vector<int32_t> top_row(9);
   for (int32_t c = 0; c < 9; ++c) top_row[static_cast<size_t>(c)] = c;
   const std::vector<Case> cases = {

@@ -26,6 +26,23 @@ inline PinSpec Corner(const std::string& name) {
   return pin;
 }
 
+/// An edge pin ("top", "bottom", "left" or "right").
+inline PinSpec EdgePin(const std::string& name) {
+  PinSpec pin;
+  pin.kind = PinKind::kEdge;
+  pin.name = name;
+  return pin;
+}
+
+/// A pin on the particle at column `col`, row `row`.
+inline PinSpec ParticlePin(int32_t col, int32_t row) {
+  PinSpec pin;
+  pin.kind = PinKind::kParticle;
+  pin.col = col;
+  pin.row = row;
+  return pin;
+}
+
 /// A `grid` x `grid` curtain 0.5 m wide hanging in the x-y plane from its two top corners.
 inline SimSpec Curtain(int32_t grid) {
   SimSpec spec;
