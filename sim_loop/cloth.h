@@ -58,10 +58,9 @@ struct ProvotFamily {
   double max_length_m = 0.0;  ///< (1 + max_elongation) * rest distance of the two ends
   int32_t level = 1;          ///< 1: a spring family; s > 1: a multiresolution family of stride s
   /// The pairs in sweep order, as runs of end-i particles: along a row with dc 1, 2, 4 or 8
-  /// (strided())
-  /// a run holds the first dc of every 2 dc particles from lo, below hi (dc = 1: every second
-  /// one), else every particle in [lo, hi). The runs of the first colour come first; no two pairs
-  /// of one colour share a particle.
+  /// (strided()) a run holds the first dc of every 2 dc particles from lo, below hi (dc = 1: every
+  /// second one), else every particle in [lo, hi). The runs of the first colour come first; no two
+  /// pairs of one colour share a particle.
   std::vector<Run> runs;
 
   /// True if the runs are strided (along a row, dc 1, 2, 4 or 8: a colour's pairs interleave

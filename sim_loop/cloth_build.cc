@@ -395,7 +395,9 @@ void DenseAttachments(ClothModel* model) {
   size_t free_particles = 0;
   for (double im : model->inv_mass_per_kg) free_particles += im > 0.0 ? 1 : 0;
   if (free_particles == 0 || model->attachments.empty()) return;
+  // BuildAttachments gives every free particle the same count, particle by particle.
   const size_t ranks = model->attachments.size() / free_particles;
+  assert(ranks * free_particles == model->attachments.size());
   model->attachment_ranks = static_cast<int32_t>(ranks);
   model->attachment_pin.resize(ranks * n);
   model->attachment_max_m.assign(ranks * n, 0.0f);

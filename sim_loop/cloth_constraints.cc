@@ -574,7 +574,6 @@ bool ProvotUsesAvx512() {
   return CpuHasAvx512f() &&
          g_provot_kernels.load(std::memory_order_relaxed) == ProvotKernels::kWidest;
 }
-#endif
 
 // ProjectAttachments eight particles a step: the same operations per lane (a correctly rounded
 // square root and division, no fused multiply-add), so the same bits.
@@ -606,6 +605,7 @@ __attribute__((target("avx2"))) size_t ProjectAttachmentsAvx2(const ProvotSoa& a
   }
   return p;
 }
+#endif
 
 // One Gauss-Seidel sweep over a family: AVX-512 (families across rows) or AVX2 where the CPU has
 // it, else the portable loop.
