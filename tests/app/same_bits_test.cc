@@ -1,0 +1,137 @@
+// Same bits (issue 19): the state of every bundled scene after a fixed number of frames, and the
+// forces `felt compare` produces on every bundled trace, are pinned as 64-bit hashes of their
+// bits. A change that means to leave behaviour alone (a move, a split, a refactor) must leave
+// every hash as it is; a change that means to alter the physics or the proxy updates the pinned
+// value in the same commit and says why.
+//
+// The hashes are FNV-1a over the raw bytes of positions, velocities, forces and contact flags.
+// They hold across the vector kernel levels (AVX-512, AVX2, portable: each gives the same bits, see
+// sim_loop's kernel tests) and across optimisation levels (no -ffast-math, no FMA contraction).
+#include <gtest/gtest.h>
+
+#include <cinttypes>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "haptic_loop/lockstep.h"
+#include "recordings/trace.h"
+#include "sim_loop/cloth.h"
+#include "sim_loop/scene_file.h"
+
+namespace felt {
+namespace {
+
+// FNV-1a, 64 bit (Fowler, Noll, Vo): a running hash over bytes.
+class Fnv1a {
+ public:
+  void Add(const void* data, size_t bytes) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < bytes; ++i) {
+      h_ = (h_ ^ p[i]) * 0x100000001b3ull;
+    }
+  }
+  template <typename T>
+  void AddVector(const std::vector<T>& v) {
+    Add(v.data(), v.size() * sizeof(T));
+  }
+  uint64_t value() const { return h_; }
+
+ private:
+  uint64_t h_ = 0xcbf29ce484222325ull;
+};
+
+std::string Hex(uint64_t h) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%016" PRIx64, h);
+  return text;
+}
+
+// The cloth of `scene` after `frames` nominal frames with no external force: hash of x and v.
+uint64_t SceneStateHash(const std::string& scene, int frames) {
+  const SceneDocument doc = LoadSceneDocument(std::string(FELT_SOURCE_DIR "/scenes/") + scene);
+  const ClothModel model = BuildClothModel(ParseSimSpec(doc));
+  ClothState state = MakeClothState(model);
+  const double frame_dt_s = 1.0 / model.spec.integration.frame_rate_hz;
+  for (int f = 0; f < frames; ++f) StepFrame(model, {}, frame_dt_s, &state);
+  Fnv1a h;
+  h.AddVector(state.x);
+  h.AddVector(state.v);
+  h.Add(&state.time_s, sizeof state.time_s);
+  return h.value();
+}
+
+struct ScenePin {
+  const char* scene;
+  int frames;
+  const char* hash;
+};
+
+// Frames: two seconds of the scene (one for the 128 x 128 curtain), through its release transient.
+constexpr ScenePin kScenePins[] = {
+    {"curtain.toml", 120, "27b5bdfccef33f40"},      {"curtain_128.toml", 60, "615b023a47b68b7b"},
+    {"curtain_rail.toml", 120, "7325cec5c4d8069b"}, {"flag.toml", 120, "4bd2eb07ed83701f"},
+    {"sphere_drop.toml", 120, "221f38f48233c50a"},  {"tablecloth.toml", 120, "d85626b02c444f87"},
+};
+
+TEST(SameBits, EveryBundledSceneKeepsItsStateHash) {
+  for (const ScenePin& pin : kScenePins) {
+    EXPECT_EQ(Hex(SceneStateHash(pin.scene, pin.frames)), pin.hash)
+        << pin.scene << " after " << pin.frames << " frames";
+  }
+}
+
+// The variants every trace is compared with: the four snapshot modes, friction, shading off and
+// each collision structure family, so the proxy's every path is pinned.
+constexpr const char* kVariants =
+    "interpolate: snapshot=interpolate; newest: snapshot=newest; blend: snapshot=blend_forces; "
+    "extrapolate: snapshot=extrapolate; friction: friction=0.4; flat: shading=off; "
+    "aabb: structure=bvh-aabb-4; hash: structure=osh";
+
+// Hash of every variant's forces (device frame, after the safety layer), contact flags, ticks and
+// frames, in variant order.
+uint64_t CompareHash(const std::string& trace_name, std::vector<std::string>* per_variant) {
+  const SceneDocument scene =
+      LoadSceneDocument(std::string(FELT_SOURCE_DIR "/scenes/curtain.toml"));
+  const Trace trace =
+      ReadTrace(std::string(FELT_SOURCE_DIR "/recordings/") + trace_name + ".trace");
+  const CompareResult result = CompareVariants(scene, trace.samples, ParseVariantList(kVariants));
+  Fnv1a all;
+  for (const LockstepRun& run : result.runs) {
+    Fnv1a h;
+    h.AddVector(run.force_D_N);
+    h.AddVector(run.in_contact);
+    h.Add(&run.ticks, sizeof run.ticks);
+    h.Add(&run.frames, sizeof run.frames);
+    per_variant->push_back(run.name + " " + Hex(h.value()));
+    const uint64_t v = h.value();
+    all.Add(&v, sizeof v);
+  }
+  return all.value();
+}
+
+struct TracePin {
+  const char* trace;
+  const char* hash;
+};
+
+constexpr TracePin kTracePins[] = {
+    {"circle", "ea7f13dceebaf969"},      {"fast_swipe", "5f4bb3fd9c806d2f"},
+    {"pinch_drag", "6c02634f1bd4e283"},  {"poke_hold", "2d3f80c992b871d3"},
+    {"slow_stroke", "162587267c37473f"},
+};
+
+TEST(SameBits, EveryBundledTraceKeepsItsCompareForces) {
+  for (const TracePin& pin : kTracePins) {
+    std::vector<std::string> per_variant;
+    const std::string got = Hex(CompareHash(pin.trace, &per_variant));
+    std::string detail;
+    for (const std::string& line : per_variant) detail += "  " + line + "\n";
+    EXPECT_EQ(got, pin.hash) << pin.trace << ", per variant:\n" << detail;
+  }
+}
+
+}  // namespace
+}  // namespace felt
