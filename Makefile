@@ -70,8 +70,9 @@ test-asan: deps
 test-tsan: deps
 	@echo "== make test-tsan: start $$(date -u +%H:%M:%S)"
 	cmake -S . -B $(BUILD)-tsan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=thread \
-	  "-DFELT_TEST_MODULES=haptic_loop;transport" $(CMAKE_FLAGS)
-	cmake --build $(BUILD)-tsan -j $(JOBS) --target felt_haptic_loop_tests felt_transport_tests
+	  "-DFELT_TEST_MODULES=rt;haptic_loop;server;transport" $(CMAKE_FLAGS)
+	cmake --build $(BUILD)-tsan -j $(JOBS) --target felt_rt_tests felt_haptic_loop_tests felt_server_tests \
+	  felt_transport_tests
 	cd $(BUILD)-tsan && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$(CURDIR)/tests/transport/tsan.supp" \
 	  FELT_SANITIZER=thread ctest --output-on-failure -j $(JOBS)
 

@@ -1,6 +1,6 @@
 // `felt compare --trace FILE --scene FILE --variants LIST [--json FILE] [--md FILE]
 // [--duration S]`: variants of a scene on the same recorded pointer motion, offline (issue 7;
-// docs/compare.md). The trace drives the real server code (haptic_loop/lockstep.h) in lock-step
+// docs/compare.md). The trace drives the real server code (compare/lockstep.h) in lock-step
 // virtual time, one variant after the other, on this thread, without DDS; the first variant is
 // the reference. Prints a Markdown table (costs per tick and per frame, force error against the
 // reference, force jumps, contacts) and writes the same per-variant fields as JSON.
@@ -13,10 +13,10 @@
 #include <vector>
 
 #include "app/command.h"
-#include "bench/bench_util.h"
-#include "haptic_loop/lockstep.h"
+#include "base/report.h"
+#include "compare/lockstep.h"
 #include "recordings/trace.h"
-#include "sim_loop/scene_file.h"
+#include "scene/scene_file.h"
 
 namespace felt::app::cmd_compare {
 namespace {
@@ -42,8 +42,8 @@ std::string CommandLine(const CompareArgs& a) {
 
 // The table of docs/compare.md, one row per variant.
 std::string Table(const std::vector<VariantSummary>& summaries) {
-  using bench::Fixed;
-  using bench::Sig;
+  using report::Fixed;
+  using report::Sig;
   std::vector<std::vector<std::string>> rows;
   for (const VariantSummary& s : summaries) {
     rows.push_back({s.name, s.overrides.empty() ? "(scene)" : s.overrides,
@@ -54,7 +54,7 @@ std::string Table(const std::vector<VariantSummary>& summaries) {
                     std::to_string(s.contact_mismatches), std::to_string(s.clamped_ticks),
                     std::to_string(s.stalled_ticks), std::to_string(s.nan_events)});
   }
-  return bench::MarkdownTable(
+  return report::MarkdownTable(
       {"variant", "overrides", "tick_us_p50", "tick_us_p99", "frame_ms_p50", "frame_ms_p99",
        "force_rms_error_N", "force_max_error_N", "max_jump_N", "max_jump_vs_ref_N", "peak_force_N",
        "contacts", "contact_mismatches", "clamped", "stalled", "nan"},
@@ -63,11 +63,11 @@ std::string Table(const std::vector<VariantSummary>& summaries) {
       rows);
 }
 
-std::string Json(const CompareArgs& args, const bench::MachineInfo& machine,
+std::string Json(const CompareArgs& args, const report::MachineInfo& machine,
                  const std::string& load_end, const CompareResult& result) {
   std::vector<std::string> items;
   for (const VariantSummary& s : result.summaries) {
-    bench::JsonRecord r;
+    report::JsonRecord r;
     r.String("name", s.name)
         .String("overrides", s.overrides)
         .Integer("ticks", s.ticks)
@@ -89,25 +89,25 @@ std::string Json(const CompareArgs& args, const bench::MachineInfo& machine,
         .Integer("nan_events", static_cast<int64_t>(s.nan_events));
     items.push_back(r.str());
   }
-  bench::JsonRecord top;
+  report::JsonRecord top;
   top.String("command", CommandLine(args))
       .String("trace", args.trace)
       .String("scene", args.scene)
       .String("reference", result.summaries.front().name)
       .Integer("devices", result.runs.front().devices)
       .Number("tick_dt_s", result.runs.front().tick_dt_s)
-      .Raw("machine", bench::MachineJson(machine))
+      .Raw("machine", report::MachineJson(machine))
       .String("load_average_end", load_end);
   // The variants array on its own lines, after the one-line header members.
   std::string text = top.str();
   text.pop_back();  // the closing brace
-  text += ", \"variants\": " + bench::JsonArray(items, 2) + "}\n";
+  text += ", \"variants\": " + report::JsonArray(items, 2) + "}\n";
   return text;
 }
 
 int Compare(const CompareArgs& args) {
   // Set-up: every input is checked before anything runs (errors exit 2 through main).
-  const bench::MachineInfo machine = bench::ReadMachineInfo();
+  const report::MachineInfo machine = report::ReadMachineInfo();
   const Trace trace = ReadTrace(args.trace);
   const SceneDocument scene = LoadSceneDocument(args.scene);
   ParseServerSpec(scene);  // the scene as written must be valid (errors with line and column)
@@ -116,7 +116,7 @@ int Compare(const CompareArgs& args) {
   options.max_duration_s = args.duration_s;
 
   const CompareResult result = CompareVariants(scene, trace.samples, variants, options);
-  const std::string load_end = bench::LoadAverage();
+  const std::string load_end = report::LoadAverage();
 
   // Stdout: what ran, then the table.
   const LockstepRun& ref = result.runs.front();
@@ -129,10 +129,10 @@ int Compare(const CompareArgs& args) {
       ref.devices, ref.name.c_str(), result.summaries.front().timer_overhead_us,
       machine.load_average.c_str(), load_end.c_str(), table.c_str());
   std::fflush(stdout);
-  if (!args.json.empty()) bench::WriteTextFile(args.json, Json(args, machine, load_end, result));
+  if (!args.json.empty()) report::WriteTextFile(args.json, Json(args, machine, load_end, result));
   if (!args.md.empty()) {
     const std::string header =
-        bench::ReportHeader("felt compare: " + args.trace, CommandLine(args), machine, load_end);
+        report::ReportHeader("felt compare: " + args.trace, CommandLine(args), machine, load_end);
     const std::string what = fmt::format(
         "Trace `{}` on scene `{}`: {} haptic ticks ({:.3f} s of virtual time), {} sim frames, {} "
         "device(s), in lock-step virtual time (docs/compare.md). Reference: `{}`. Costs are "
@@ -140,7 +140,7 @@ int Compare(const CompareArgs& args) {
         "measured between two back-to-back reads); forces are bit-identical run to run.\n\n",
         args.trace, args.scene, ref.ticks, static_cast<double>(ref.ticks) * ref.tick_dt_s,
         ref.frames, ref.devices, ref.name, result.summaries.front().timer_overhead_us);
-    bench::WriteTextFile(args.md, header + "\n" + what + table);
+    report::WriteTextFile(args.md, header + "\n" + what + table);
   }
   return 0;
 }

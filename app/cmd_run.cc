@@ -24,9 +24,10 @@
 #include <vector>
 
 #include "app/command.h"
+#include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
+#include "sim_loop/cloth_scene.h"
 #include "sim_loop/integrator_names.h"
-#include "sim_loop/scene_file.h"
 
 namespace felt::app::cmd_run {
 namespace {

@@ -20,13 +20,13 @@
 #include <vector>
 
 #include "app/command.h"
-#include "haptic_loop/periodic_loop.h"
 #include "haptic_loop/pointer_source.h"
-#include "haptic_loop/server.h"
-#include "haptic_loop/server_spec.h"
-#include "haptic_loop/transport_io.h"
 #include "recordings/trace.h"
-#include "sim_loop/scene_file.h"
+#include "rt/periodic_loop.h"
+#include "scene/scene_file.h"
+#include "server/server.h"
+#include "server/server_spec.h"
+#include "server/transport_io.h"
 #include "transport/server_transport.h"
 #include "transport/transport_scene.h"
 

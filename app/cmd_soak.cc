@@ -38,10 +38,10 @@
 #include <vector>
 
 #include "app/command.h"
-#include "haptic_loop/json_writer.h"
-#include "haptic_loop/server_spec.h"
+#include "base/json_writer.h"
 #include "recordings/trace.h"
-#include "sim_loop/scene_file.h"
+#include "scene/scene_file.h"
+#include "server/server_spec.h"
 #include "transport/clock.h"
 
 namespace felt::app::cmd_soak {

@@ -16,8 +16,8 @@
 #include <vector>
 
 #include "app/command.h"
+#include "base/json_writer.h"
 #include "bench/bench_util.h"
-#include "haptic_loop/json_writer.h"
 #include "sim_loop/cloth.h"
 
 namespace felt::bench::bench_cloth {

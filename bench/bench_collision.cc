@@ -26,10 +26,10 @@
 #include <vector>
 
 #include "app/command.h"
-#include "haptic_loop/realtime.h"
-#include "haptic_loop/server_spec.h"
-#include "sim_loop/collision_structure.h"
-#include "sim_loop/mesh.h"
+#include "collision/collision_structure.h"
+#include "collision/mesh.h"
+#include "rt/realtime.h"
+#include "server/server_spec.h"
 
 namespace felt::bench::bench_collision {
 namespace {

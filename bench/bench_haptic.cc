@@ -34,8 +34,9 @@
 #include "proxy/proxy_scene.h"
 #include "recordings/generate.h"
 #include "recordings/trace.h"
+#include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
-#include "sim_loop/scene_file.h"
+#include "sim_loop/cloth_scene.h"
 #include "sim_loop/snapshot.h"
 
 namespace felt::bench::bench_haptic {
@@ -222,7 +223,7 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
   std::vector<ExternalForce> external(512);
   std::vector<ExternalForce> discard(512);
   // The modes' snapshots carry the frame's motion as velocities, as the server publishes them
-  // (proxy/frame_motion.h): (x - x at the last publication) / the time between.
+  // (sim_loop/frame_motion.h): (x - x at the last publication) / the time between.
   std::vector<Vec3> x_published = x;
   std::vector<Vec3> v_published(x.size(), Vec3::Zero());
   SideTracker trackers[4];

@@ -39,11 +39,11 @@
 #include <vector>
 
 #include "app/command.h"
+#include "base/json_writer.h"
 #include "bench/bench_util.h"
-#include "haptic_loop/json_writer.h"
+#include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/integrator_names.h"
-#include "sim_loop/scene_file.h"
 
 namespace felt::bench::bench_integrators {
 namespace {

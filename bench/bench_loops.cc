@@ -1,6 +1,6 @@
 // `felt bench loops`: the lateness of a 1 kHz loop under each timing setting (issue 5, "Target").
 // The empty loop measures the machine's own floor; the server half then runs the real server
-// (haptic_loop/server.h: its 1 kHz haptic thread with the fifo_spin setting, its 60 Hz sim thread)
+// (server/server.h: its 1 kHz haptic thread with the fifo_spin setting, its 60 Hz sim thread)
 // on the 64 x 64 curtain with a bundled trace replayed in-process (looped for the whole run), and
 // both lateness distributions are printed side by side.
 #include <spdlog/fmt/fmt.h>
@@ -20,15 +20,15 @@
 #include <vector>
 
 #include "app/command.h"
-#include "haptic_loop/json_writer.h"
-#include "haptic_loop/loop_runner.h"
-#include "haptic_loop/loop_stats.h"
+#include "base/json_writer.h"
 #include "haptic_loop/pointer_source.h"
-#include "haptic_loop/realtime.h"
-#include "haptic_loop/server.h"
-#include "haptic_loop/server_spec.h"
 #include "recordings/trace.h"
-#include "sim_loop/scene_file.h"
+#include "rt/loop_runner.h"
+#include "rt/loop_stats.h"
+#include "rt/realtime.h"
+#include "scene/scene_file.h"
+#include "server/server.h"
+#include "server/server_spec.h"
 
 namespace felt::bench::bench_loops {
 namespace {

@@ -2,7 +2,7 @@
 //  1. The raw Cyclone round trip (an echo process answering each 1 kHz ping, with Felt's
 //     configuration, types and QoS) for both receive modes: the floor.
 //  2. The cost of each transport hop, through ServerTransport/ClientTransport in this process.
-//  3. End to end (skipped with --raw-only): the real server (haptic_loop/server.h, the scene's
+//  3. End to end (skipped with --raw-only): the real server (server/server.h, the scene's
 //     cloth and proxy, SCHED_FIFO where permitted) in this process behind the DDS transport, and a
 //     device client in a second process (this program re-executed with --e2e-client) publishing a
 //     trace at 1 kHz on absolute deadlines. Per pointer sample: e2e = reception of the first force
@@ -34,11 +34,11 @@
 
 #include "app/command.h"
 #include "haptic_loop/pointer_source.h"
-#include "haptic_loop/server.h"
-#include "haptic_loop/server_spec.h"
-#include "haptic_loop/transport_io.h"
 #include "recordings/trace.h"
-#include "sim_loop/scene_file.h"
+#include "scene/scene_file.h"
+#include "server/server.h"
+#include "server/server_spec.h"
+#include "server/transport_io.h"
 #include "transport/client_transport.h"
 #include "transport/raw_roundtrip.h"
 #include "transport/server_transport.h"

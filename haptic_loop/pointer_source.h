@@ -3,15 +3,15 @@
 // virtual call per device per tick, and the in-process implementations (a preloaded trace
 // replayed on the haptic thread's clock, a newest-value source a test or an embedding thread
 // writes, and a sink that keeps the newest force and counters). The DDS transport's adapters are
-// in haptic_loop/transport_io.h.
+// in server/transport_io.h.
 #include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
-#include "haptic_loop/triple_buffer.h"
+#include "collision/mesh.h"
 #include "recordings/trace.h"
-#include "sim_loop/mesh.h"
+#include "rt/triple_buffer.h"
 
 namespace felt {
 

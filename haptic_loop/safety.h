@@ -21,7 +21,7 @@
 // Everything is plain arithmetic on the arguments: deterministic, real-time safe.
 #include <cstdint>
 
-#include "sim_loop/mesh.h"
+#include "collision/mesh.h"
 
 namespace felt {
 

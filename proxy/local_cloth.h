@@ -1,6 +1,6 @@
 #pragma once
 // The cloth near the proxy for one haptic tick: the triangles a proxy can touch this tick,
-// gathered once from a snapshot's collision structure (query 1, sim_loop/collision_structure.h)
+// gathered once from a snapshot's collision structure (query 1, collision/collision_structure.h)
 // with their vertices placed at the tick's cloth (a snapshot, an interpolation between two, or an
 // extrapolation), then swept against exactly (SweepSphereTriangle, MovingTriangleSphereContact).
 //
@@ -15,8 +15,8 @@
 #include <span>
 #include <vector>
 
-#include "sim_loop/collision.h"
-#include "sim_loop/geometry.h"
+#include "collision/collision.h"
+#include "collision/geometry.h"
 #include "sim_loop/snapshot.h"
 
 namespace felt {

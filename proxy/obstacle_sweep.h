@@ -14,8 +14,8 @@
 #include <cstdint>
 #include <span>
 
+#include "collision/geometry.h"
 #include "sim_loop/cloth_spec.h"
-#include "sim_loop/geometry.h"
 
 namespace felt {
 

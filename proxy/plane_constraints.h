@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <span>
 
-#include "sim_loop/mesh.h"
+#include "collision/mesh.h"
 
 namespace felt {
 

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <span>
 
+#include "collision/geometry.h"
 #include "proxy/obstacle_sweep.h"
-#include "sim_loop/geometry.h"
 
 namespace felt {
 namespace {

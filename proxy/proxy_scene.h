@@ -25,13 +25,13 @@
 //   collision_structure = "bvh-sphere-4"  # "naive", "osh",
 //   "bvh-{sphere,aabb}-{2,4}[-topdown|-rebuild]"
 //
-// Every error is a SceneError "file:line:col: field: rule" (sim_loop/scene_file.h).
+// Every error is a SceneError "file:line:col: field: rule" (scene/scene_file.h).
 
 #include <string>
 #include <vector>
 
 #include "proxy/proxy_spec.h"
-#include "sim_loop/scene_file.h"
+#include "scene/scene_file.h"
 
 namespace felt {
 

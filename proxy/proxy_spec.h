@@ -17,9 +17,9 @@
 #include <string>
 #include <vector>
 
+#include "collision/collision_structure.h"
+#include "collision/mesh.h"
 #include "sim_loop/cloth_spec.h"
-#include "sim_loop/collision_structure.h"
-#include "sim_loop/mesh.h"
 
 namespace felt {
 

@@ -22,8 +22,8 @@
 #include <span>
 #include <vector>
 
+#include "collision/mesh.h"
 #include "sim_loop/cloth.h"
-#include "sim_loop/mesh.h"
 
 namespace felt {
 

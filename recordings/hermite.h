@@ -12,7 +12,7 @@
 #include <span>
 #include <vector>
 
-#include "sim_loop/mesh.h"
+#include "collision/mesh.h"
 
 namespace felt {
 

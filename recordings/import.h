@@ -11,8 +11,8 @@
 #include <string>
 #include <string_view>
 
+#include "collision/mesh.h"
 #include "recordings/trace.h"
-#include "sim_loop/mesh.h"
 
 namespace felt {
 

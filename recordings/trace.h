@@ -29,7 +29,7 @@
 #include <utility>
 #include <vector>
 
-#include "sim_loop/mesh.h"
+#include "collision/mesh.h"
 
 namespace felt {
 

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "collision/mesh.h"
 #include "sim_loop/cloth_spec.h"
-#include "sim_loop/mesh.h"
 
 namespace felt {
 

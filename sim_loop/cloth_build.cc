@@ -31,7 +31,6 @@ constexpr int32_t kMaxAttachedStride = 8;
 constexpr size_t kMaxAttachedGroups = 4;
 
 constexpr int64_t kMaxParticles = int64_t{1} << 22;  // 2048 x 2048; keeps 3n in int32 range
-constexpr int32_t kMaxSubsteps = 100000;             // per nominal frame
 constexpr double kUnitTolerance = 1e-9;              // |norm - 1| and |u . v| allowed for axes
 
 // Formats any streamable value the way error messages show it.
@@ -177,9 +176,9 @@ void ValidateIntegration(const IntegrationSpec& s) {
   if (kind < 0 || kind > static_cast<int>(IntegratorKind::kImplicitEuler)) {
     Fail("integration.integrator", "unknown integrator " + Show(kind));
   }
-  if (s.substeps < 0 || s.substeps > kMaxSubsteps) {
+  if (s.substeps < 0 || s.substeps > kMaxSubstepsPerFrame) {
     Fail("integration.substeps",
-         "must be in [0, " + Show(kMaxSubsteps) + "] (0 = auto), got " + Show(s.substeps));
+         "must be in [0, " + Show(kMaxSubstepsPerFrame) + "] (0 = auto), got " + Show(s.substeps));
   }
   RequirePositive("integration.frame_rate_hz", s.frame_rate_hz);
   RequirePositive("integration.max_frame_dt_s", s.max_frame_dt_s);
@@ -622,11 +621,11 @@ ClothModel BuildClothModel(const SimSpec& spec) {
          "mode); give a fixed count");
   } else {
     const double count = std::ceil(frame_s / (is.auto_safety * model.stable_dt_s));
-    if (count > kMaxSubsteps) {
-      Fail("integration.substeps", "auto needs " + Show(count) +
-                                       " substeps per frame (stable step " +
-                                       Show(model.stable_dt_s) + " s), over the limit " +
-                                       Show(kMaxSubsteps) + "; soften the springs or add mass");
+    if (count > kMaxSubstepsPerFrame) {
+      Fail("integration.substeps",
+           "auto needs " + Show(count) + " substeps per frame (stable step " +
+               Show(model.stable_dt_s) + " s), over the limit " + Show(kMaxSubstepsPerFrame) +
+               "; soften the springs or add mass");
     }
     model.substeps = std::max(1, static_cast<int32_t>(count));
   }

@@ -8,9 +8,9 @@
 #include <immintrin.h>
 #endif
 
+#include "base/cpu_features.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
-#include "sim_loop/cpu_features.h"
 
 namespace felt {
 namespace {

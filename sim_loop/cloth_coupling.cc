@@ -7,8 +7,8 @@
 #include <cmath>
 #include <limits>
 
+#include "collision/geometry.h"
 #include "sim_loop/cloth_internal.h"
-#include "sim_loop/geometry.h"
 
 namespace felt {
 namespace {

@@ -10,9 +10,9 @@
 #include <cstddef>
 #include <vector>
 
+#include "base/cpu_features.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
-#include "sim_loop/cpu_features.h"
 
 namespace felt {
 namespace {

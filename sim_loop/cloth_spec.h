@@ -1,7 +1,7 @@
 #pragma once
 // What a scene declares about the cloth and its simulation: plain structs with defaults and units
 // in the field names. A spec is validated once (BuildClothModel in sim_loop/cloth.h) into an
-// immutable model; scene files (sim_loop/scene_file.h) parse into these structs.
+// immutable model; scene files (scene/scene_file.h) parse into these structs.
 //
 // World frame (_W, the default for every position here): metres, y up, gravity along -y.
 
@@ -12,7 +12,7 @@
 #include <variant>
 #include <vector>
 
-#include "sim_loop/mesh.h"
+#include "collision/mesh.h"
 
 namespace felt {
 
@@ -113,6 +113,10 @@ struct ClothSpec {
   std::vector<PinSpec> pins;            ///< may be empty (a falling cloth)
   std::vector<ObstacleSpec> obstacles;  ///< only these are built and tested
 };
+
+/// The most substeps one nominal frame may take, explicit or auto (one rule for the scene parser
+/// and BuildClothModel).
+inline constexpr int32_t kMaxSubstepsPerFrame = 100000;
 
 /// How a 60 Hz frame is integrated.
 struct IntegrationSpec {

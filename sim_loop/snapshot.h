@@ -13,9 +13,9 @@
 #include <span>
 #include <vector>
 
+#include "collision/collision_structure.h"
+#include "collision/mesh.h"
 #include "sim_loop/cloth.h"
-#include "sim_loop/collision_structure.h"
-#include "sim_loop/mesh.h"
 
 namespace felt {
 

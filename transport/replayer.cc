@@ -14,7 +14,7 @@
 #include <utility>
 #include <vector>
 
-#include "haptic_loop/json_writer.h"
+#include "base/json_writer.h"
 #include "transport/client_transport.h"
 #include "transport/clock.h"
 #include "transport/recorder.h"

@@ -1,7 +1,7 @@
 #pragma once
 // Replaying a pointer trace over DDS as a stand-in device (issue 7, docs/replay.md): the samples
 // of a felt-trace v1 file are published on felt/pointer at their recorded times (absolute
-// deadlines on CLOCK_MONOTONIC, as haptic_loop/periodic_loop.h does), every ForceCommand that
+// deadlines on CLOCK_MONOTONIC, as rt/periodic_loop.h does), every ForceCommand that
 // comes back is taken, and the end-to-end latency of each sample (its publication -> receipt of
 // the first force that answers it, matched by ForceCommand.answers_seq) is measured, with lost and
 // late samples counted.

@@ -12,9 +12,9 @@
 #include <utility>
 
 #include "felt_types.h"
-#include "haptic_loop/loop_stats.h"
-#include "haptic_loop/spsc_queue.h"
-#include "haptic_loop/triple_buffer.h"
+#include "rt/loop_stats.h"
+#include "rt/spsc_queue.h"
+#include "rt/triple_buffer.h"
 #include "transport/dds_config.h"
 #include "transport/message_views.h"
 #include "transport/qos.h"

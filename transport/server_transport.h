@@ -41,7 +41,7 @@ struct ServerTransportConfig {
   ReceiveMode receive_mode = ReceiveMode::kListener;  ///< see ReceiveMode
 };
 
-/// Percentiles of a hop's cost, microseconds, as bin upper edges of a haptic_loop/loop_stats.h
+/// Percentiles of a hop's cost, microseconds, as bin upper edges of a rt/loop_stats.h
 /// Histogram at 0.1 us resolution (never below the true value; max exact).
 struct HopSummary {
   uint64_t count = 0;  ///< durations recorded

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "proxy/proxy_spec.h"
-#include "sim_loop/scene_file.h"
+#include "scene/scene_file.h"
 #include "transport/server_transport.h"
 
 namespace felt::transport {

@@ -16,10 +16,11 @@
 #include <string>
 #include <vector>
 
-#include "haptic_loop/lockstep.h"
+#include "compare/lockstep.h"
 #include "recordings/trace.h"
+#include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
-#include "sim_loop/scene_file.h"
+#include "sim_loop/cloth_scene.h"
 
 namespace felt {
 namespace {

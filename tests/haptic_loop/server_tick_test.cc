@@ -9,11 +9,11 @@
 #include <string>
 #include <vector>
 
-#include "haptic_loop/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in alloc_counter_test.cc
 #include "haptic_loop/pointer_source.h"
-#include "haptic_loop/server.h"
 #include "recordings/trace.h"
-#include "tests/haptic_loop/server_test_util.h"
+#include "server/server.h"
+#include "tests/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in alloc_counter_test.cc
+#include "tests/server/server_test_util.h"
 
 namespace felt {
 namespace {

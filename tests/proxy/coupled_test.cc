@@ -7,11 +7,12 @@
 #include <string>
 #include <vector>
 
-#include "proxy/frame_motion.h"
 #include "proxy/proxy.h"
 #include "proxy/proxy_scene.h"
+#include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
-#include "sim_loop/scene_file.h"
+#include "sim_loop/cloth_scene.h"
+#include "sim_loop/frame_motion.h"
 #include "sim_loop/snapshot.h"
 #include "tests/proxy/proxy_test_util.h"
 #include "tests/test_env.h"
@@ -180,7 +181,7 @@ TEST(CoupledTest, PressAtTheVertexOfTheDefaultCurtainComesToRest) {
 // The coupling itself comes to rest: the same press on a curtain whose air drag damps its own
 // sway (10 x the scene's, c/m = 5 /s), half a cell off the centre vertex and right at it.
 // Snapshots are published as the server does, with the frame's motion as velocities
-// (proxy/frame_motion.h), which mode extrapolate moves the cloth on with. At the vertex the
+// (sim_loop/frame_motion.h), which mode extrapolate moves the cloth on with. At the vertex the
 // proxy's contact hops between the triangles around it; while the sim's contact spring was tied
 // to the one triangle of the frame's last tick, that press cycled at 20 Hz between 0.034 and
 // 0.046 N in every mode (a spring whose attachment jumps with the cloth is not conservative). The

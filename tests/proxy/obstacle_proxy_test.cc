@@ -9,12 +9,13 @@
 #include <string>
 #include <vector>
 
-#include "haptic_loop/server_spec.h"
-#include "proxy/frame_motion.h"
 #include "proxy/obstacle_sweep.h"
 #include "proxy/proxy.h"
+#include "scene/scene_file.h"
+#include "server/server_spec.h"
 #include "sim_loop/cloth.h"
-#include "sim_loop/scene_file.h"
+#include "sim_loop/cloth_scene.h"
+#include "sim_loop/frame_motion.h"
 #include "tests/proxy/proxy_test_util.h"
 
 namespace felt {

@@ -9,10 +9,8 @@
 #include <cstring>
 #include <vector>
 
-#include "haptic_loop/alloc_counter.h"
+#include "tests/alloc_counter.h"
 #include "tests/proxy/proxy_test_util.h"
-
-FELT_DEFINE_ALLOC_COUNTER();
 
 namespace felt {
 namespace {

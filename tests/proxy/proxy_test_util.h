@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "proxy/frame_motion.h"
 #include "proxy/proxy.h"
 #include "sim_loop/cloth.h"
+#include "sim_loop/frame_motion.h"
 #include "sim_loop/snapshot.h"
 
 namespace felt::testing {
@@ -120,7 +120,7 @@ inline double Angle(const Vec3& a, const Vec3& b) {
 /// Drives one proxy against the real cloth in lock-step virtual time, as the server does: each
 /// 60 Hz frame first runs `on_frame(t)`, then steps the cloth with the reaction the proxy drained
 /// (the contact spring while in contact), then publishes a snapshot whose velocities are the
-/// frame's motion (proxy/frame_motion.h); then the frame's 1 kHz ticks run until `seconds` [s]:
+/// frame's motion (sim_loop/frame_motion.h); then the frame's 1 kHz ticks run until `seconds` [s]:
 /// `sample(t)` gives the device sample at tick time t [s], `on_tick(t, since_s, result, prev,
 /// next)` sees each tick (since_s: time since the newest snapshot, s). Allocates (test code).
 template <typename Sample, typename OnTick, typename OnFrame>

@@ -12,8 +12,9 @@
 
 #include "proxy/obstacle_sweep.h"
 #include "proxy/proxy.h"
+#include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
-#include "sim_loop/scene_file.h"
+#include "sim_loop/cloth_scene.h"
 #include "tests/proxy/proxy_test_util.h"
 #include "tests/test_env.h"
 

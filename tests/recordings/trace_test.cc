@@ -12,30 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "tests/alloc_counter.h"
 #include "tests/recordings/test_util.h"
-
-// Allocation counting for the bounded-memory test: every operator new in this test executable
-// goes through here.
-namespace {
-std::atomic<int64_t> g_allocations{0};
-// Out of line so GCC does not pair the free() with a new-expression (-Wmismatched-new-delete).
-[[gnu::noinline]] void Release(void* p) noexcept { std::free(p); }
-}  // namespace
-
-void* operator new(std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { Release(p); }
-void operator delete[](void* p) noexcept { Release(p); }
-void operator delete(void* p, std::size_t) noexcept { Release(p); }
-void operator delete[](void* p, std::size_t) noexcept { Release(p); }
 
 namespace felt {
 namespace {
@@ -260,14 +238,14 @@ TEST(TraceTest, StreamingReaderUsesBoundedMemoryOnALargeFile) {
   TraceSample s;
   // Warm up: the line buffer grows to the longest line seen.
   for (int k = 0; k < 1000; ++k) ASSERT_TRUE(reader.Next(&s));
-  const int64_t before = g_allocations.load();
+  const AllocationGuard guard;  // tests/alloc_counter.h
   int64_t count = 1000;
   double checksum = 0.0;
   while (reader.Next(&s)) {
     ++count;
     checksum += s.p_D.x();
   }
-  const int64_t allocations = g_allocations.load() - before;
+  const int64_t allocations = static_cast<int64_t>(guard.allocations());
   EXPECT_EQ(count, kSamples);
   EXPECT_EQ(reader.samples_read(), kSamples);
   EXPECT_EQ(s.t_s, static_cast<double>(kSamples - 1) / 1000.0);

@@ -6,8 +6,8 @@
 #include <limits>
 #include <vector>
 
-#include "haptic_loop/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in collision_alloc_test.cc
 #include "sim_loop/cloth.h"
+#include "tests/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in collision_alloc_test.cc
 #include "tests/sim_loop/cloth_test_util.h"
 
 namespace felt {

@@ -1,17 +1,15 @@
 // The haptic thread's side of the server transport is real-time safe: LatestPointer and PushForce
-// never allocate (the allocation-counting guard of haptic_loop/alloc_counter.h), while samples and
+// never allocate (the allocation-counting guard of tests/alloc_counter.h), while samples and
 // forces really flow through real Cyclone DDS.
 
 #include <gtest/gtest.h>
 
 #include <thread>
 
-#include "haptic_loop/alloc_counter.h"
+#include "tests/alloc_counter.h"
 #include "tests/transport/transport_test_util.h"
 #include "transport/client_transport.h"
 #include "transport/server_transport.h"
-
-FELT_DEFINE_ALLOC_COUNTER();
 
 namespace felt::transport {
 namespace {

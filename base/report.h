@@ -1,0 +1,98 @@
+#pragma once
+// What every report-writing command shares (the benchmarks, `felt compare`): order statistics, the
+// machine's description for a report's header, one-line JSON records and arrays, Markdown and CSV
+// tables. Not real-time safe (everything here allocates).
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace felt::report {
+
+/// Nearest-rank percentile (`p` in [0, 100]) of `samples`; NaN for none.
+double Percentile(std::vector<double> samples, double p);
+
+/// The median (nearest rank, p = 50) of `samples`; NaN for none.
+double Median(std::vector<double> samples);
+
+/// CPU time [ms] this thread has used so far (CLOCK_THREAD_CPUTIME_ID): unlike the wall clock it
+/// does not advance while the thread is preempted, which matters on a shared, loaded machine.
+double ThreadCpuMs();
+
+/// Wall time [ms] on the monotonic clock.
+double WallMs();
+
+/// What a report says about where it was measured.
+struct MachineInfo {
+  long cpus_online = 0;      ///< sysconf(_SC_NPROCESSORS_ONLN), i.e. `nproc` without affinity
+  std::string cpu_model;     ///< first "model name" line of /proc/cpuinfo
+  std::string date_utc;      ///< ISO 8601, e.g. "2026-11-21T15:20:00Z"
+  std::string load_average;  ///< the first three fields of /proc/loadavg
+  int niceness = 0;          ///< getpriority(PRIO_PROCESS, 0)
+  std::string affinity;      ///< CPUs this process may run on, e.g. "0-1" or "1"
+  /// The widest vector kernels the sim's run-time dispatch picks on this CPU: "avx512f+avx2"
+  /// (Provot's families across rows on AVX-512F, the rest on AVX2), "avx2" or "portable".
+  std::string vector_kernels;
+};
+
+/// Reads the machine's description now.
+MachineInfo ReadMachineInfo();
+
+/// The first three fields of /proc/loadavg ("1.23 1.10 0.98"), or "unknown".
+std::string LoadAverage();
+
+/// The Markdown header lines every cloth benchmark report starts with: the exact command, the
+/// machine, the date and the load averages at the start and the end of the run.
+std::string ReportHeader(std::string_view title, std::string_view command, const MachineInfo& start,
+                         std::string_view load_at_end);
+
+/// `value` with `digits` significant digits ("%.*g"), or "-" when not finite.
+std::string Sig(double value, int digits = 4);
+
+/// `value` with `decimals` decimals ("%.*f"), or "-" when not finite.
+std::string Fixed(double value, int decimals = 3);
+
+/// A JSON object written on one line, members in the order they are added. Keys and strings are
+/// escaped; non-finite numbers are written as null.
+class JsonRecord {
+ public:
+  /// Adds a floating-point member (shortest round-trip form).
+  JsonRecord& Number(std::string_view key, double value);
+  /// Adds an integer member.
+  JsonRecord& Integer(std::string_view key, int64_t value);
+  /// Adds a boolean member.
+  JsonRecord& Bool(std::string_view key, bool value);
+  /// Adds a string member.
+  JsonRecord& String(std::string_view key, std::string_view value);
+  /// Adds a member whose value is already JSON text (an object or an array).
+  JsonRecord& Raw(std::string_view key, std::string_view json);
+  /// The object, e.g. {"grid": 64, "frame_ms_median": 0.91}.
+  std::string str() const;
+
+ private:
+  void Key(std::string_view key);
+  std::string body_;
+};
+
+/// A JSON array of already written JSON values, one per line, indented by `indent` spaces.
+std::string JsonArray(const std::vector<std::string>& items, int indent);
+
+/// A JSON object of the machine's description (cpus_online, cpu_model, date_utc, load_average,
+/// niceness, affinity, vector_kernels).
+std::string MachineJson(const MachineInfo& machine);
+
+/// A Markdown table: a header row, the alignment row (numbers right-aligned: `right` per column),
+/// then the rows. Cells must not contain '|'.
+std::string MarkdownTable(const std::vector<std::string>& header, const std::vector<bool>& right,
+                          const std::vector<std::vector<std::string>>& rows);
+
+/// CSV text: the header, then the rows; cells holding a comma or a quote are quoted.
+std::string CsvTable(const std::vector<std::string>& header,
+                     const std::vector<std::vector<std::string>>& rows);
+
+/// Writes `text` to `path`, creating its parent directory. Throws std::runtime_error naming the
+/// path when it cannot be written.
+void WriteTextFile(const std::string& path, const std::string& text);
+
+}  // namespace felt::report

@@ -1,0 +1,144 @@
+#pragma once
+// The server in lock-step virtual time, for `felt compare` (issue 7; docs/compare.md): a pointer
+// trace drives the real Server (server/server.h) through its public HapticTick and SimFrame
+// on a virtual clock, one thread, no DDS, so every variant of a scene (collision structure,
+// integrator, snapshot mode, proxy settings) receives the same input and the forces it produces
+// can be compared tick by tick (the evaluation method of 001_0f9f1b7fedff7723.txt §6).
+//
+// Virtual time, for a haptic rate R (Hz) and a frame rate F (Hz) of the variant's scene:
+//  - t0 = kLockstepEpochNs: the rest state (frame 0) is published (Server::PublishInitialSnapshot,
+//    as Server::Start does);
+//  - haptic tick k = 1, 2, ... at t0 + round(k * 1e9 / R) ns, HapticTick(t, 1 / R): the first tick
+//    releases the trace's first sample (TracePointerSource), so the trace plays from there;
+//  - sim frame j = 1, 2, ... at t0 + round(j * 1e9 / F) ns, SimFrame(1 / F, t): run before a tick
+//    at the same or a later time, its snapshot stamped at its own virtual time (a frame takes no
+//    virtual time: the snapshot is as fresh as a sim thread with zero compute time makes it);
+//  - the run ends with the tick that releases the trace's last sample (or at max_duration_s).
+// Every result is a function of the scene, the variant and the trace only: repeated runs give the
+// same forces bit for bit. Costs are thread CPU time (CLOCK_THREAD_CPUTIME_ID) of each call, so
+// they vary from run to run.
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "collision/mesh.h"
+#include "recordings/trace.h"
+#include "scene/scene_file.h"
+#include "server/server_spec.h"
+
+namespace felt {
+
+/// The virtual clock's origin, ns: any value > 0 (0 means "now" to Server::SimFrame).
+inline constexpr int64_t kLockstepEpochNs = 1'000'000'000'000;
+
+/// One override of a scene value: `key` as written (a shorthand such as "snapshot", or a dotted
+/// scene path such as "proxy.max_iterations") and `value` as written ("blend_forces", "8").
+struct VariantOverride {
+  std::string key;    ///< as written
+  std::string value;  ///< as written (TOML literal, or a bare word taken as a string)
+};
+
+/// One variant of a comparison: a name and the overrides that make it from the scene.
+struct LockstepVariant {
+  std::string name;                        ///< unique in the list; shown in tables
+  std::vector<VariantOverride> overrides;  ///< applied in order (empty: the scene as written)
+  /// The overrides as "key=value,key=value" ("" when none).
+  std::string OverridesText() const;
+};
+
+/// Parses a --variants list (docs/compare.md): variants separated by ';', each `[NAME:]
+/// key=value[,key=value...]`; a variant without NAME is named by its overrides ("scene" when it
+/// has none). Commas and semicolons inside [...] or "..." do not split. Throws
+/// std::invalid_argument naming the variant (1-based) and the bad part: an empty list, a part
+/// without '=', an empty key or value, an unknown shorthand or section, a duplicate name.
+std::vector<LockstepVariant> ParseVariantList(std::string_view text);
+
+/// The shorthand keys (structure, snapshot, shading, friction, integrator, substeps, provot) with
+/// the scene keys they set, as "shorthand -> scene key" lines, for --help and messages.
+std::vector<std::pair<std::string, std::string>> VariantShorthands();
+
+/// `scene` with `variant`'s overrides applied to its TOML tree, parsed into a ServerSpec
+/// (ParseServerSpec: every key checked as in a scene file). Throws std::invalid_argument
+/// "variant N 'NAME': KEY=VALUE: <scene error>" naming the override the error is about (or all of
+/// them when the error names none).
+ServerSpec VariantSpec(const SceneDocument& scene, const LockstepVariant& variant, int index);
+
+/// How a lock-step run is limited.
+struct LockstepOptions {
+  double max_duration_s = 0.0;  ///< stop after this much virtual time, s (0: the whole trace)
+};
+
+/// Everything one lock-step run recorded. Arrays are indexed [tick * devices + device].
+struct LockstepRun {
+  std::string name;                  ///< the variant's name
+  std::string overrides;             ///< LockstepVariant::OverridesText
+  uint32_t devices = 0;              ///< devices of the scene (each replays the trace)
+  double tick_dt_s = 0.0;            ///< haptic period, s
+  int64_t ticks = 0;                 ///< HapticTick calls
+  int64_t frames = 0;                ///< SimFrame calls
+  std::vector<Vec3> force_D_N;       ///< force sent, device frame, N (after the safety layer)
+  std::vector<uint8_t> in_contact;   ///< 1 when the proxy touched the cloth at that tick
+  std::vector<double> tick_cpu_us;   ///< thread CPU time of each HapticTick, us
+  std::vector<double> frame_cpu_ms;  ///< thread CPU time of each SimFrame, ms
+  /// Median thread CPU time between two back-to-back clock reads (1000 pairs before the run), us:
+  /// the timer's own share of each tick and frame figure (not subtracted from them).
+  double timer_overhead_us = 0.0;
+  uint64_t clamped_ticks = 0;     ///< device ticks flagged clamped (force or rate)
+  uint64_t stalled_ticks = 0;     ///< device ticks flagged sim stalled
+  uint64_t nan_events = 0;        ///< safety NaN events
+  uint64_t cloth_nan_events = 0;  ///< sim frames that recovered from non-finite values
+};
+
+/// Runs `spec` driven by `samples` (fed to every device) in lock-step virtual time (file
+/// comment). Set-up allocates; the ticks do not. Throws std::invalid_argument for an empty trace
+/// or a spec the Server refuses.
+LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& samples,
+                        const LockstepOptions& options = {});
+
+/// One variant's figures, against the reference (the first run). Units in the names.
+struct VariantSummary {
+  std::string name;                 ///< the variant's name
+  std::string overrides;            ///< its overrides ("" for none)
+  int64_t ticks = 0;                ///< haptic ticks
+  int64_t frames = 0;               ///< sim frames
+  double tick_us_median = 0.0;      ///< HapticTick thread CPU time, median, us
+  double tick_us_p99 = 0.0;         ///< ... 99th percentile (nearest rank), us
+  double frame_ms_median = 0.0;     ///< SimFrame thread CPU time, median, ms
+  double frame_ms_p99 = 0.0;        ///< ... 99th percentile (nearest rank), ms
+  double timer_overhead_us = 0.0;   ///< LockstepRun::timer_overhead_us, us
+  double force_rms_error_N = 0.0;   ///< sqrt(mean |F - F_ref|^2) over every tick and device, N
+  double force_max_error_N = 0.0;   ///< max |F - F_ref|, N
+  double max_jump_N = 0.0;          ///< this variant's largest |F(k) - F(k-1)|, N
+  double max_jump_vs_ref_N = 0.0;   ///< max_jump_N minus the reference's max_jump_N, N
+  double peak_force_N = 0.0;        ///< largest |F|, N
+  uint64_t contacts = 0;            ///< device ticks in contact
+  uint64_t contact_mismatches = 0;  ///< device ticks whose contact differs from the reference
+  uint64_t clamped_ticks = 0;       ///< LockstepRun::clamped_ticks
+  uint64_t stalled_ticks = 0;       ///< LockstepRun::stalled_ticks
+  uint64_t nan_events = 0;          ///< safety plus cloth NaN events
+};
+
+/// Summarises `runs` against runs[0] (whose errors are 0 by construction: it is compared with
+/// itself). Throws std::invalid_argument when a run's ticks or devices differ from the reference
+/// (the forces cannot be paired tick by tick).
+std::vector<VariantSummary> SummarizeRuns(const std::vector<LockstepRun>& runs);
+
+/// A whole comparison: every variant's run and summary, in the order given.
+struct CompareResult {
+  std::vector<LockstepRun> runs;          ///< one per variant
+  std::vector<VariantSummary> summaries;  ///< one per variant; [0] is the reference
+};
+
+/// Builds every variant's spec (VariantSpec) and checks they can be paired with the first (same
+/// haptic_rate_hz and number of devices) before running any, then runs each (RunLockstep) and
+/// summarises them (SummarizeRuns). Throws std::invalid_argument naming the variant.
+CompareResult CompareVariants(const SceneDocument& scene, const std::vector<TraceSample>& samples,
+                              const std::vector<LockstepVariant>& variants,
+                              const LockstepOptions& options = {});
+
+/// Nearest-rank percentile `p` in [0, 100] of `samples` (0 for none).
+double NearestRankPercentile(std::vector<double> samples, double p);
+
+}  // namespace felt

@@ -1,0 +1,25 @@
+#pragma once
+// Everything the server runs, read from one scene: the cloth, the proxy, the devices and the loops.
+#include <string>
+#include <vector>
+
+#include "haptic_loop/haptic_spec.h"
+#include "proxy/proxy_spec.h"
+#include "scene/scene_file.h"
+#include "sim_loop/cloth_spec.h"
+
+namespace felt {
+
+/// Everything the server runs: the cloth, the proxy, the devices and the loops.
+struct ServerSpec {
+  std::string scene_name;           ///< [scene] name (for logs and the status's server id)
+  SimSpec sim;                      ///< the cloth ([cloth], [integration], ...)
+  ProxySpec proxy;                  ///< [proxy]
+  std::vector<DeviceSpec> devices;  ///< [[devices]] or the single [device]; order = index
+  HapticSpec haptic;                ///< [haptic]
+};
+
+/// Reads everything the server needs from a loaded scene. Throws SceneError.
+ServerSpec ParseServerSpec(const SceneDocument& doc);
+
+}  // namespace felt

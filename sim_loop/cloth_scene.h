@@ -1,0 +1,19 @@
+#pragma once
+// The simulation sections of a scene file ([cloth], [[obstacles]], [integration], [provot]) read
+// into a SimSpec, with scene/scene_file.h's file:line:field errors. docs/scenes.md is the
+// reference.
+
+#include "scene/scene_file.h"
+#include "sim_loop/cloth_spec.h"
+
+namespace felt {
+
+/// Reads the simulation part of a scene: [cloth] with [cloth.structural], [cloth.shear],
+/// [cloth.bend] and [[cloth.pins]], [[obstacles]], [integration] and [provot]. [cloth] is
+/// required. A spring table that is absent means that spring type is left out (no springs of that
+/// type); present, its missing keys take cloth_spec.h's defaults for that type. Every value is
+/// checked here (ranges, unit axes, box min < max, pins inside the grid...) so the error carries
+/// its line; BuildClothModel (sim_loop/cloth.h) validates again. Throws SceneError.
+SimSpec ParseSimSpec(const SceneDocument& doc);
+
+}  // namespace felt

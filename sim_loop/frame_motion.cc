@@ -1,0 +1,24 @@
+// Frame-motion velocities for the haptic snapshots (sim_loop/frame_motion.h).
+
+#include "sim_loop/frame_motion.h"
+
+#include <cstdio>
+#include <cstdlib>
+
+namespace felt {
+
+RepairStats FillSnapshotWithFrameMotion(const ClothState& state, std::span<const Vec3> x_start_m,
+                                        double frame_dt_s, uint64_t frame,
+                                        std::span<Vec3> v_scratch, ClothSnapshot* snapshot) {
+  const size_t n = state.x.size();
+  if (x_start_m.size() != n || v_scratch.size() != n) {
+    std::fprintf(stderr, "FillSnapshotWithFrameMotion: span sizes differ from the cloth's\n");
+    std::abort();
+  }
+  // Mean velocity over the frame: the published cloth's own motion.
+  const double inv_dt = frame_dt_s > 0.0 ? 1.0 / frame_dt_s : 0.0;
+  for (size_t i = 0; i < n; ++i) v_scratch[i] = (state.x[i] - x_start_m[i]) * inv_dt;
+  return FillSnapshot(state.x, v_scratch, state.normals, frame, state.time_s, frame_dt_s, snapshot);
+}
+
+}  // namespace felt
