@@ -1,9 +1,10 @@
 #pragma once
 // Runs a loop body periodically with real-time settings and records its statistics: the shared
-// skeleton of the haptic thread, the sim thread and `felt bench loops` (empty body or server).
+// skeleton of the haptic thread, the sim thread, `felt run` and `felt bench loops`.
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <thread>
 #include <utility>
 
@@ -19,6 +20,9 @@ struct LoopRunOptions {
   int64_t duration_ns = 0;        ///< stop after this long from the first deadline; 0 = no limit
   RealtimeSettings realtime;      ///< applied to the loop's thread first (spin_us sets the spin)
   const std::atomic<bool>* stop = nullptr;  ///< stop when this becomes true (checked every tick)
+  /// Called on the loop's thread once the real-time settings are applied, before the first tick,
+  /// with what was granted (set-up: may allocate). Empty: nothing is called.
+  std::function<void(const RealtimeReport&)> on_started;
 };
 
 /// Throws std::invalid_argument when `options` cannot run (no end, bad period or spin).
@@ -49,6 +53,7 @@ RealtimeReport RunLoop(const LoopRunOptions& options, LoopStats* stats, Body&& b
   // Set-up: validate, apply the real-time settings, start one period from now.
   ValidateLoopRunOptions(options);
   const RealtimeReport report = ApplyRealtime(options.realtime);
+  if (options.on_started) options.on_started(report);
   PeriodicLoop loop(options.period_ns, int64_t{options.realtime.spin_us} * 1000);
   const int64_t start_ns = MonotonicNowNs() + options.period_ns;
   const int64_t end_ns = options.duration_ns > 0 ? start_ns + options.duration_ns : INT64_MAX;

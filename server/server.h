@@ -1,26 +1,8 @@
 #pragma once
-// The dual-loop real-time server (issue 5; docs/server.md): a 60 Hz sim thread, a 1 kHz haptic
-// thread and a monitor thread around one cloth and any number of devices.
-//
-// Sim thread, each frame: pop the reaction batches the haptic thread queued (SPSC queue) and turn
-// them into the frame's ExternalForce list, StepFrame, fill the triple buffer's write slot with the
-// cloth and the frame's motion as its velocities (FillSnapshotWithFrameMotion, proxy/
-// frame_motion.h; repairing the collision structure), stamp the publication time, Publish.
-//
-// Haptic thread, each tick (HapticTick, real-time safe): Acquire the newest snapshot (no wait);
-// when a new one arrived, copy the one before it into a preallocated "previous" snapshot (for the
-// snapshot modes that blend two cloths; copy-assignment of equally sized snapshots does not
-// allocate) and hand the reactions of the frame that ended to the sim; then per device: read the
-// newest pointer sample (PointerSource), run ProxyTick while the input is fresh, apply the safety
-// layer (haptic_loop/safety.h), push the force (ForceSink) and record statistics.
-//
-// Reaction handoff, nothing lost: every device's ProxyState::reaction accumulates the impulses on
-// the cloth over a frame. When a new snapshot arrives the haptic thread drains all of them into
-// one ReactionBatch staged in the server (forces are time averages over the batch's duration) and
-// TryPushes it on the SPSC queue; if the queue is full the batch stays staged and is pushed again
-// next tick, and the accumulators keep accumulating meanwhile (they are drained only once the
-// staged batch is gone), so no impulse is dropped. The sim applies the batches it pops in one
-// frame weighted by their durations (impulse-preserving).
+// The dual-loop real-time server (docs/server.md): the 60 Hz sim loop (sim_loop/sim_frame.h), the
+// 1 kHz haptic loop (haptic_loop/haptic_tick.h) and a monitor, each on a thread of its own, around
+// one cloth and any number of devices. The loops' threads run rt/loop_runner.h's RunLoop (absolute
+// deadlines, skipped periods counted, real-time settings applied when permitted).
 //
 // Monitor thread: once per monitor period, logs FormatMonitorLine plus the server's counters with
 // spdlog and calls the status callback (the DDS transport's PublishStatus in `felt serve`).
@@ -36,53 +18,15 @@
 #include <utility>
 #include <vector>
 
+#include "haptic_loop/haptic_tick.h"
 #include "haptic_loop/pointer_source.h"
-#include "haptic_loop/safety.h"
-#include "proxy/proxy.h"
+#include "rt/loop_runner.h"
 #include "rt/loop_stats.h"
 #include "rt/realtime.h"
-#include "rt/spsc_queue.h"
-#include "rt/triple_buffer.h"
 #include "server/server_spec.h"
-#include "sim_loop/cloth.h"
-#include "sim_loop/snapshot.h"
+#include "sim_loop/sim_frame.h"
 
 namespace felt {
-
-/// The most reaction forces one batch holds (all devices together); beyond it, forces merge into
-/// the last entry (total kept, counted by ReactionAccumulator::overflows()).
-inline constexpr int32_t kMaxReactionForces = 1024;
-
-/// The reactions of all devices over one sim frame, haptic -> sim. Plain fixed-size data.
-struct ReactionBatch {
-  int32_t count = 0;      ///< entries used in `forces`
-  double duration_s = 0;  ///< haptic time the forces are averaged over, s
-  std::array<ExternalForce, kMaxReactionForces> forces;  ///< world frame, N (time averages)
-};
-
-/// A published snapshot plus when it was published.
-struct PublishedSnapshot {
-  ClothSnapshot snapshot;  ///< the cloth of one frame
-  int64_t publish_ns = 0;  ///< CLOCK_MONOTONIC at Publish, ns (0: the initial rest state)
-};
-
-/// Per-device counters, written by the haptic thread, read by any thread.
-struct DeviceCounters {
-  std::atomic<uint64_t> ticks_with_input{0};      ///< ticks at which the device had a sample
-  std::atomic<uint64_t> contact_ticks{0};         ///< ticks with the proxy in contact
-  std::atomic<uint64_t> stale_ticks{0};           ///< ticks flagged stale input
-  std::atomic<uint64_t> ramping_ticks{0};         ///< ticks flagged ramping
-  std::atomic<uint64_t> clamped_ticks{0};         ///< ticks flagged clamped (force or rate)
-  std::atomic<uint64_t> stalled_ticks{0};         ///< ticks flagged sim stalled
-  std::atomic<uint64_t> nan_events{0};            ///< ticks with a non-finite input or output
-  std::atomic<uint64_t> connects{0};              ///< times the input became fresh (1 = first)
-  std::atomic<uint64_t> forces_sent{0};           ///< forces pushed to the sink
-  std::atomic<double> peak_force_N{0.0};          ///< largest |force| sent, N
-  std::atomic<double> energy_J{0.0};              ///< passivity observer, J (safety.h)
-  std::atomic<double> dissipated_J{0.0};          ///< passivity controller's removed energy, J
-  std::atomic<double> reaction_impulse_N_s{0.0};  ///< sum of |reaction impulse| queued, N s
-  std::atomic<bool> connected{false};             ///< input fresh at the last tick
-};
 
 /// A plain copy of one device's counters.
 struct DeviceReport {
@@ -103,6 +47,9 @@ struct DeviceReport {
   double reaction_impulse_N_s = 0;
   bool connected = false;
 };
+
+/// A plain copy of device counters `c` of the device `spec` (any thread; allocates).
+DeviceReport ReportDevice(const DeviceSpec& spec, const DeviceCounters& c);
 
 /// Everything the server reports: loop statistics plus counters. Large (two LoopStatsSnapshots):
 /// keep it on the heap.
@@ -189,82 +136,34 @@ class Server {
   /// The spec the server runs (validated).
   const ServerSpec& spec() const { return spec_; }
   /// The cloth model.
-  const ClothModel& model() const { return model_; }
+  const ClothModel& model() const { return sim_.model(); }
   /// The cloth state. Only while the sim thread is not running (before Start, after Stop, or
   /// from the thread that drives SimFrame).
-  const ClothState& cloth() const { return cloth_; }
+  const ClothState& cloth() const { return sim_.cloth(); }
   /// The cloth's sim frames stepped so far (sim thread's count; any thread).
-  uint64_t sim_frames() const { return sim_frames_.load(std::memory_order_acquire); }
+  uint64_t sim_frames() const { return sim_.counters().frames.load(std::memory_order_acquire); }
   /// Sim time of the newest frame [s]: frames x 1 / frame_rate_hz (skipped periods are dropped).
-  double sim_time_s() const { return sim_time_s_.load(std::memory_order_acquire); }
+  double sim_time_s() const { return sim_.counters().time_s.load(std::memory_order_acquire); }
   /// Total reaction impulse the sim has applied to the cloth, N s (any thread).
-  double applied_impulse_N_s() const { return applied_impulse_N_s_.load(); }
+  double applied_impulse_N_s() const { return sim_.counters().applied_impulse_N_s.load(); }
 
  private:
-  struct Device {
-    Device(DeviceSpec device, SafetySpec safety_rules, ProxyState proxy_state)
-        : spec(std::move(device)), safety_spec(safety_rules), proxy(std::move(proxy_state)) {}
-    DeviceSpec spec;
-    SafetySpec safety_spec;
-    ProxyState proxy;
-    SafetyState safety;
-    PointerInput input;
-    bool have_input = false;
-    bool fresh = false;
-    uint64_t last_seq = 0;
-    ProxyTickResult last_result;
-    std::unique_ptr<DeviceCounters> counters = std::make_unique<DeviceCounters>();
-  };
-
   void HapticThread();
   void SimThread();
   void MonitorThread();
-  void StageReactions();
+  // RunLoop's options for a loop thread at `rate_hz` with `realtime` (when applied), recording
+  // what was granted into `*granted` and then setting `*ready`.
+  LoopRunOptions ThreadLoop(double rate_hz, const RealtimeSettings& realtime,
+                            RealtimeReport* granted, std::atomic<bool>* ready) const;
 
   ServerSpec spec_;
-  ClothModel model_;
-  ClothState cloth_;
-  PointerSource* source_;
-  ForceSink* sink_;
   ServerOptions options_;
   double haptic_dt_s_;
   double sim_dt_s_;
-
-  // Sim -> haptic: newest snapshot. Haptic-owned, in modes that need the previous snapshot: the
-  // newest and the previous, each swapped out of the read slot when it arrived (no deep copy).
-  std::unique_ptr<TripleBuffer<PublishedSnapshot>> snapshots_;
-  std::vector<ClothSnapshot> copies_;  // [2] the newest and the previous, alternating
-  int newest_copy_ = -1;               // index into copies_ of the newest (-1: none yet)
-  int previous_copy_ = -1;             // index into copies_ of the previous (-1: none yet)
-  uint64_t newest_frame_ = 0;
-  uint64_t sim_frame_counter_ = 0;
-  // Sim-owned: the published positions of the last frame and the frame-motion velocities
-  // (sim_loop/frame_motion.h), [particles] each, sized once.
-  std::vector<Vec3> frame_start_x_;
-  std::vector<Vec3> frame_motion_v_;
-
-  // Haptic -> sim: reaction batches; the staged one waits for room.
-  std::unique_ptr<SpscQueue<ReactionBatch>> reactions_;
-  std::unique_ptr<ReactionBatch> staged_;
-  bool staged_pending_ = false;
-  std::unique_ptr<ReactionBatch> popped_;  // sim-owned scratch
-  std::vector<ExternalForce> external_;    // sim-owned, sized once
-
-  std::vector<Device> devices_;
-
-  // Statistics.
   std::unique_ptr<LoopStats> haptic_stats_;
   std::unique_ptr<LoopStats> sim_stats_;
-  std::atomic<uint64_t> body_ticks_{0};
-  std::atomic<uint64_t> sim_stalled_ticks_{0};
-  std::atomic<bool> sim_stalled_{false};
-  std::atomic<uint64_t> reaction_batches_{0};
-  std::atomic<uint64_t> reaction_batches_applied_{0};
-  std::atomic<uint64_t> reaction_queue_full_{0};
-  std::atomic<uint64_t> sim_frames_{0};
-  std::atomic<double> sim_time_s_{0.0};
-  std::atomic<uint64_t> cloth_nan_events_{0};
-  std::atomic<double> applied_impulse_N_s_{0.0};
+  SimLoop sim_;
+  HapticLoop haptic_;
   std::atomic<int64_t> stall_request_ns_{0};
 
   // Threads and their real-time outcome (written before `*_ready_`, read after).
