@@ -70,9 +70,9 @@ Server::Server(ServerSpec spec, PointerSource* source, ForceSink* sink, ServerOp
   for (const DeviceSpec& d : spec_.devices) {
     SafetySpec safety = DeviceSafetySpec(spec_.haptic, d);
     ValidateSafetySpec(safety);
-    ProxySpec proxy = spec_.proxy;
-    devices_.emplace_back(d, safety,
-                          ProxyState(proxy.candidate_capacity, std::min(per_device, 256)));
+    ProxyModel model = CompileProxyModel(d, spec_.proxy);
+    ProxyState state(model.candidate_capacity, std::min(per_device, 256));
+    devices_.emplace_back(d, safety, std::move(model), std::move(state));
   }
 
   haptic_stats_ = std::make_unique<LoopStats>(PeriodNs(spec_.haptic.haptic_rate_hz));
@@ -278,8 +278,8 @@ void Server::HapticTick(int64_t now_ns, double dt_s) {
       DeviceSample sample;
       sample.p_D_m = d.input.p_D_m;
       sample.v_D_m_per_s = d.input.v_D_m_per_s;
-      d.last_result = ProxyTick(d.spec, spec_.proxy, newest_snapshot, previous, since_newest_s,
-                                sample, dt_s, &d.proxy);
+      d.last_result =
+          ProxyTick(d.model, newest_snapshot, previous, since_newest_s, sample, dt_s, &d.proxy);
     }
     SafetyInput safety_in;
     safety_in.proxy_force_D_N = d.last_result.force_D_N;

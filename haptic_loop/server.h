@@ -202,10 +202,15 @@ class Server {
 
  private:
   struct Device {
-    Device(DeviceSpec device, SafetySpec safety_rules, ProxyState proxy_state)
-        : spec(std::move(device)), safety_spec(safety_rules), proxy(std::move(proxy_state)) {}
+    Device(DeviceSpec device, SafetySpec safety_rules, ProxyModel proxy_model,
+           ProxyState proxy_state)
+        : spec(std::move(device)),
+          safety_spec(safety_rules),
+          model(std::move(proxy_model)),
+          proxy(std::move(proxy_state)) {}
     DeviceSpec spec;
     SafetySpec safety_spec;
+    const ProxyModel model;  ///< compiled once from spec and the scene's [proxy]
     ProxyState proxy;
     SafetyState safety;
     PointerInput input;
