@@ -211,14 +211,15 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
   FillSnapshot(x, v, normals, 1, 0.0, kFrameS, &next);
   ProxySpec ref_spec = base;
   ref_spec.snapshot_mode = SnapshotMode::kNewest;
-  ProxyState ref_state = MakeProxyState(ref_spec);
-  std::vector<ProxySpec> specs;
+  const ProxyModel ref_model = CompileProxyModel(device, ref_spec);
+  ProxyState ref_state = MakeProxyState(ref_model);
+  std::vector<ProxyModel> models;
   std::vector<ProxyState> states;
   for (SnapshotMode m : kModes) {
     ProxySpec s = base;
     s.snapshot_mode = m;
-    specs.push_back(s);
-    states.push_back(MakeProxyState(s));
+    models.push_back(CompileProxyModel(device, s));
+    states.push_back(MakeProxyState(models.back()));
   }
   std::vector<ExternalForce> external(512);
   std::vector<ExternalForce> discard(512);
@@ -258,8 +259,8 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
     }
     const double since = t - last_publish_t;
     const DeviceSample sample{samples[i].p_D, samples[i].v_D};
-    const ProxyTickResult ref = ProxyTick(device, ref_spec, ref_snap, i > 0 ? &ref_prev : nullptr,
-                                          0.0, sample, kTickS, &ref_state);
+    const ProxyTickResult ref = ProxyTick(ref_model, ref_snap, i > 0 ? &ref_prev : nullptr, 0.0,
+                                          sample, kTickS, &ref_state);
     if (i > 0)
       res.reference_max_jump_N =
           std::max(res.reference_max_jump_N, (ref.force_D_N - last_ref).norm());
@@ -267,7 +268,7 @@ RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& 
     for (int m = 0; m < 4; ++m) {
       const auto t0 = std::chrono::steady_clock::now();
       const ProxyTickResult r =
-          ProxyTick(device, specs[m], next, &prev, since, sample, kTickS, &states[m]);
+          ProxyTick(models[m], next, &prev, since, sample, kTickS, &states[m]);
       const auto t1 = std::chrono::steady_clock::now();
       states[m].reaction.DrainInto(discard);  // one-way: the modes replay the reference's cloth
       ModeStats& ms = res.modes[m];

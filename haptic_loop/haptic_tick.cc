@@ -14,8 +14,7 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
                        const HapticSpec& haptic, const ClothSnapshot& initial,
                        SnapshotBuffer* snapshots, ReactionQueue* reactions, PointerSource* source,
                        ForceSink* sink, LoopStats* stats)
-    : proxy_spec_(proxy),
-      haptic_(haptic),
+    : haptic_(haptic),
       stale_ns_(static_cast<int64_t>(haptic.stale_input_s * 1e9)),
       stall_ns_(static_cast<int64_t>(haptic.sim_stall_s * 1e9)),
       snapshots_(snapshots),
@@ -39,8 +38,9 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
   for (const DeviceSpec& d : devices) {
     SafetySpec safety = DeviceSafetySpec(haptic_, d);
     ValidateSafetySpec(safety);
-    devices_.emplace_back(d, safety,
-                          ProxyState(proxy_spec_.candidate_capacity, std::min(per_device, 256)));
+    ProxyModel model = CompileProxyModel(d, proxy);
+    ProxyState state(model.candidate_capacity, std::min(per_device, 256));
+    devices_.emplace_back(d, safety, std::move(model), std::move(state));
   }
 }
 
@@ -150,8 +150,8 @@ void HapticLoop::TickDevice(uint32_t index, int64_t now_ns, double dt_s, const T
     DeviceSample sample;
     sample.p_D_m = d.input.p_D_m;
     sample.v_D_m_per_s = d.input.v_D_m_per_s;
-    d.last_result = ProxyTick(d.spec, proxy_spec_, *cloth.newest, cloth.previous,
-                              cloth.since_newest_s, sample, dt_s, &d.proxy);
+    d.last_result = ProxyTick(d.model, *cloth.newest, cloth.previous, cloth.since_newest_s, sample,
+                              dt_s, &d.proxy);
   }
   const SafetyOutput out = ApplyDeviceSafety(cloth, input_nan, dt_s, &d);
   SendForce(index, now_ns, out, &d);

@@ -83,10 +83,15 @@ class HapticLoop {
 
  private:
   struct Device {
-    Device(DeviceSpec device, SafetySpec safety_rules, ProxyState proxy_state)
-        : spec(std::move(device)), safety_spec(safety_rules), proxy(std::move(proxy_state)) {}
+    Device(DeviceSpec device, SafetySpec safety_rules, ProxyModel proxy_model,
+           ProxyState proxy_state)
+        : spec(std::move(device)),
+          safety_spec(safety_rules),
+          model(std::move(proxy_model)),
+          proxy(std::move(proxy_state)) {}
     DeviceSpec spec;
     SafetySpec safety_spec;
+    ProxyModel model;  ///< compiled once from spec and the scene's [proxy]
     ProxyState proxy;
     SafetyState safety;
     PointerInput input;
@@ -111,7 +116,6 @@ class HapticLoop {
   SafetyOutput ApplyDeviceSafety(const TickCloth& cloth, bool input_nan, double dt_s, Device* d);
   void SendForce(uint32_t index, int64_t now_ns, const SafetyOutput& out, Device* d);
 
-  ProxySpec proxy_spec_;
   HapticSpec haptic_;
   int64_t stale_ns_;
   int64_t stall_ns_;

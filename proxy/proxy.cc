@@ -122,75 +122,95 @@ int32_t SeedContacts(const LocalCloth& cloth, std::span<const ObstacleSpec> obst
   return n;
 }
 
+// The first contact of the proxy sphere (radius r, m) swept p -> target [m, world] against the
+// gathered cloth and the obstacles: the obstacles are constraint sources beside the triangles, and
+// the earlier contact wins (ties: the cloth, which lies on top of an obstacle it rests on).
+// Ericson 2005 §5.5.7.
+SweepHit FirstHitOnWay(const LocalCloth& cloth, std::span<const ObstacleSpec> obstacles,
+                       const Vec3& p, const Vec3& target, double r) {
+  SweepHit hit = cloth.Sweep(p, target, r);
+  if (!obstacles.empty()) {
+    int32_t k = -1;
+    const SweepContact oc = SweepSphereObstacles(p, target, r, obstacles, &k);
+    if (oc.hit && (!hit.hit || oc.toi < hit.toi)) {
+      hit = SweepHit{true, oc.toi, ObstacleContactId(k), oc.point, oc.normal, Vec3::Zero()};
+    }
+  }
+  return hit;
+}
+
+// Makes a sweep's hit a contact of the pass: a triangle already active gets its plane updated;
+// otherwise it is added (three at most). Returns false when a fourth plane would be needed: the
+// proxy is boxed in, and it stays where the sweep stopped it.
+bool AddPassContact(const SweepHit& hit, Pass* pass) {
+  ProxyContact c;
+  c.triangle = hit.triangle;
+  c.barycentric = hit.barycentric;
+  c.point_W_m = hit.point_m;
+  c.normal_W = hit.normal;
+  int32_t slot = -1;
+  for (int32_t i = 0; i < pass->n; ++i) {
+    if (pass->contacts[i].triangle == c.triangle) slot = i;
+  }
+  if (slot < 0 && pass->n == kMaxConstraintPlanes) return false;
+  if (slot < 0) slot = pass->n++;
+  pass->contacts[slot] = c;
+  return true;
+}
+
+// The closest point to `goal` [m, world] on the free side of the pass's active planes (radius r,
+// m), releasing the planes it does not press on. Returns false when no point satisfies every plane.
+bool SolveActivePlanes(const Vec3& goal, double r, Pass* pass, Vec3* target) {
+  std::array<ConstraintPlane, kMaxConstraintPlanes> planes;
+  for (int32_t i = 0; i < pass->n; ++i) planes[i] = PlaneOf(pass->contacts[i], r);
+  const PlaneSolveResult sol =
+      SolveClosestFeasible(goal, std::span<const ConstraintPlane>(planes.data(), pass->n));
+  if (!sol.feasible) return false;
+  int32_t kept = 0;
+  for (int32_t i = 0; i < pass->n; ++i) {
+    if (sol.active_mask & (1u << i)) pass->contacts[kept++] = pass->contacts[i];
+  }
+  pass->n = kept;
+  *target = sol.point;
+  return true;
+}
+
 // Ruspini 1997 §3: from `start`, sweep toward the closest point to `goal` on the free side of the
 // active planes; at each first contact add its plane (at most three) and solve again; drop planes
-// the solution leaves (the goal moved to their free side). Bounded by max_iterations.
-Pass RunPass(const LocalCloth& cloth, std::span<const ObstacleSpec> obstacles, const Vec3& start,
-             std::span<const ProxyContact> seeds, const Vec3& goal, double r,
-             int32_t max_iterations) {
+// the solution leaves (the goal moved to their free side). Bounded by model.max_iterations.
+Pass RunPass(const ProxyModel& model, const LocalCloth& cloth, const Vec3& start,
+             std::span<const ProxyContact> seeds, const Vec3& goal) {
+  const double r = model.radius_m;
   Pass pass;
   pass.p = start;
   for (const ProxyContact& s : seeds) pass.contacts[pass.n++] = s;
   const double tiny = 1e-12 * (1.0 + start.cwiseAbs().maxCoeff() + goal.cwiseAbs().maxCoeff());
   pass.converged = false;
-  for (int32_t it = 0; it < max_iterations; ++it) {
-    // The closest feasible point to the goal over the active planes.
-    std::array<ConstraintPlane, kMaxConstraintPlanes> planes;
-    for (int32_t i = 0; i < pass.n; ++i) planes[i] = PlaneOf(pass.contacts[i], r);
-    const PlaneSolveResult sol =
-        SolveClosestFeasible(goal, std::span<const ConstraintPlane>(planes.data(), pass.n));
-    if (!sol.feasible) {
+  for (int32_t it = 0; it < model.max_iterations; ++it) {
+    Vec3 target;
+    if (!SolveActivePlanes(goal, r, &pass, &target)) {
       // Pinched: no point satisfies every plane; the proxy stays where it is (never crosses).
       pass.feasible = false;
       pass.converged = true;
       break;
     }
-    // Release the planes the solution does not press on.
-    int32_t kept = 0;
-    for (int32_t i = 0; i < pass.n; ++i) {
-      if (sol.active_mask & (1u << i)) pass.contacts[kept++] = pass.contacts[i];
-    }
-    pass.n = kept;
-    const Vec3 target = sol.point;
     if ((target - pass.p).squaredNorm() <= tiny * tiny) {
       pass.converged = true;
       break;
     }
     // Sweep toward it: free motion ends the pass; a contact adds its plane and repeats.
     ++pass.iterations;
-    SweepHit hit = cloth.Sweep(pass.p, target, r);
-    // The obstacles are constraint sources beside the triangles: the earlier contact wins (ties:
-    // the cloth, which lies on top of an obstacle it rests on). Ericson §5.5.7.
-    if (!obstacles.empty()) {
-      int32_t k = -1;
-      const SweepContact oc = SweepSphereObstacles(pass.p, target, r, obstacles, &k);
-      if (oc.hit && (!hit.hit || oc.toi < hit.toi)) {
-        hit = SweepHit{true, oc.toi, ObstacleContactId(k), oc.point, oc.normal, Vec3::Zero()};
-      }
-    }
+    const SweepHit hit = FirstHitOnWay(cloth, model.obstacles, pass.p, target, r);
     if (!hit.hit) {
       pass.p = target;
       pass.converged = true;
       break;
     }
     pass.p = pass.p + hit.toi * (target - pass.p);
-    ProxyContact c;
-    c.triangle = hit.triangle;
-    c.barycentric = hit.barycentric;
-    c.point_W_m = hit.point_m;
-    c.normal_W = hit.normal;
-    // A triangle already active gets its plane updated; otherwise it is added (three at most:
-    // a fourth plane means the proxy is boxed in, and it stays where the sweep stopped it).
-    int32_t slot = -1;
-    for (int32_t i = 0; i < pass.n; ++i) {
-      if (pass.contacts[i].triangle == c.triangle) slot = i;
-    }
-    if (slot < 0 && pass.n == kMaxConstraintPlanes) {
+    if (!AddPassContact(hit, &pass)) {
       pass.converged = true;
       break;
     }
-    if (slot < 0) slot = pass.n++;
-    pass.contacts[slot] = c;
   }
   return pass;
 }
@@ -415,22 +435,55 @@ CarriedSweep SweepCarriedPath(const LocalCloth& local, const ClothView& before,
   return out;
 }
 
+// A body not yet placed starts at the goal [m, world]; a goal inside an obstacle puts it on the
+// obstacle's surface instead (in declaration order).
+void PlaceAtGoal(const ProxyModel& model, const Vec3& goal, GodObject* body) {
+  body->p_W_m = goal;
+  body->num_contacts = 0;
+  body->placed = true;
+  for (const ObstacleSpec& o : model.obstacles) {
+    const ObstaclePoint op = ClosestObstaclePoint(o, body->p_W_m);
+    if (op.distance_m < model.radius_m) body->p_W_m = op.point_W_m + model.radius_m * op.normal_W;
+  }
+}
+
+// Catch: the cloth moving from the previous tick's shape `before` to `now` may sweep over the
+// proxy (which moves with its carry meanwhile, p_prev -> p_carried [m, world]); it then rides on
+// the triangle that hit it (RideCaught). Returns whether it was caught.
+bool CatchOnMovingCloth(const LocalCloth& local, const ClothView& before, const ClothView& now,
+                        const Vec3& p_prev, const Vec3& p_carried, double r, GodObject* body) {
+  std::array<int32_t, kMaxConstraintPlanes> skip;  // the contacts touch from the start
+  skip.fill(-1);
+  for (int32_t i = 0; i < body->num_contacts; ++i) skip[i] = body->contacts[i].triangle;
+  const CarriedSweep cs = SweepCarriedPath(local, before, now, *body, p_prev, p_carried, r, skip);
+  if (!cs.hit.hit) return false;
+  const SweepHit& hit = cs.hit;
+  const LocalTriangle* t = FindLocal(local, hit.triangle);
+  const double s = cs.s0 + hit.toi * (cs.s1 - cs.s0);
+  const TriFrame f0 =
+      FrameOf(t->a0 + s * (t->a - t->a0), t->b0 + s * (t->b - t->b0), t->c0 + s * (t->c - t->c0));
+  const Vec3 p_toi = cs.q0 + hit.toi * (cs.q1 - cs.q0);
+  const Vec3 local_off = ToLocal(f0, p_toi - hit.point_m);
+  const TriFrame f1 = FrameOf(t->a, t->b, t->c);
+  const Vec3& w = hit.barycentric;
+  const Vec3 point = w(0) * t->a + w(1) * t->b + w(2) * t->c;
+  const Vec3 p_ride = point + FromLocal(f1, local_off);
+  ProxyContact c;
+  c.triangle = hit.triangle;
+  c.barycentric = w;
+  c.point_W_m = point;
+  c.normal_W = f1.ok ? Vec3(f1.n * (local_off(2) >= 0.0 ? 1.0 : -1.0)) : hit.normal;
+  c.local_m = local_off;
+  return RideCaught(now, p_carried, p_ride, c, r, body);
+}
+
 // Carry, gather, catch and update one body against one cloth for this tick.
-BodyTick TickBody(const ClothSnapshot& query, double inflation_m, const ClothView& now,
-                  const ClothView* before, const Vec3& goal, const GodObjectOptions& opts,
+BodyTick TickBody(const ProxyModel& model, const ClothSnapshot& query, double inflation_m,
+                  const ClothView& now, const ClothView* before, const Vec3& goal,
                   LocalCloth* local, GodObject* body) {
   BodyTick out;
-  const double r = opts.radius_m;
-  if (!body->placed) {
-    body->p_W_m = goal;
-    body->num_contacts = 0;
-    body->placed = true;
-    // A goal inside an obstacle: the proxy starts on its surface instead (in declaration order).
-    for (const ObstacleSpec& o : opts.obstacles) {
-      const ObstaclePoint op = ClosestObstaclePoint(o, body->p_W_m);
-      if (op.distance_m < r) body->p_W_m = op.point_W_m + r * op.normal_W;
-    }
-  }
+  const double r = model.radius_m;
+  if (!body->placed) PlaceAtGoal(model, goal, body);
   // Carry a proxy in contact with its contact triangle to this tick's cloth.
   const Vec3 p_prev = body->p_W_m;
   if (before != nullptr) CarryGodObject(*before, now, body);
@@ -442,54 +495,323 @@ BodyTick TickBody(const ClothSnapshot& query, double inflation_m, const ClothVie
                                 (goal - p_prev).norm() + (p_carried - p_prev).norm());
   out.overflow =
       !local->Gather(query, inflation_m, now, before, goal, reach + r * (1.0 + 1e-6) + 1e-9);
-  // Catch: the cloth moving from the previous tick's shape to this one may sweep over the proxy
-  // (which moves with its carry meanwhile); it then rides on the triangle that hit it.
   if (before != nullptr) {
-    std::array<int32_t, kMaxConstraintPlanes> skip;  // the contacts touch from the start
-    skip.fill(-1);
-    for (int32_t i = 0; i < body->num_contacts; ++i) skip[i] = body->contacts[i].triangle;
-    const CarriedSweep cs =
-        SweepCarriedPath(*local, *before, now, *body, p_prev, p_carried, r, skip);
-    if (cs.hit.hit) {
-      const SweepHit& hit = cs.hit;
-      const LocalTriangle* t = FindLocal(*local, hit.triangle);
-      const double s = cs.s0 + hit.toi * (cs.s1 - cs.s0);
-      const TriFrame f0 = FrameOf(t->a0 + s * (t->a - t->a0), t->b0 + s * (t->b - t->b0),
-                                  t->c0 + s * (t->c - t->c0));
-      const Vec3 p_toi = cs.q0 + hit.toi * (cs.q1 - cs.q0);
-      const Vec3 local_off = ToLocal(f0, p_toi - hit.point_m);
-      const TriFrame f1 = FrameOf(t->a, t->b, t->c);
-      const Vec3& w = hit.barycentric;
-      const Vec3 point = w(0) * t->a + w(1) * t->b + w(2) * t->c;
-      const Vec3 p_ride = point + FromLocal(f1, local_off);
-      ProxyContact c;
-      c.triangle = hit.triangle;
-      c.barycentric = w;
-      c.point_W_m = point;
-      c.normal_W = f1.ok ? Vec3(f1.n * (local_off(2) >= 0.0 ? 1.0 : -1.0)) : hit.normal;
-      c.local_m = local_off;
-      out.caught = RideCaught(now, p_carried, p_ride, c, r, body);
-    }
+    out.caught = CatchOnMovingCloth(*local, *before, now, p_prev, p_carried, r, body);
   }
   if (!out.caught) SettleOnContacts(now, p_carried, r, nullptr, body);
   // The static obstacles stop the carry and the catch: the cloth may press the proxy toward an
   // obstacle, but the proxy never enters one (it stays at the first contact on its way).
-  if (!opts.obstacles.empty()) {
+  if (!model.obstacles.empty()) {
     int32_t k = -1;
-    const SweepContact oc = SweepSphereObstacles(p_prev, body->p_W_m, r, opts.obstacles, &k);
+    const SweepContact oc = SweepSphereObstacles(p_prev, body->p_W_m, r, model.obstacles, &k);
     if (oc.hit) body->p_W_m = p_prev + oc.toi * (body->p_W_m - p_prev);
   }
-  out.step = UpdateGodObject(*local, now, goal, opts, body);
+  out.step = UpdateGodObject(model, *local, now, goal, body);
   return out;
 }
 
-// Spring-damper force on the device for a proxy at p (world), device frame, unclamped.
-Vec3 CouplingForceD(const DeviceSpec& d, const Vec3& p_W, const Vec3& goal_W, const Vec3& v_proxy_W,
+// Spring-damper force on the device for a proxy at p_W (world, m) moving at v_proxy_W [m/s,
+// world], the device at goal_W moving at v_device_D [m/s, device frame]: device frame, N,
+// unclamped.
+Vec3 CouplingForceD(const ProxyModel& m, const Vec3& p_W, const Vec3& goal_W, const Vec3& v_proxy_W,
                     const Vec3& v_device_D) {
-  const Eigen::Matrix3d& R = d.rotation_WD;
-  const Vec3 spring = d.stiffness_N_per_m * (R.transpose() * (p_W - goal_W)) / d.scale;
-  const Vec3 v_proxy_D = R.transpose() * v_proxy_W / d.scale;
-  return spring + d.damping_N_s_per_m * (v_proxy_D - v_device_D);
+  const Eigen::Matrix3d& R = m.rotation_WD;
+  const Vec3 spring = m.stiffness_N_per_m * (R.transpose() * (p_W - goal_W)) / m.scale;
+  const Vec3 v_proxy_D = R.transpose() * v_proxy_W / m.scale;
+  return spring + m.damping_N_s_per_m * (v_proxy_D - v_device_D);
+}
+
+// Adds a pass's counts to the update's.
+void TallyPass(const Pass& pass, GodObjectStep* step) {
+  step->iterations += pass.iterations;
+  step->converged = step->converged && pass.converged;
+  step->feasible = step->feasible && pass.feasible;
+}
+
+// Force shading's sub-goal (Ruspini 1997 §5 after Morgenbesser & Srinivasan 1996): goal_W [m,
+// world] projected onto the planes through the proxy with the interpolated normals; goal_W itself
+// when they admit no point.
+Vec3 ShadedGoal(const ClothView& view, const Pass& pass, const Vec3& goal_W) {
+  std::array<ConstraintPlane, kMaxConstraintPlanes> shaded;
+  for (int32_t i = 0; i < pass.n; ++i) {
+    const Vec3 ns = ShadingNormal(view, pass.contacts[i]);
+    shaded[i] = ConstraintPlane{ns, ns.dot(pass.p), pass.contacts[i].triangle};
+  }
+  const PlaneSolveResult sub =
+      SolveClosestFeasible(goal_W, std::span<const ConstraintPlane>(shaded.data(), pass.n));
+  return sub.feasible ? sub.point : goal_W;
+}
+
+// Friction (Ruspini 1997 §4; Salisbury et al. 1995's cone): a proxy that was and stays in
+// contact sticks while the goal is inside the cone around the normal (the static cone when
+// stuck, the dynamic one while slipping), else it trails the frictionless point at the edge of
+// the dynamic cone. Reruns the pass from p_old toward that point. Returns whether it slips.
+bool ApplyFriction(const ProxyModel& model, const LocalCloth& cloth, const Vec3& goal_W,
+                   const Vec3& p_old, std::span<const ProxyContact> seeds, bool was_slipping,
+                   Pass* pass, Pass* surface, GodObjectStep* step) {
+  if (!(model.friction_static > 0.0 && !seeds.empty() && pass->n > 0)) return false;
+  Vec3 n = Vec3::Zero();
+  for (int32_t i = 0; i < pass->n; ++i) n += pass->contacts[i].normal_W;
+  n.normalize();
+  const Vec3 p_free = pass->p;
+  const double depth = n.dot(p_free - goal_W);
+  Vec3 t = p_old - p_free;
+  t -= n * n.dot(t);
+  const double tl = t.norm();
+  if (!(depth > 0.0 && tl > 0.0)) return false;
+  const double mu_d = model.friction_dynamic;
+  const double mu_hold = was_slipping ? mu_d : model.friction_static;
+  const bool slipping = tl > mu_hold * depth;
+  const Vec3 target = slipping ? Vec3(p_free + t * (mu_d * depth / tl)) : Vec3(p_free + t);
+  *pass = RunPass(model, cloth, p_old, seeds, target);
+  TallyPass(*pass, step);
+  if (pass->n > 0) *surface = *pass;
+  return slipping;
+}
+
+// The pass's proxy into the body, with the surface's contacts and their offsets in their
+// triangles' frames (for the carry).
+void StoreBody(const LocalCloth& cloth, const Pass& pass, const Pass& surface, GodObject* body) {
+  body->p_W_m = pass.p;
+  body->num_contacts = surface.n;
+  for (int32_t i = 0; i < surface.n; ++i) {
+    ProxyContact c = surface.contacts[i];
+    Vec3 a, b, c3;
+    const TriFrame f = cloth.Corners(c.triangle, &a, &b, &c3) ? FrameOf(a, b, c3) : TriFrame{};
+    c.local_m = ToLocal(f, pass.p - c.point_W_m);
+    body->contacts[i] = c;
+  }
+}
+
+// Step 2's second half: the cloth of this tick and of the previous tick by the tick's mode
+// (ClothView recipes over `newest` and cloth->prev), and how far both lie from `newest`.
+void ViewsForMode(const ClothSnapshot& newest, const ProxyState& state, TickCloth* cloth) {
+  const ClothSnapshot* prev = cloth->prev;
+  const double disp = state.pair_displacement_m;
+  const double alpha = cloth->alpha;
+  const double tau = cloth->tau_s;
+  cloth->now = ClothView::Of(newest);
+  cloth->before = cloth->now;
+  cloth->moved = cloth->arrived && !cloth->first && prev != nullptr;
+  cloth->inflation_m = 0.0;
+  switch (cloth->mode) {
+    case SnapshotMode::kNewest:
+    case SnapshotMode::kBlendForces:
+      if (cloth->moved) {
+        cloth->before = ClothView::Of(*prev);
+        cloth->inflation_m = disp;
+      }
+      break;
+    case SnapshotMode::kInterpolate: {
+      // One frame late: the cloth runs from the previous snapshot to the newest over the frame.
+      cloth->now = ClothView{prev, &newest, alpha, 0.0};
+      const double alpha_before = cloth->arrived ? 0.0 : state.last_alpha;
+      cloth->before = ClothView{prev, &newest, alpha_before, 0.0};
+      cloth->moved = !cloth->first && alpha_before != alpha;
+      cloth->inflation_m = (1.0 - std::min(alpha, alpha_before)) * disp;
+      break;
+    }
+    case SnapshotMode::kExtrapolate: {
+      cloth->now = ClothView{&newest, &newest, 0.0, tau};
+      double before_extent = state.last_tau_s * newest.max_speed_m_per_s;
+      if (cloth->arrived) {
+        cloth->before = ClothView{prev, prev, 0.0, state.last_tau_s};
+        before_extent = disp + state.last_tau_s * prev->max_speed_m_per_s;
+      } else {
+        cloth->before = ClothView{&newest, &newest, 0.0, state.last_tau_s};
+      }
+      cloth->moved = !cloth->first && (cloth->arrived || state.last_tau_s != tau);
+      cloth->inflation_m = std::max(tau * newest.max_speed_m_per_s, before_extent);
+      break;
+    }
+  }
+}
+
+// What the tick's proxies did, both together (mode b: the main one and the previous cloth's).
+struct TickBodies {
+  BodyTick main;           // the proxy on the tick's cloth
+  BodyTick other;          // mode b: the proxy on the previous snapshot (else untouched)
+  bool on_newest = false;  // modes c, d: the main proxy fell back to `newest` (overflow)
+};
+
+// Steps 3-5 for the main proxy: carry, catch and update on the tick's cloth. Modes (c), (d):
+// after a gather overflow the sweeps query the newest snapshot's structure at its own positions
+// (LocalCloth::Sweep) while the carry and the gathered triangles used the interpolated or
+// extrapolated cloth, so the proxy could be solved against two cloths at once. Such a tick runs
+// again wholly on the newest snapshot (mode (a) for one tick), from the previous tick's cloth;
+// every vertex of both stays within `inflation` of it. Mode (b): the proxy on the previous
+// cloth is the one that was on the newest last frame, and it is updated there too.
+TickBodies MoveProxies(const ProxyModel& model, const ClothSnapshot& newest, const TickCloth& cloth,
+                       const Vec3& goal, ProxyState* state) {
+  TickBodies out;
+  const bool blend = cloth.mode == SnapshotMode::kBlendForces;
+  if (blend && cloth.arrived) state->body_prev = state->body;
+  const GodObject body_before = state->body;
+  out.main = TickBody(model, newest, cloth.inflation_m, cloth.now,
+                      cloth.moved ? &cloth.before : nullptr, goal, &state->local, &state->body);
+  if (cloth.interpolated && out.main.overflow) {
+    state->body = body_before;
+    out.main = TickBody(model, newest, cloth.inflation_m, ClothView::Of(newest),
+                        cloth.first ? nullptr : &cloth.before, goal, &state->local, &state->body);
+    out.on_newest = true;
+  }
+  if (blend) {
+    out.other = TickBody(model, *cloth.prev, 0.0, ClothView::Of(*cloth.prev), nullptr, goal,
+                         &state->local, &state->body_prev);
+  }
+  return out;
+}
+
+// Step 6 before the clamp: each proxy's spring-damper on the device [N, device frame] and the
+// weights that blend them (mode b: by alpha; else the main one alone), and the proxy reported.
+struct TickForces {
+  Vec3 main_D = Vec3::Zero();   // the main proxy's coupling force, device frame, N
+  Vec3 prev_D = Vec3::Zero();   // mode b: the previous cloth's proxy's, device frame, N
+  double w_main = 1.0;          // blend weight of main_D
+  double w_prev = 0.0;          // blend weight of prev_D
+  Vec3 proxy_W = Vec3::Zero();  // the proxy centre reported, world, m (mode b: blended)
+};
+
+TickForces CouplingForces(const ProxyModel& model, const TickCloth& cloth, const Vec3& goal,
+                          const DeviceSample& sample, double tick_dt_s, const ProxyState& state) {
+  TickForces f;
+  const double inv_dt = tick_dt_s > 0.0 ? 1.0 / tick_dt_s : 0.0;
+  f.main_D = CouplingForceD(model, state.body.p_W_m, goal,
+                            (state.body.p_W_m - state.last_proxy_W_m) * inv_dt, sample.v_D_m_per_s);
+  f.proxy_W = state.body.p_W_m;
+  if (cloth.mode == SnapshotMode::kBlendForces) {
+    f.w_main = cloth.alpha;
+    f.w_prev = 1.0 - cloth.alpha;
+    f.proxy_W = f.w_prev * state.body_prev.p_W_m + f.w_main * state.body.p_W_m;
+    f.prev_D =
+        CouplingForceD(model, state.body_prev.p_W_m, goal,
+                       (state.body_prev.p_W_m - state.last_proxy_W_m) * inv_dt, sample.v_D_m_per_s);
+  }
+  return f;
+}
+
+// Two-way coupling for one proxy: its share `weight` of -F_W (F_D = f_D times the clamp factor
+// `clamp`) goes to the cloth at its contacts, only what the cloth itself takes before an obstacle
+// does (`press`), each share at its triangle (of `tris`) for tick_dt_s [s].
+void AddReaction(const ProxyModel& model, const std::vector<Triangle>& tris, const GodObject& body,
+                 const ClothPress& press, const Vec3& f_D, double weight, double clamp,
+                 double tick_dt_s, ReactionAccumulator* reaction) {
+  if (body.num_contacts <= 0 || weight <= 0.0) return;
+  Vec3 on_cloth_W = -(model.rotation_WD * (weight * clamp * f_D)) / model.scale;
+  if (press.depth_m < press.full_m) on_cloth_W *= press.depth_m / press.full_m;
+  std::array<Vec3, kMaxConstraintPlanes> parts;
+  SplitOverContacts(body, on_cloth_W, &parts);
+  for (int32_t i = 0; i < body.num_contacts; ++i) {
+    const ProxyContact& c = body.contacts[i];
+    if (IsObstacleContactId(c.triangle)) continue;  // the static obstacle takes its share
+    reaction->AddForce(c.triangle, tris[c.triangle], c.barycentric, parts[i], tick_dt_s);
+  }
+}
+
+// Step 6's reaction: each proxy's share of -F_W to the cloth (mode b: both, by their weights),
+// and the tick's time. Returns the main proxy's press on the cloth (for the hand's spring).
+ClothPress AddReactions(const ProxyModel& model, const ClothSnapshot& newest, SnapshotMode mode,
+                        const Vec3& goal, const TickForces& f, double clamp, double tick_dt_s,
+                        ProxyState* state) {
+  const std::vector<Triangle>& tris = *newest.triangles;
+  const ClothPress press = PressOnCloth(state->body, goal, model.radius_m, model.obstacles);
+  AddReaction(model, tris, state->body, press, f.main_D, f.w_main, clamp, tick_dt_s,
+              &state->reaction);
+  if (mode == SnapshotMode::kBlendForces) {
+    AddReaction(model, tris, state->body_prev,
+                PressOnCloth(state->body_prev, goal, model.radius_m, model.obstacles), f.prev_D,
+                f.w_prev, clamp, tick_dt_s, &state->reaction);
+  }
+  state->reaction.AddTime(tick_dt_s);
+  return press;
+}
+
+// The contact of this tick as a spring the sim evaluates at its substep rate (virtual coupling,
+// Colgate, Stanley & Brown 1995). The device spring F_D = k (proxy_D - device_D) is, in the
+// world, F_W = (k / scale^2) (proxy_W - goal_W) (proxy_spec.h). The sim presses a sphere onto the
+// nearest point of the cloth around the contact triangle, re-found at every force evaluation, so
+// the force is a potential's gradient however the contact wanders between triangles (tying it to
+// this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
+// Obstacle contacts (negative ids) put nothing on the cloth: the spring is the first cloth one.
+void SetHandSpring(const ProxyModel& model, const ClothSnapshot& newest, const Vec3& goal,
+                   const ClothPress& press, bool first, ProxyState* state) {
+  const int32_t spring_contact = FirstClothContact(state->body);
+  const double spring_k_W = model.stiffness_W_N_per_m;
+  const double spring_max_W = model.max_force_W_N;
+  const double r = model.radius_m;
+  if (spring_contact >= 0) {
+    const ProxyContact& c = state->body.contacts[spring_contact];
+    // The sim's sphere: centred on the proxy, its radius grown by how far the hand presses the
+    // cloth itself (PressOnCloth: |proxy - goal| without obstacles; along the contact normal for a
+    // frictionless contact), so at rest its penetration is that depth. Both are continuous in time
+    // (a sphere at the goal itself, deep behind the cloth in a fast swipe, found its nearest point
+    // sideways; one tied to the contact normal moved whenever the contact hopped between
+    // triangles).
+    const Vec3& proxy_c = state->body.p_W_m;
+    const double reach_m = r + press.depth_m;
+    state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
+                                     proxy_c - reach_m * c.normal_W, spring_k_W, spring_max_W,
+                                     reach_m);
+    state->hand_seed = c;
+  } else if (state->hand_seed.triangle >= 0 && !first) {
+    // Free: the hand is still there for the cloth. The haptic side's cloth is a snapshot (or an
+    // interpolated or extrapolated one) while the sim's is the real one; a proxy that lost contact
+    // with the one may still be pressing on the other. Without a spring the sim's cloth sprang
+    // back freely into the hand, and mode extrapolate fell into a limit cycle (contact lost each
+    // frame the sim's cloth was pushed away, regained when it sprang back;
+    // bench/results/compare_poke_hold.md). So while the free proxy (at the goal) is within three
+    // radii of its last contact point, on the side it touched (the newest snapshot's cloth there),
+    // the sim keeps the proxy sphere there: a unilateral spring that pushes only if the cloth
+    // enters it, continuous with the contact's (whose sphere's far side also lies r beyond the
+    // goal). The frame's averaged impulses then give way to it (ReactionAccumulator::DrainInto).
+    const ProxyContact& c = state->hand_seed;
+    Vec3 a, b, cc;
+    ClothView::Of(newest).Corners(c.triangle, &a, &b, &cc);
+    const Vec3 d = goal - ContactPointOn(c, a, b, cc);
+    if (d.norm() < 3.0 * r && d.dot(c.normal_W) >= 0.0) {
+      state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W, goal - r * c.normal_W,
+                                       spring_k_W, spring_max_W, r);
+    } else {
+      state->hand_seed.triangle = -1;
+      state->reaction.ClearContactSpring();
+    }
+  } else {
+    state->reaction.ClearContactSpring();
+  }
+}
+
+// The tick's result from its steps (`force` clamped, `f` before the clamp, `bodies` moved).
+ProxyTickResult TickResult(const ProxyModel& model, const ProxyState& state,
+                           const TickBodies& bodies, const TickForces& f, const ClampedForce& force,
+                           const Vec3& goal) {
+  ProxyTickResult out;
+  out.force_D_N = force.force_D_N;
+  out.force_W_N = model.rotation_WD * force.force_D_N / model.scale;
+  out.proxy_W_m = f.proxy_W;
+  out.goal_W_m = goal;
+  out.num_contacts = state.body.num_contacts;
+  out.iterations = bodies.main.step.iterations + bodies.other.step.iterations;
+  out.clamped = force.clamped;
+  out.overflow = bodies.main.overflow || bodies.other.overflow;
+  out.caught = bodies.main.caught;
+  out.on_newest = bodies.on_newest;
+  return out;
+}
+
+// Book-keeping for the next tick: the counters and what the next tick's cloth choice and damping
+// velocity need.
+void RecordTick(const TickCloth& cloth, const TickBodies& bodies, const ProxyTickResult& out,
+                ProxyState* state) {
+  ProxyCounters& counters = state->counters;
+  if (out.clamped) ++counters.clamped_ticks;
+  if (out.overflow) ++counters.overflow_ticks;
+  if (out.caught) ++counters.catches;
+  if (!(bodies.main.step.converged && bodies.other.step.converged)) ++counters.unconverged_ticks;
+  if (!(bodies.main.step.feasible && bodies.other.step.feasible)) ++counters.infeasible_ticks;
+  state->last_alpha = cloth.alpha;
+  state->last_tau_s = cloth.tau_s;
+  state->last_on_newest = bodies.on_newest;
+  state->last_proxy_W_m = out.proxy_W_m;
 }
 
 }  // namespace
@@ -513,320 +835,94 @@ void CarryGodObject(const ClothView& /*before*/, const ClothView& now, GodObject
   body->p_W_m = AnchoredAt(c, a, b, cc);
 }
 
-GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, const Vec3& goal_W,
-                              const GodObjectOptions& options, GodObject* body) {
+GodObjectStep UpdateGodObject(const ProxyModel& model, const LocalCloth& cloth,
+                              const ClothView& view, const Vec3& goal_W, GodObject* body) {
   GodObjectStep step;
-  const double r = options.radius_m;
   const Vec3 p_old = body->p_W_m;
   std::array<ProxyContact, kMaxConstraintPlanes> seeds;
-  const std::span<const ObstacleSpec> obstacles = options.obstacles;
-  const int32_t num_seeds = SeedContacts(cloth, obstacles, *body, r, &seeds);
+  const int32_t num_seeds = SeedContacts(cloth, model.obstacles, *body, model.radius_m, &seeds);
   const std::span<const ProxyContact> seed_span(seeds.data(), num_seeds);
 
   // Pass 1: the plain god-object update toward the goal.
-  Pass pass = RunPass(cloth, obstacles, p_old, seed_span, goal_W, r, options.max_iterations);
-  step.iterations += pass.iterations;
-  step.converged = step.converged && pass.converged;
-  step.feasible = step.feasible && pass.feasible;
+  Pass pass = RunPass(model, cloth, p_old, seed_span, goal_W);
+  TallyPass(pass, &step);
   Pass surface = pass;  // the contacts the force comes from
 
   // Pass 2, force shading (Ruspini 1997 §5 after Morgenbesser & Srinivasan 1996): the goal
   // projected onto the planes through the proxy with the interpolated normals is the sub-goal of
   // a second update from the same start.
-  Vec3 goal = goal_W;
-  if (options.force_shading && pass.n > 0) {
-    std::array<ConstraintPlane, kMaxConstraintPlanes> shaded;
-    for (int32_t i = 0; i < pass.n; ++i) {
-      const Vec3 ns = ShadingNormal(view, pass.contacts[i]);
-      shaded[i] = ConstraintPlane{ns, ns.dot(pass.p), pass.contacts[i].triangle};
-    }
-    const PlaneSolveResult sub =
-        SolveClosestFeasible(goal_W, std::span<const ConstraintPlane>(shaded.data(), pass.n));
-    if (sub.feasible) goal = sub.point;
-    pass = RunPass(cloth, obstacles, p_old, seed_span, goal, r, options.max_iterations);
-    step.iterations += pass.iterations;
-    step.converged = step.converged && pass.converged;
-    step.feasible = step.feasible && pass.feasible;
+  if (model.force_shading && pass.n > 0) {
+    pass = RunPass(model, cloth, p_old, seed_span, ShadedGoal(view, pass, goal_W));
+    TallyPass(pass, &step);
     if (pass.n > 0) surface = pass;
   }
 
-  // Friction (Ruspini 1997 §4; Salisbury et al. 1995's cone): a proxy that was and stays in
-  // contact sticks while the goal is inside the cone around the normal (the static cone when
-  // stuck, the dynamic one while slipping), else it trails the frictionless point at the edge of
-  // the dynamic cone.
-  bool slipping = false;
-  if (options.friction_static > 0.0 && num_seeds > 0 && pass.n > 0) {
-    Vec3 n = Vec3::Zero();
-    for (int32_t i = 0; i < pass.n; ++i) n += pass.contacts[i].normal_W;
-    n.normalize();
-    const Vec3 p_free = pass.p;
-    const double depth = n.dot(p_free - goal_W);
-    Vec3 t = p_old - p_free;
-    t -= n * n.dot(t);
-    const double tl = t.norm();
-    if (depth > 0.0 && tl > 0.0) {
-      const double mu_d = std::min(options.friction_dynamic, options.friction_static);
-      const double mu_hold = body->slipping ? mu_d : options.friction_static;
-      slipping = tl > mu_hold * depth;
-      const Vec3 target = slipping ? Vec3(p_free + t * (mu_d * depth / tl)) : Vec3(p_free + t);
-      pass = RunPass(cloth, obstacles, p_old, seed_span, target, r, options.max_iterations);
-      step.iterations += pass.iterations;
-      step.converged = step.converged && pass.converged;
-      step.feasible = step.feasible && pass.feasible;
-      if (pass.n > 0) surface = pass;
-    }
-  }
-  body->slipping = slipping;
-
-  // The new proxy, with its contacts' offsets in their triangles' frames (for the carry).
-  body->p_W_m = pass.p;
-  body->num_contacts = surface.n;
-  for (int32_t i = 0; i < surface.n; ++i) {
-    ProxyContact c = surface.contacts[i];
-    Vec3 a, b, c3;
-    const TriFrame f = cloth.Corners(c.triangle, &a, &b, &c3) ? FrameOf(a, b, c3) : TriFrame{};
-    c.local_m = ToLocal(f, pass.p - c.point_W_m);
-    body->contacts[i] = c;
-  }
+  body->slipping =
+      ApplyFriction(model, cloth, goal_W, p_old, seed_span, body->slipping, &pass, &surface, &step);
+  StoreBody(cloth, pass, surface, body);
   return step;
 }
 
-ProxyState MakeProxyState(const ProxySpec& proxy) { return ProxyState(proxy.candidate_capacity); }
+ProxyState MakeProxyState(const ProxyModel& model) { return ProxyState(model.candidate_capacity); }
 
-ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
-                          const ClothSnapshot& newest, const ClothSnapshot* previous,
-                          double since_newest_s, const DeviceSample& sample, double tick_dt_s,
-                          ProxyState* state) {
-  ProxyTickResult out;
-  ProxyCounters& counters = state->counters;
-  ++counters.ticks;
-  const Vec3 goal = DeviceToWorld(device, sample.p_D_m);
-  out.goal_W_m = goal;
-
+TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
+                          const ClothSnapshot* previous, double since_newest_s, ProxyState* state) {
+  TickCloth cloth;
   // Which snapshots this tick has; a previous one of another cloth is ignored.
   const ClothSnapshot* prev = previous;
   if (prev != nullptr && (prev == &newest || prev->x.size() != newest.x.size())) prev = nullptr;
-  SnapshotMode mode = proxy.snapshot_mode;
-  if (prev == nullptr) mode = SnapshotMode::kNewest;
-  const bool arrived = !state->have_frame || newest.frame != state->newest_frame;
-  const bool first = !state->have_frame;
-  if (arrived) {
-    if (!first) ++counters.new_snapshots;
+  cloth.prev = prev;
+  cloth.mode = prev == nullptr ? SnapshotMode::kNewest : model.snapshot_mode;
+  cloth.arrived = !state->have_frame || newest.frame != state->newest_frame;
+  cloth.first = !state->have_frame;
+  if (cloth.arrived) {
+    if (!cloth.first) ++state->counters.new_snapshots;
     state->newest_frame = newest.frame;
     state->have_frame = true;
     state->pair_displacement_m = prev != nullptr ? MaxDisplacement(*prev, newest) : 0.0;
   }
   const double frame_dt = newest.frame_dt_s;
-  const double alpha = frame_dt > 0.0 ? std::clamp(since_newest_s / frame_dt, 0.0, 1.0) : 1.0;
-  const double tau = std::max(0.0, since_newest_s);
-  const double disp = state->pair_displacement_m;
-
-  GodObjectOptions opts;
-  opts.radius_m = device.radius_m;
-  opts.max_iterations = proxy.max_iterations;
-  opts.force_shading = proxy.force_shading;
-  opts.friction_static = proxy.friction_static;
-  opts.friction_dynamic = proxy.friction_dynamic;
-  opts.obstacles = proxy.obstacles;
-
-  // The cloth of this tick and of the previous tick, by mode.
-  ClothView now = ClothView::Of(newest);
-  ClothView before_view = now;
-  bool moved = arrived && !first && prev != nullptr;
-  double inflation = 0.0;
-  switch (mode) {
-    case SnapshotMode::kNewest:
-    case SnapshotMode::kBlendForces:
-      if (moved) {
-        before_view = ClothView::Of(*prev);
-        inflation = disp;
-      }
-      break;
-    case SnapshotMode::kInterpolate: {
-      // One frame late: the cloth runs from the previous snapshot to the newest over the frame.
-      now = ClothView{prev, &newest, alpha, 0.0};
-      const double alpha_before = arrived ? 0.0 : state->last_alpha;
-      before_view = ClothView{prev, &newest, alpha_before, 0.0};
-      moved = !first && alpha_before != alpha;
-      inflation = (1.0 - std::min(alpha, alpha_before)) * disp;
-      break;
-    }
-    case SnapshotMode::kExtrapolate: {
-      now = ClothView{&newest, &newest, 0.0, tau};
-      double before_extent = state->last_tau_s * newest.max_speed_m_per_s;
-      if (arrived) {
-        before_view = ClothView{prev, prev, 0.0, state->last_tau_s};
-        before_extent = disp + state->last_tau_s * prev->max_speed_m_per_s;
-      } else {
-        before_view = ClothView{&newest, &newest, 0.0, state->last_tau_s};
-      }
-      moved = !first && (arrived || state->last_tau_s != tau);
-      inflation = std::max(tau * newest.max_speed_m_per_s, before_extent);
-      break;
-    }
+  cloth.alpha = frame_dt > 0.0 ? std::clamp(since_newest_s / frame_dt, 0.0, 1.0) : 1.0;
+  cloth.tau_s = std::max(0.0, since_newest_s);
+  ViewsForMode(newest, *state, &cloth);
+  // A previous tick that fell back to its newest snapshot (MoveProxies) left the proxy on that
+  // cloth: the one now called prev after an arrival.
+  cloth.interpolated =
+      cloth.mode == SnapshotMode::kInterpolate || cloth.mode == SnapshotMode::kExtrapolate;
+  if (cloth.interpolated && state->last_on_newest && !cloth.first) {
+    cloth.before = cloth.arrived ? ClothView::Of(*prev) : ClothView::Of(newest);
+    cloth.moved = true;
+    cloth.inflation_m =
+        std::max(cloth.inflation_m, cloth.arrived ? state->pair_displacement_m : 0.0);
   }
+  return cloth;
+}
 
-  // A previous tick that fell back to its newest snapshot (below) left the proxy on that cloth:
-  // the one now called prev after an arrival.
-  const bool interpolated =
-      mode == SnapshotMode::kInterpolate || mode == SnapshotMode::kExtrapolate;
-  if (interpolated && state->last_on_newest && !first) {
-    before_view = arrived ? ClothView::Of(*prev) : ClothView::Of(newest);
-    moved = true;
-    inflation = std::max(inflation, arrived ? disp : 0.0);
-  }
-
-  // Mode (b): the proxy on the previous cloth is the one that was on the newest last frame.
-  if (mode == SnapshotMode::kBlendForces && arrived) state->body_prev = state->body;
-  const GodObject body_before = state->body;
-  BodyTick main = TickBody(newest, inflation, now, moved ? &before_view : nullptr, goal, opts,
-                           &state->local, &state->body);
-  // Modes (c), (d): after a gather overflow the sweeps query the newest snapshot's structure at
-  // its own positions (LocalCloth::Sweep) while the carry and the gathered triangles used the
-  // interpolated or extrapolated cloth, so the proxy could be solved against two cloths at once.
-  // Such a tick runs again wholly on the newest snapshot (mode (a) for one tick), from the
-  // previous tick's cloth; every vertex of both stays within `inflation` of it.
-  bool on_newest = false;
-  if (interpolated && main.overflow) {
-    state->body = body_before;
-    now = ClothView::Of(newest);
-    main = TickBody(newest, inflation, now, first ? nullptr : &before_view, goal, opts,
-                    &state->local, &state->body);
-    on_newest = true;
-  }
-  out.on_newest = on_newest;
-  Vec3 proxy_W = state->body.p_W_m;
-  out.iterations = main.step.iterations;
-  out.overflow = main.overflow;
-  out.caught = main.caught;
-  bool converged = main.step.converged;
-  bool feasible = main.step.feasible;
-
-  // Forces: spring-damper on the device, per proxy; mode (b) blends the two by alpha.
-  const double inv_dt = tick_dt_s > 0.0 ? 1.0 / tick_dt_s : 0.0;
-  Vec3 f_main_D =
-      CouplingForceD(device, state->body.p_W_m, goal,
-                     (state->body.p_W_m - state->last_proxy_W_m) * inv_dt, sample.v_D_m_per_s);
-  Vec3 f_prev_D = Vec3::Zero();
-  double w_main = 1.0;
-  double w_prev = 0.0;
-  if (mode == SnapshotMode::kBlendForces) {
-    const ClothView prev_view = ClothView::Of(*prev);
-    const BodyTick other =
-        TickBody(*prev, 0.0, prev_view, nullptr, goal, opts, &state->local, &state->body_prev);
-    out.iterations += other.step.iterations;
-    out.overflow = out.overflow || other.overflow;
-    converged = converged && other.step.converged;
-    feasible = feasible && other.step.feasible;
-    w_main = alpha;
-    w_prev = 1.0 - alpha;
-    proxy_W = w_prev * state->body_prev.p_W_m + w_main * state->body.p_W_m;
-    f_prev_D = CouplingForceD(device, state->body_prev.p_W_m, goal,
-                              (state->body_prev.p_W_m - state->last_proxy_W_m) * inv_dt,
-                              sample.v_D_m_per_s);
-  }
-  Vec3 force_D = w_main * f_main_D + w_prev * f_prev_D;
-
-  // Clamp to the device's maximum, direction kept.
-  double clamp = 1.0;
-  const double mag = force_D.norm();
-  if (mag > device.max_force_N) {
-    clamp = device.max_force_N / mag;
+ClampedForce ClampDeviceForce(const ProxyModel& model, const Vec3& force_D_N) {
+  ClampedForce out;
+  const double mag = force_D_N.norm();
+  if (mag > model.max_force_N) {
+    out.factor = model.max_force_N / mag;
     out.clamped = true;
-    ++counters.clamped_ticks;
   }
-  force_D *= clamp;
-  const Eigen::Matrix3d& R = device.rotation_WD;
-  out.force_D_N = force_D;
-  out.force_W_N = R * force_D / device.scale;
+  out.force_D_N = force_D_N * out.factor;
+  return out;
+}
 
-  // Two-way coupling: each proxy's share of -F_W goes to the cloth at its contacts.
-  const std::vector<Triangle>& tris = *newest.triangles;
-  // Each gets only what the cloth itself takes before an obstacle does (PressOnCloth), as the
-  // contact spring below.
-  const ClothPress press = PressOnCloth(state->body, goal, opts.radius_m, opts.obstacles);
-  auto add_reaction = [&](const GodObject& body, const ClothPress& p, const Vec3& f_D,
-                          double weight) {
-    if (body.num_contacts <= 0 || weight <= 0.0) return;
-    Vec3 on_cloth_W = -(R * (weight * clamp * f_D)) / device.scale;
-    if (p.depth_m < p.full_m) on_cloth_W *= p.depth_m / p.full_m;
-    std::array<Vec3, kMaxConstraintPlanes> parts;
-    SplitOverContacts(body, on_cloth_W, &parts);
-    for (int32_t i = 0; i < body.num_contacts; ++i) {
-      const ProxyContact& c = body.contacts[i];
-      if (IsObstacleContactId(c.triangle)) continue;  // the static obstacle takes its share
-      state->reaction.AddForce(c.triangle, tris[c.triangle], c.barycentric, parts[i], tick_dt_s);
-    }
-  };
-  add_reaction(state->body, press, f_main_D, w_main);
-  if (mode == SnapshotMode::kBlendForces) {
-    add_reaction(state->body_prev,
-                 PressOnCloth(state->body_prev, goal, opts.radius_m, opts.obstacles), f_prev_D,
-                 w_prev);
-  }
-  state->reaction.AddTime(tick_dt_s);
-  // The contact of this tick as a spring the sim evaluates at its substep rate (virtual coupling,
-  // Colgate, Stanley & Brown 1995). The device spring F_D = k (proxy_D - device_D) is, in the
-  // world, F_W = (k / scale^2) (proxy_W - goal_W) (proxy_spec.h). The sim presses a sphere onto the
-  // nearest point of the cloth around the contact triangle, re-found at every force evaluation, so
-  // the force is a potential's gradient however the contact wanders between triangles (tying it to
-  // this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
-  // Obstacle contacts (negative ids) put nothing on the cloth: the spring is the first cloth one.
-  const int32_t spring_contact = FirstClothContact(state->body);
-  const double spring_k_W = device.stiffness_N_per_m / (device.scale * device.scale);
-  const double spring_max_W = device.max_force_N / device.scale;
-  if (spring_contact >= 0) {
-    const ProxyContact& c = state->body.contacts[spring_contact];
-    // The sim's sphere: centred on the proxy, its radius grown by how far the hand presses the
-    // cloth itself (PressOnCloth: |proxy - goal| without obstacles; along the contact normal for a
-    // frictionless contact), so at rest its penetration is that depth. Both are continuous in time
-    // (a sphere at the goal itself, deep behind the cloth in a fast swipe, found its nearest point
-    // sideways; one tied to the contact normal moved whenever the contact hopped between
-    // triangles).
-    const Vec3& proxy_c = state->body.p_W_m;
-    const double reach_m = opts.radius_m + press.depth_m;
-    state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
-                                     proxy_c - reach_m * c.normal_W, spring_k_W, spring_max_W,
-                                     reach_m);
-    state->hand_seed = c;
-  } else if (state->hand_seed.triangle >= 0 && !first) {
-    // Free: the hand is still there for the cloth. The haptic side's cloth is a snapshot (or an
-    // interpolated or extrapolated one) while the sim's is the real one; a proxy that lost contact
-    // with the one may still be pressing on the other. Without a spring the sim's cloth sprang
-    // back freely into the hand, and mode extrapolate fell into a limit cycle (contact lost each
-    // frame the sim's cloth was pushed away, regained when it sprang back;
-    // bench/results/compare_poke_hold.md). So while the free proxy (at the goal) is within three
-    // radii of its last contact point, on the side it touched (the newest snapshot's cloth there),
-    // the sim keeps the proxy sphere there: a unilateral spring that pushes only if the cloth
-    // enters it, continuous with the contact's (whose sphere's far side also lies r beyond the
-    // goal). The frame's averaged impulses then give way to it (ReactionAccumulator::DrainInto).
-    const ProxyContact& c = state->hand_seed;
-    Vec3 a, b, cc;
-    ClothView::Of(newest).Corners(c.triangle, &a, &b, &cc);
-    const Vec3 d = goal - ContactPointOn(c, a, b, cc);
-    if (d.norm() < 3.0 * opts.radius_m && d.dot(c.normal_W) >= 0.0) {
-      state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
-                                       goal - opts.radius_m * c.normal_W, spring_k_W, spring_max_W,
-                                       opts.radius_m);
-    } else {
-      state->hand_seed.triangle = -1;
-      state->reaction.ClearContactSpring();
-    }
-  } else {
-    state->reaction.ClearContactSpring();
-  }
-
-  // Book-keeping for the next tick.
-  out.proxy_W_m = proxy_W;
-  out.num_contacts = state->body.num_contacts;
-  if (out.overflow) ++counters.overflow_ticks;
-  if (out.caught) ++counters.catches;
-  if (!converged) ++counters.unconverged_ticks;
-  if (!feasible) ++counters.infeasible_ticks;
-  state->last_alpha = alpha;
-  state->last_tau_s = tau;
-  state->last_on_newest = on_newest;
-  state->last_proxy_W_m = mode == SnapshotMode::kBlendForces ? proxy_W : state->body.p_W_m;
+ProxyTickResult ProxyTick(const ProxyModel& model, const ClothSnapshot& newest,
+                          const ClothSnapshot* previous, double since_newest_s,
+                          const DeviceSample& sample, double tick_dt_s, ProxyState* state) {
+  ++state->counters.ticks;
+  const Vec3 goal = model.ToWorld(sample.p_D_m);  // step 1
+  const TickCloth cloth = ChooseTickCloth(model, newest, previous, since_newest_s, state);
+  const TickBodies bodies = MoveProxies(model, newest, cloth, goal, state);
+  const TickForces f = CouplingForces(model, cloth, goal, sample, tick_dt_s, *state);
+  const ClampedForce force = ClampDeviceForce(model, f.w_main * f.main_D + f.w_prev * f.prev_D);
+  const ClothPress press =
+      AddReactions(model, newest, cloth.mode, goal, f, force.factor, tick_dt_s, state);
+  SetHandSpring(model, newest, goal, press, cloth.first, state);
+  const ProxyTickResult out = TickResult(model, *state, bodies, f, force, goal);
+  RecordTick(cloth, bodies, out, state);
   return out;
 }
 

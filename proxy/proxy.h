@@ -1,7 +1,8 @@
 #pragma once
 // The god-object proxy against the moving cloth (issue 4): what the user feels.
 //
-// Per device and per 1 kHz tick the server calls ProxyTick once with the newest cloth snapshot,
+// Per device and per 1 kHz tick the server calls ProxyTick once, under the device's ProxyModel
+// (proxy/proxy_model.h, compiled once at start-up), with the newest cloth snapshot,
 // the previous one, the time since the newest arrived and the device sample. The tick
 //  1. maps the device position into the world (the goal),
 //  2. chooses the cloth of this tick by the snapshot mode (newest; both, forces blended; positions
@@ -25,10 +26,10 @@
 
 #include <array>
 #include <cstdint>
-#include <span>
 
 #include "proxy/local_cloth.h"
 #include "proxy/plane_constraints.h"
+#include "proxy/proxy_model.h"
 #include "proxy/proxy_spec.h"
 #include "proxy/reaction.h"
 #include "sim_loop/snapshot.h"
@@ -55,9 +56,9 @@ struct ProxyContact {
 
 /// A proxy against one cloth: its centre and its contacts (at most kMaxConstraintPlanes).
 struct GodObject {
-  Vec3 p_W_m = Vec3::Zero();  ///< proxy sphere centre, world, m
-  int32_t num_contacts = 0;   ///< active contacts, 0..3
-  std::array<ProxyContact, kMaxConstraintPlanes> contacts;
+  Vec3 p_W_m = Vec3::Zero();                                ///< proxy sphere centre, world, m
+  int32_t num_contacts = 0;                                 ///< active contacts, 0..3
+  std::array<ProxyContact, kMaxConstraintPlanes> contacts;  ///< the first num_contacts are active
   bool placed = false;    ///< false until the first tick puts it at the goal
   bool slipping = false;  ///< friction: sliding (dynamic cone) rather than stuck (static)
 };
@@ -89,15 +90,15 @@ struct ProxyState {
                            ///< while the free proxy is near it (triangle < 0: none)
   LocalCloth local;        ///< the gathered triangles of the tick (scratch)
   ReactionAccumulator reaction;  ///< two-way coupling: forces on the cloth, drained per frame
-  ProxyCounters counters;
+  ProxyCounters counters;        ///< since MakeProxyState
 
   explicit ProxyState(int32_t candidate_capacity, int32_t reaction_capacity = 256)
       : local(candidate_capacity), reaction(reaction_capacity) {}
 };
 
-/// A state for one device with the capacities of `proxy` (the proxy is placed at the goal on the
-/// first tick). Allocates; throws std::invalid_argument for a capacity < 1.
-ProxyState MakeProxyState(const ProxySpec& proxy);
+/// A state for one device with the capacities of `model` (the proxy is placed at the goal on the
+/// first tick). Allocates (set-up time).
+ProxyState MakeProxyState(const ProxyModel& model);
 
 /// What one tick produced.
 struct ProxyTickResult {
@@ -115,28 +116,48 @@ struct ProxyTickResult {
                            ///< itself (the cloth the structure's fallback queries answer for)
 };
 
-/// One haptic tick for one device (see the file comment). `newest` is the newest snapshot,
-/// `previous` the one before it (nullptr if none yet: modes b-d then act as mode a);
-/// `since_newest_s` the time since `newest` arrived [s]; `sample` the device sample (device
-/// frame); `tick_dt_s` the tick period [s] (reaction time weight and damping velocity). A newer
-/// newest.frame than the state has seen means a new snapshot arrived. Snapshots of the same
-/// cloth only. Real-time safe: no allocation, lock, exception, log or I/O.
-ProxyTickResult ProxyTick(const DeviceSpec& device, const ProxySpec& proxy,
-                          const ClothSnapshot& newest, const ClothSnapshot* previous,
-                          double since_newest_s, const DeviceSample& sample, double tick_dt_s,
-                          ProxyState* state);
-
-/// Options of one god-object update.
-struct GodObjectOptions {
-  double radius_m = 0.004;        ///< proxy radius, m
-  int32_t max_iterations = 10;    ///< sweep/solve rounds per pass
-  bool force_shading = false;     ///< Morgenbesser & Srinivasan 1996, two passes
-  double friction_static = 0.0;   ///< mu_s
-  double friction_dynamic = 0.0;  ///< mu_d
-  /// Static obstacles (world, m), constraint sources beside the cloth's triangles; must outlive
-  /// the update. Empty: none tested.
-  std::span<const ObstacleSpec> obstacles;
+/// The cloth of one tick (step 2 of the file comment), as ChooseTickCloth chose it.
+struct TickCloth {
+  const ClothSnapshot* prev = nullptr;        ///< `previous` if of the same cloth, else nullptr
+  SnapshotMode mode = SnapshotMode::kNewest;  ///< the model's, or kNewest without `prev`
+  bool arrived = false;       ///< a newer snapshot than the state had seen (or the first tick)
+  bool first = false;         ///< the state's first tick
+  double alpha = 1.0;         ///< interpolation weight since_newest_s / frame_dt_s in [0, 1]
+  double tau_s = 0.0;         ///< extrapolation time max(0, since_newest_s), s
+  ClothView now;              ///< the cloth of this tick
+  ClothView before;           ///< the cloth of the previous tick (meaningful when `moved`)
+  bool moved = false;         ///< the proxy is to be carried from `before` to `now`
+  double inflation_m = 0.0;   ///< bound on how far `now` and `before` lie from `newest`, m
+  bool interpolated = false;  ///< modes c, d (their gather overflow falls back to `newest`)
 };
+
+/// Step 2 of ProxyTick: which snapshots this tick has (a `previous` of another cloth is ignored),
+/// the mode they allow, and the tick's cloth and the previous tick's by that mode (`newest`,
+/// `previous` and `since_newest_s` [s] as for ProxyTick). Records a newer snapshot's arrival in
+/// `state` (frame, pair displacement, counters.new_snapshots). Real-time safe.
+TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
+                          const ClothSnapshot* previous, double since_newest_s, ProxyState* state);
+
+/// A device force after the clamp.
+struct ClampedForce {
+  Vec3 force_D_N = Vec3::Zero();  ///< the force, device frame, N, |force| <= max_force_N
+  double factor = 1.0;            ///< max_force_N / |unclamped| when clamped, else 1
+  bool clamped = false;           ///< |unclamped| exceeded max_force_N
+};
+
+/// Clamps `force_D_N` [N, device frame] to model.max_force_N, direction kept. Real-time safe.
+ClampedForce ClampDeviceForce(const ProxyModel& model, const Vec3& force_D_N);
+
+/// One haptic tick for one device (see the file comment) under `model` (compiled once by
+/// CompileProxyModel). `newest` is the newest snapshot, `previous` the one before it (nullptr if
+/// none yet: modes b-d then act as mode a); `since_newest_s` the time since `newest` arrived [s];
+/// `sample` the device sample (device frame); `tick_dt_s` the tick period [s] (reaction time
+/// weight and damping velocity). A newer newest.frame than the state has seen means a new
+/// snapshot arrived. Snapshots of the same cloth only. Real-time safe: no allocation, lock,
+/// exception, log or I/O.
+ProxyTickResult ProxyTick(const ProxyModel& model, const ClothSnapshot& newest,
+                          const ClothSnapshot* previous, double since_newest_s,
+                          const DeviceSample& sample, double tick_dt_s, ProxyState* state);
 
 /// What one god-object update did.
 struct GodObjectStep {
@@ -145,13 +166,14 @@ struct GodObjectStep {
   bool feasible = true;    ///< false when the active planes admitted no point (proxy kept)
 };
 
-/// The god-object update of one proxy toward `goal_W` [m] against `cloth` (gathered for this
-/// tick; `view` gives the vertex normals for shading) and options.obstacles, from body->p_W_m,
-/// with Ruspini 1997's constraint iteration, optional force shading and friction. Cloth and
-/// obstacle contacts share the up-to-three planes of one solve. body->contacts are rewritten.
+/// The god-object update of one proxy toward `goal_W` [m, world] against `cloth` (gathered for
+/// this tick; `view` gives the vertex normals for shading) and model.obstacles, from
+/// body->p_W_m, with Ruspini 1997's constraint iteration, optional force shading (Morgenbesser &
+/// Srinivasan 1996) and friction, by the model's radius, iterations, shading and friction. Cloth
+/// and obstacle contacts share the up-to-three planes of one solve. body->contacts are rewritten.
 /// Real-time safe.
-GodObjectStep UpdateGodObject(const LocalCloth& cloth, const ClothView& view, const Vec3& goal_W,
-                              const GodObjectOptions& options, GodObject* body);
+GodObjectStep UpdateGodObject(const ProxyModel& model, const LocalCloth& cloth,
+                              const ClothView& view, const Vec3& goal_W, GodObject* body);
 
 /// Moves `body` with its first cloth contact's triangle from cloth `before` to cloth `now`
 /// (barycentric point plus the offset in the triangle's frame: side and radius kept). No-op for a

@@ -67,7 +67,7 @@ PressResult PressAndHold(const PressSetup& setup) {
       << "the curtain went non-finite before any contact: a cloth-sim problem (sim_loop/cloth*)";
   if (state.counters.nan_events != 0) return {};
   PressResult result;
-  ProxyState ps = MakeProxyState(proxy);
+  ProxyState ps = MakeProxyState(CompileProxyModel(device, proxy));
   // The centre particle is where the user presses, from the +z side.
   const int32_t centre = GridIndex(model.width, model.width / 2, model.height / 2);
   const Vec3 target_W = state.x[centre] + setup.offset_W_m + Vec3(0.0, 0.0, -depth_m);

@@ -62,10 +62,11 @@ TEST(ObstacleProxyTest, PressOntoEachObstacleGivesStiffnessTimesDepthAlongNormal
     const Case& c = cases[i];
     ProxySpec p = Spec();
     p.obstacles = {c.obstacle};
-    ProxyState st = MakeProxyState(p);
-    TickAt(d, p, s, c.surface + 0.05 * c.normal, &st);
+    const ProxyModel pm = CompileProxyModel(d, p);
+    ProxyState st = MakeProxyState(pm);
+    TickAt(pm, s, c.surface + 0.05 * c.normal, &st);
     const Vec3 goal = c.surface - 0.02 * c.normal;
-    const ProxyTickResult r = TickAt(d, p, s, goal, &st);
+    const ProxyTickResult r = TickAt(pm, s, goal, &st);
     ASSERT_EQ(r.num_contacts, 1) << i;
     EXPECT_EQ(st.body.contacts[0].triangle, ObstacleContactId(0)) << i;
     EXPECT_NEAR((r.proxy_W_m - (c.surface + d.radius_m * c.normal)).norm(), 0.0, 1e-12) << i;
@@ -73,9 +74,9 @@ TEST(ObstacleProxyTest, PressOntoEachObstacleGivesStiffnessTimesDepthAlongNormal
     EXPECT_NEAR((r.force_D_N - expected).norm(), 0.0, 1e-9) << i;
     EXPECT_NEAR(st.reaction.TotalImpulse().norm(), 0.0, 0.0) << i << ": the obstacle is static";
     // Held: the same place; then back out to the free side: released, no force.
-    const ProxyTickResult held = TickAt(d, p, s, goal, &st);
+    const ProxyTickResult held = TickAt(pm, s, goal, &st);
     EXPECT_NEAR((held.proxy_W_m - r.proxy_W_m).norm(), 0.0, 1e-12) << i;
-    const ProxyTickResult out = TickAt(d, p, s, c.surface + 0.01 * c.normal, &st);
+    const ProxyTickResult out = TickAt(pm, s, c.surface + 0.01 * c.normal, &st);
     EXPECT_EQ(out.num_contacts, 0) << i;
     EXPECT_EQ(out.force_D_N, Vec3::Zero()) << i;
   }
@@ -97,14 +98,15 @@ TEST(ObstacleProxyTest, FivePerSecondPointerThroughObstaclesNeverTunnels) {
     ProxySpec p = Spec();
     p.obstacles = {thin[i]};
     for (double phase : {0.0, 0.0013, 0.0029}) {
-      ProxyState st = MakeProxyState(p);
+      const ProxyModel pm = CompileProxyModel(d, p);
+      ProxyState st = MakeProxyState(pm);
       int touched = 0;
       for (int k = 0; k <= 30; ++k) {
         // Down through the obstacle at 5 mm per tick, slightly oblique.
         // (Straight through the ball's centre: off-centre, the proxy slides round the ball.)
         const double drift = i == 2 ? 0.0 : 0.0001;
         const Vec3 goal(drift * k, 0.05 + phase - 0.005 * k, 0.0);
-        const ProxyTickResult res = TickAt(d, p, s, goal, &st);
+        const ProxyTickResult res = TickAt(pm, s, goal, &st);
         const ObstaclePoint op = ClosestObstaclePoint(thin[i], res.proxy_W_m);
         ASSERT_GE(op.distance_m, r - 1e-12) << i << " tick " << k << ": inside the obstacle";
         ASSERT_GT(res.proxy_W_m.y(), 0.0) << i << " tick " << k << ": tunnelled through";
@@ -126,10 +128,11 @@ TEST(ObstacleProxyTest, ClothFoldAgainstTwoObstacleWallsResolvesThreePlanesInOne
   ProxySpec p = Spec();
   p.obstacles = {Plane(Vec3::Zero(), Vec3::UnitY()),
                  Box(Vec3(-0.2, -0.2, -0.2), Vec3(0.0, 0.2, 0.2))};
-  ProxyState st = MakeProxyState(p);
-  TickAt(d, p, s, Vec3(0.03, 0.035, 0.04), &st);
+  const ProxyModel pm = CompileProxyModel(d, p);
+  ProxyState st = MakeProxyState(pm);
+  TickAt(pm, s, Vec3(0.03, 0.035, 0.04), &st);
   st.reaction.Clear();
-  const ProxyTickResult r = TickAt(d, p, s, Vec3(-0.02, -0.01, -0.03), &st);
+  const ProxyTickResult r = TickAt(pm, s, Vec3(-0.02, -0.01, -0.03), &st);
   ASSERT_EQ(r.num_contacts, 3);
   EXPECT_NEAR((r.proxy_W_m - Vec3(0.004, 0.004, 0.004)).norm(), 0.0, 1e-9);
   int obstacles = 0;
@@ -154,16 +157,17 @@ TEST(ObstacleProxyTest, PointerPinchingAStillSheetOnATableRestsOnTheSheet) {
   const DeviceSpec d = UnitDevice(0.004);
   ProxySpec p = Spec(SnapshotMode::kNewest, true);
   p.obstacles = {Table()};
-  ProxyState st = MakeProxyState(p);
-  TickAt(d, p, s, Vec3(0.013, 0.05, 0.007), &st);
-  const ProxyTickResult r = TickAt(d, p, s, Vec3(0.013, -0.02, 0.007), &st);
+  const ProxyModel pm = CompileProxyModel(d, p);
+  ProxyState st = MakeProxyState(pm);
+  TickAt(pm, s, Vec3(0.013, 0.05, 0.007), &st);
+  const ProxyTickResult r = TickAt(pm, s, Vec3(0.013, -0.02, 0.007), &st);
   ASSERT_EQ(r.num_contacts, 1);
   EXPECT_GE(st.body.contacts[0].triangle, 0) << "on the cloth, not the table";
   EXPECT_NEAR((r.proxy_W_m - Vec3(0.013, 0.006, 0.007)).norm(), 0.0, 1e-12);
   EXPECT_NEAR((r.force_D_N - Vec3(0, 400.0 * 0.026, 0)).norm(), 0.0, 1e-9);
   // Slide off the sheet's edge (x = 0.1) onto the bare table.
   ProxyTickResult off = r;
-  for (int k = 1; k <= 40; ++k) off = TickAt(d, p, s, Vec3(0.013 + 0.005 * k, -0.02, 0.007), &st);
+  for (int k = 1; k <= 40; ++k) off = TickAt(pm, s, Vec3(0.013 + 0.005 * k, -0.02, 0.007), &st);
   ASSERT_EQ(off.num_contacts, 1);
   EXPECT_EQ(st.body.contacts[0].triangle, ObstacleContactId(0));
   EXPECT_NEAR((off.proxy_W_m - Vec3(0.213, 0.004, 0.007)).norm(), 0.0, 1e-12);
@@ -174,8 +178,9 @@ TEST(ObstacleProxyTest, GoalStartingInsideAnObstacleStartsTheProxyOnItsSurface) 
   const DeviceSpec d = UnitDevice(0.004);
   ProxySpec p = Spec();
   p.obstacles = {Table()};
-  ProxyState st = MakeProxyState(p);
-  const ProxyTickResult r = TickAt(d, p, s, Vec3(0.1, -0.01, 0.0), &st);
+  const ProxyModel pm = CompileProxyModel(d, p);
+  ProxyState st = MakeProxyState(pm);
+  const ProxyTickResult r = TickAt(pm, s, Vec3(0.1, -0.01, 0.0), &st);
   EXPECT_NEAR((r.proxy_W_m - Vec3(0.1, 0.004, 0.0)).norm(), 0.0, 1e-15);
   EXPECT_NEAR(r.force_D_N.y(), 400.0 * 0.014, 1e-9);
 }
@@ -218,7 +223,7 @@ PinchRun Pinch(SnapshotMode mode, double stiffness_N_per_m) {
   const double frame_dt = 1.0 / 60.0;
   for (int f = 0; f < 60; ++f) StepFrame(model, {}, frame_dt, &state);
   PinchRun run;
-  ProxyState ps = MakeProxyState(proxy);
+  ProxyState ps = MakeProxyState(CompileProxyModel(device, proxy));
   const Vec3 top(0.003, 0.05, 0.002);
   const Vec3 pressed(0.003, -0.02, 0.002);
   int32_t side_triangle = -1;

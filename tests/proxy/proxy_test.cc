@@ -31,11 +31,12 @@ TEST(ProxyTest, FlatSheetForceIsStiffnessTimesDepthAlongNormal) {
   const ClothSnapshot s = Snap(FlatSheet());
   const DeviceSpec d = UnitDevice(0.004);
   for (double side : {1.0, -1.0}) {
-    ProxyState st = MakeProxyState(Spec());
+    const ProxyModel pm = CompileProxyModel(d, Spec());
+    ProxyState st = MakeProxyState(pm);
     ProxyTickResult r;
     // Approach from one side, then press 10 mm past the cloth.
     for (double z = 0.03; z >= -0.01 - 1e-12; z -= 0.001) {
-      r = TickAt(d, Spec(), s, Vec3(0.013, 0.021, side * z), &st);
+      r = TickAt(pm, s, Vec3(0.013, 0.021, side * z), &st);
     }
     // Depth = how far the goal is behind the free surface (the cloth grown by the radius).
     const double depth = 0.01 + d.radius_m;
@@ -51,11 +52,12 @@ TEST(ProxyTest, ScaledAndRotatedWorkspaceGivesDeviceFrameStiffness) {
   d.scale = 3.0;
   d.rotation_WD = Eigen::AngleAxisd(M_PI / 2, Vec3::UnitX()).toRotationMatrix();
   d.offset_W_m = Vec3(0.01, 0.0, 0.0);
-  ProxyState st = MakeProxyState(Spec());
+  const ProxyModel pm = CompileProxyModel(d, Spec());
+  ProxyState st = MakeProxyState(pm);
   ProxyTickResult r;
   // World z = 3 * device y: pressing toward device -y goes into the sheet from above.
   for (double z = 0.03; z >= -0.012 - 1e-12; z -= 0.001) {
-    r = TickAt(d, Spec(), s, Vec3(0.0, z / 3.0, 0.01 / 3.0), &st);
+    r = TickAt(pm, s, Vec3(0.0, z / 3.0, 0.01 / 3.0), &st);
   }
   const double depth_W = 0.012 + d.radius_m;
   const Vec3 expected_D = d.rotation_WD.transpose() * Vec3(0, 0, 1) * (400.0 * depth_W / 3.0);
@@ -70,11 +72,12 @@ TEST(ProxyTest, FivePerSecondPointerThroughTheSheetNeverCrosses) {
   for (const Vec3& xy :
        {Vec3(0.013, 0.021, 0), Vec3(0.0, 0.0, 0), Vec3(0.02, 0.007, 0), Vec3(0.01, 0.01, 0)}) {
     for (double slant : {0.0, 0.6}) {
-      ProxyState st = MakeProxyState(Spec(SnapshotMode::kNewest, true));
+      const ProxyModel pm = CompileProxyModel(d, Spec(SnapshotMode::kNewest, true));
+      ProxyState st = MakeProxyState(pm);
       for (int k = 0; k <= 20; ++k) {
         const double z = 0.05 - 0.005 * k;
         const Vec3 goal = xy + Vec3(slant * (0.05 - z), 0.0, z);
-        const ProxyTickResult r = TickAt(d, Spec(SnapshotMode::kNewest, true), s, goal, &st);
+        const ProxyTickResult r = TickAt(pm, s, goal, &st);
         EXPECT_GE(r.proxy_W_m.z(), d.radius_m - 1e-9) << "tick " << k;
       }
     }
@@ -84,17 +87,18 @@ TEST(ProxyTest, FivePerSecondPointerThroughTheSheetNeverCrosses) {
 TEST(ProxyTest, PointerStartingInsideTheClothStaysOnItsSide) {
   const ClothSnapshot s = Snap(FlatSheet());
   const DeviceSpec d = UnitDevice(0.004);
-  ProxyState st = MakeProxyState(Spec());
+  const ProxyModel pm = CompileProxyModel(d, Spec());
+  ProxyState st = MakeProxyState(pm);
   // Starts 2 mm above the cloth, within the 4 mm radius, then pushes through and comes back.
   double min_z = 1.0;
   for (int k = 0; k <= 20; ++k) {
-    const ProxyTickResult r = TickAt(d, Spec(), s, Vec3(0.013, 0.021, 0.002 - 0.002 * k), &st);
+    const ProxyTickResult r = TickAt(pm, s, Vec3(0.013, 0.021, 0.002 - 0.002 * k), &st);
     min_z = std::min(min_z, r.proxy_W_m.z());
     EXPECT_GE(r.force_D_N.z(), 0.0);
   }
   EXPECT_GT(min_z, 0.0);
   ProxyTickResult r;
-  for (int k = 0; k <= 30; ++k) r = TickAt(d, Spec(), s, Vec3(0.013, 0.021, 0.002 * k - 0.03), &st);
+  for (int k = 0; k <= 30; ++k) r = TickAt(pm, s, Vec3(0.013, 0.021, 0.002 * k - 0.03), &st);
   EXPECT_NEAR((r.proxy_W_m - r.goal_W_m).norm(), 0.0, 1e-12);
   EXPECT_EQ(r.force_D_N.norm(), 0.0);
   EXPECT_EQ(r.num_contacts, 0);
@@ -115,7 +119,8 @@ SwingRun RunMovingSheet(SnapshotMode mode, const Vec3& pointer, double z_start, 
   const DeviceSpec d = UnitDevice(0.004);
   ProxySpec p = Spec(mode, true);
   p.candidate_capacity = candidate_capacity;
-  ProxyState st = MakeProxyState(p);
+  const ProxyModel pm = CompileProxyModel(d, p);
+  ProxyState st = MakeProxyState(pm);
   SwingRun run;
   auto z_at = [&](double t) { return std::min(z_stop, z_start + speed_m_per_s * t); };
   auto fill = [&](ClothSnapshot* s, uint64_t frame, double t) {
@@ -140,7 +145,7 @@ SwingRun RunMovingSheet(SnapshotMode mode, const Vec3& pointer, double z_start, 
       since = 0;
     }
     run.results.push_back(
-        ProxyTick(d, p, next, &prev, since * 1e-3, DeviceSample{pointer, Vec3::Zero()}, 1e-3, &st));
+        ProxyTick(pm, next, &prev, since * 1e-3, DeviceSample{pointer, Vec3::Zero()}, 1e-3, &st));
     run.newest_z.push_back(next.x[0].z());
     run.previous_z.push_back(prev.x[0].z());
     ++since;
@@ -214,7 +219,8 @@ TEST(ProxyTest, FlapClosingOnAProxyInItsFoldSqueezesItOutNeverThrough) {
     ClothSnapshot prev = Snap(both);
     ClothSnapshot next = Snap(both);
     const ProxySpec p = Spec(mode, true);
-    ProxyState st = MakeProxyState(p);
+    const ProxyModel pm = CompileProxyModel(d, p);
+    ProxyState st = MakeProxyState(pm);
     auto angle = [](uint64_t f) { return f < 3 ? 80.0 : 10.0; };
     auto fill = [&](ClothSnapshot* s, uint64_t f) {
       std::vector<Vec3> x = sheet.x;
@@ -233,7 +239,7 @@ TEST(ProxyTest, FlapClosingOnAProxyInItsFoldSqueezesItOutNeverThrough) {
       }
       // Down from 1 cm above the sheet to 2 mm into it, then held.
       const double gz = std::max(-0.002, 0.01 - 0.001 * k);
-      r_last = ProxyTick(d, p, next, &prev, (k % 16) * 1e-3,
+      r_last = ProxyTick(pm, next, &prev, (k % 16) * 1e-3,
                          DeviceSample{Vec3(0.02, 0.0, gz), Vec3::Zero()}, 1e-3, &st);
       EXPECT_GE(r_last.proxy_W_m.z(), r - 1e-7) << SnapshotModeName(mode) << " tick " << k;
     }
@@ -271,11 +277,12 @@ TEST(ProxyTest, RoofTurnedRigidlyCarriesTheProxyWithoutACatch) {
   testing::Refill(roof.x, zero, 1, 0.0, 0.016, &next);
   const DeviceSpec d = UnitDevice(r);
   const ProxySpec p = Spec(SnapshotMode::kNewest, false);
-  ProxyState st = MakeProxyState(p);
+  const ProxyModel pm = CompileProxyModel(d, p);
+  ProxyState st = MakeProxyState(pm);
   // Down along the face normal onto the face, then pressing 1 mm.
   for (int k = 0; k <= 20; ++k) {
     const Vec3 goal = c + (0.01 - 0.00055 * k) * n_a;
-    ProxyTick(d, p, next, &prev, k * 1e-3, DeviceSample{goal, Vec3::Zero()}, 1e-3, &st);
+    ProxyTick(pm, next, &prev, k * 1e-3, DeviceSample{goal, Vec3::Zero()}, 1e-3, &st);
   }
   ASSERT_EQ(st.body.num_contacts, 1);
   ASSERT_NEAR((st.body.p_W_m - c).norm(), 0.0, 1e-9);
@@ -283,7 +290,7 @@ TEST(ProxyTest, RoofTurnedRigidlyCarriesTheProxyWithoutACatch) {
   testing::Refill(turned, zero, 2, 0.016, 0.016, &next);
   const Vec3 goal = pivot + rot * (c - 0.001 * n_a - pivot);
   const ProxyTickResult res =
-      ProxyTick(d, p, next, &prev, 0.0, DeviceSample{goal, Vec3::Zero()}, 1e-3, &st);
+      ProxyTick(pm, next, &prev, 0.0, DeviceSample{goal, Vec3::Zero()}, 1e-3, &st);
   EXPECT_FALSE(res.caught);
   EXPECT_NEAR((res.proxy_W_m - (pivot + rot * (c - pivot))).norm(), 0.0, 1e-9);
 }
@@ -298,7 +305,8 @@ TEST(ProxyTest, PinchedBetweenTwoLayersTheProxyStaysBetween) {
   const DeviceSpec d = UnitDevice(0.004);
   for (SnapshotMode mode : kAllModes) {
     const ProxySpec p = Spec(mode, true);
-    ProxyState st = MakeProxyState(p);
+    const ProxyModel pm = CompileProxyModel(d, p);
+    ProxyState st = MakeProxyState(pm);
     uint64_t frame = 1;
     auto upper_z = [](uint64_t f) { return std::max(0.006, 0.012 - 0.001 * (f > 5 ? f - 5 : 0)); };
     auto fill = [&](ClothSnapshot* s, uint64_t f) {
@@ -316,7 +324,7 @@ TEST(ProxyTest, PinchedBetweenTwoLayersTheProxyStaysBetween) {
       // First down onto the lower layer, then up into the upper one, pressing hard.
       const double gz = k < 40 ? 0.006 - 0.0005 * k : 0.04;
       const ProxyTickResult r =
-          ProxyTick(d, p, next, &prev, (k % 16) * 1e-3,
+          ProxyTick(pm, next, &prev, (k % 16) * 1e-3,
                     DeviceSample{Vec3(0.013, 0.021, gz), Vec3::Zero()}, 1e-3, &st);
       EXPECT_GT(r.proxy_W_m.z(), 0.0) << SnapshotModeName(mode) << " tick " << k;
       EXPECT_LT(r.proxy_W_m.z(), std::min(upper_z(frame), upper_z(frame - 1)) + 1e-9)
@@ -333,10 +341,11 @@ TEST(ProxyTest, VCreaseResolvesBothPlanesWithinOneTick) {
   });
   const ClothSnapshot s = Snap(crease);
   const DeviceSpec d = UnitDevice(0.004);
-  ProxyState st = MakeProxyState(Spec());
-  TickAt(d, Spec(), s, Vec3(0.01, 0.003, 0.05), &st);
+  const ProxyModel pm = CompileProxyModel(d, Spec());
+  ProxyState st = MakeProxyState(pm);
+  TickAt(pm, s, Vec3(0.01, 0.003, 0.05), &st);
   // One jump deep into the valley: both planes are found and solved in this one tick.
-  const ProxyTickResult r = TickAt(d, Spec(), s, Vec3(0.003, 0.003, -0.02), &st);
+  const ProxyTickResult r = TickAt(pm, s, Vec3(0.003, 0.003, -0.02), &st);
   EXPECT_EQ(r.num_contacts, 2);
   EXPECT_NEAR((r.proxy_W_m - Vec3(0.0, 0.003, 0.004 * std::sqrt(2.0))).norm(), 0.0, 1e-9);
   EXPECT_NEAR(Angle(r.force_D_N, Vec3(0.0, 0.0, 1.0)), 0.0, 0.25);
@@ -351,9 +360,10 @@ TEST(ProxyTest, CornerResolvesThreePlanesWithinOneTick) {
                   GridMesh(6, 6, [](double u, double v) { return Vec3(0.1 * u, 0, 0.1 * v); }));
   const ClothSnapshot s = Snap(corner);
   const DeviceSpec d = UnitDevice(0.004);
-  ProxyState st = MakeProxyState(Spec());
-  TickAt(d, Spec(), s, Vec3(0.03, 0.035, 0.04), &st);
-  const ProxyTickResult r = TickAt(d, Spec(), s, Vec3(-0.02, -0.01, -0.03), &st);
+  const ProxyModel pm = CompileProxyModel(d, Spec());
+  ProxyState st = MakeProxyState(pm);
+  TickAt(pm, s, Vec3(0.03, 0.035, 0.04), &st);
+  const ProxyTickResult r = TickAt(pm, s, Vec3(-0.02, -0.01, -0.03), &st);
   EXPECT_EQ(r.num_contacts, 3);
   EXPECT_NEAR((r.proxy_W_m - Vec3(0.004, 0.004, 0.004)).norm(), 0.0, 1e-9);
 }
@@ -370,16 +380,17 @@ double MaxForceTurnOnCap(bool shading) {
   const ClothSnapshot s = Snap(cap);
   const DeviceSpec d = UnitDevice(0.0005);
   const ProxySpec p = Spec(SnapshotMode::kNewest, shading);
-  ProxyState st = MakeProxyState(p);
+  const ProxyModel pm = CompileProxyModel(d, p);
+  ProxyState st = MakeProxyState(pm);
   // Come down from above, then slide 0.5 mm per tick along x, 5 mm under the sphere.
-  TickAt(d, p, s, Vec3(-0.06, 0.003, 0.2), &st);
+  TickAt(pm, s, Vec3(-0.06, 0.003, 0.2), &st);
   double max_turn = 0.0;
   Vec3 last = Vec3::Zero();
   for (int k = 0; k <= 240; ++k) {
     const double x = -0.06 + 0.0005 * k;
     const Vec3 dir = Vec3(x, 0.003, 0.0) / R;
     const Vec3 goal = (R - 0.005) * Vec3(dir.x(), dir.y(), std::sqrt(1.0 - dir.squaredNorm()));
-    const ProxyTickResult r = TickAt(d, p, s, goal, &st);
+    const ProxyTickResult r = TickAt(pm, s, goal, &st);
     EXPECT_GT(r.num_contacts, 0) << "tick " << k;
     if (k > 2) max_turn = std::max(max_turn, Angle(last, r.force_D_N));
     last = r.force_D_N;
@@ -400,9 +411,10 @@ TEST(ProxyTest, ForceIsClampedWithItsDirectionKept) {
   const ClothSnapshot s = Snap(FlatSheet());
   DeviceSpec d = UnitDevice(0.004);
   d.max_force_N = 3.3;
-  ProxyState st = MakeProxyState(Spec());
+  const ProxyModel pm = CompileProxyModel(d, Spec());
+  ProxyState st = MakeProxyState(pm);
   ProxyTickResult r;
-  for (double z = 0.03; z >= -0.05; z -= 0.002) r = TickAt(d, Spec(), s, Vec3(0.01, 0.0, z), &st);
+  for (double z = 0.03; z >= -0.05; z -= 0.002) r = TickAt(pm, s, Vec3(0.01, 0.0, z), &st);
   EXPECT_TRUE(r.clamped);
   EXPECT_NEAR(r.force_D_N.norm(), 3.3, 1e-12);
   EXPECT_NEAR(Angle(r.force_D_N, r.proxy_W_m - r.goal_W_m), 0.0, 1e-12);
@@ -415,15 +427,16 @@ TEST(ProxyTest, StaticFrictionHoldsInsideTheConeAndDynamicFrictionTrails) {
   ProxySpec p = Spec();
   p.friction_static = 0.5;
   p.friction_dynamic = 0.3;
-  ProxyState st = MakeProxyState(p);
-  for (double z = 0.02; z >= -0.006; z -= 0.001) TickAt(d, p, s, Vec3(0.0, 0.0, z), &st);
+  const ProxyModel pm = CompileProxyModel(d, p);
+  ProxyState st = MakeProxyState(pm);
+  for (double z = 0.02; z >= -0.006; z -= 0.001) TickAt(pm, s, Vec3(0.0, 0.0, z), &st);
   // Depth 10 mm: moving 4 mm sideways stays inside the static cone (5 mm): the proxy holds.
   const Vec3 held = st.body.p_W_m;
   ProxyTickResult r;
-  for (int k = 1; k <= 4; ++k) r = TickAt(d, p, s, Vec3(0.001 * k, 0.0, -0.006), &st);
+  for (int k = 1; k <= 4; ++k) r = TickAt(pm, s, Vec3(0.001 * k, 0.0, -0.006), &st);
   EXPECT_NEAR((r.proxy_W_m - held).norm(), 0.0, 1e-12);
   // Far outside the cone: the proxy slides and trails the goal by mu_d * depth.
-  for (int k = 5; k <= 40; ++k) r = TickAt(d, p, s, Vec3(0.001 * k, 0.0, -0.006), &st);
+  for (int k = 5; k <= 40; ++k) r = TickAt(pm, s, Vec3(0.001 * k, 0.0, -0.006), &st);
   EXPECT_NEAR(r.goal_W_m.x() - r.proxy_W_m.x(), 0.3 * 0.010, 1e-9);
   EXPECT_NEAR(r.proxy_W_m.z(), 0.004, 1e-12);
 }
@@ -439,13 +452,14 @@ TEST(ProxyTest, ReactionOnTheClothIsEqualAndOppositeOverAFrame) {
     DeviceSpec d = UnitDevice(0.004);
     d.max_force_N = 2.0;  // some ticks clamp
     const ProxySpec p = Spec(mode, true);
-    ProxyState st = MakeProxyState(p);
+    const ProxyModel pm = CompileProxyModel(d, p);
+    ProxyState st = MakeProxyState(pm);
     Vec3 sum_W = Vec3::Zero();
     int ticks = 0;
     for (int k = 0; k < 16; ++k) {
       const Vec3 goal(0.003 * k - 0.02, 0.011, 0.01 - 0.0015 * k);
       const ProxyTickResult r =
-          ProxyTick(d, p, next, &prev, k * 1e-3, DeviceSample{goal, Vec3::Zero()}, 1e-3, &st);
+          ProxyTick(pm, next, &prev, k * 1e-3, DeviceSample{goal, Vec3::Zero()}, 1e-3, &st);
       sum_W += r.force_W_N;
       ++ticks;
     }
@@ -469,11 +483,12 @@ TEST(ProxyTest, ForceHeldForAWholeFrameIsAppliedAtFullStrength) {
   DeviceSpec d = UnitDevice(0.004);
   d.scale = 2.0;  // the spring is in world units: k / scale^2, clamp / scale
   d.max_force_N = 3.0;
-  ProxyState st = MakeProxyState(Spec());
-  for (double z = 0.04; z >= -0.012; z -= 0.002) TickAt(d, Spec(), s, Vec3(0.0, 0.0, z), &st);
+  const ProxyModel pm = CompileProxyModel(d, Spec());
+  ProxyState st = MakeProxyState(pm);
+  for (double z = 0.04; z >= -0.012; z -= 0.002) TickAt(pm, s, Vec3(0.0, 0.0, z), &st);
   st.reaction.Clear();
   ProxyTickResult r;
-  for (int k = 0; k < 17; ++k) r = TickAt(d, Spec(), s, Vec3(0.0, 0.0, -0.012), &st);
+  for (int k = 0; k < 17; ++k) r = TickAt(pm, s, Vec3(0.0, 0.0, -0.012), &st);
   ASSERT_GT(r.num_contacts, 0);
   const std::vector<ExternalForce> forces = st.reaction.Drain();
   ASSERT_EQ(forces.size(), 1u);
@@ -497,16 +512,17 @@ TEST(ProxyTest, ContactEndedWithinTheFrameDrainsTheAveragedImpulse) {
   // A swipe that leaves the cloth before the frame ends: no spring, the time average as before.
   const ClothSnapshot s = Snap(FlatSheet());
   const DeviceSpec d = UnitDevice(0.004);
-  ProxyState st = MakeProxyState(Spec());
-  TickAt(d, Spec(), s, Vec3(0.0, 0.0, 0.02), &st);
+  const ProxyModel pm = CompileProxyModel(d, Spec());
+  ProxyState st = MakeProxyState(pm);
+  TickAt(pm, s, Vec3(0.0, 0.0, 0.02), &st);
   st.reaction.Clear();
   Vec3 sum_W = Vec3::Zero();
   int ticks = 0;
   for (double z = 0.0; z >= -0.006; z -= 0.001, ++ticks) {
-    sum_W += TickAt(d, Spec(), s, Vec3(0.0, 0.0, z), &st).force_W_N;
+    sum_W += TickAt(pm, s, Vec3(0.0, 0.0, z), &st).force_W_N;
   }
   for (double z = -0.006; z <= 0.02; z += 0.002, ++ticks) {
-    sum_W += TickAt(d, Spec(), s, Vec3(0.0, 0.0, z), &st).force_W_N;
+    sum_W += TickAt(pm, s, Vec3(0.0, 0.0, z), &st).force_W_N;
   }
   EXPECT_FALSE(st.reaction.has_contact_spring());
   const std::vector<ExternalForce> forces = st.reaction.Drain();
@@ -552,12 +568,13 @@ std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint
     plane.shape = PlaneSpec{Vec3(0, 0, -0.03), Vec3::UnitZ()};
     p.obstacles = {sphere, box, capsule, plane};
   }
-  ProxyState st = MakeProxyState(p);
+  const ProxyModel pm = CompileProxyModel(d, p);
+  ProxyState st = MakeProxyState(pm);
   std::vector<ExternalForce> drained(64);
   std::vector<Vec3> forces;
   forces.reserve(16 * 8);
   // The first tick places the proxy (outside the measured region).
-  ProxyTick(d, p, frames[1], &frames[0], 0.0, DeviceSample{Vec3(0, 0, 0.05), Vec3::Zero()}, 1e-3,
+  ProxyTick(pm, frames[1], &frames[0], 0.0, DeviceSample{Vec3(0, 0, 0.05), Vec3::Zero()}, 1e-3,
             &st);
   AllocationGuard guard;
 #ifdef EIGEN_RUNTIME_NO_MALLOC
@@ -568,7 +585,7 @@ std::vector<Vec3> ScriptedForces(SnapshotMode mode, bool count_allocations, uint
       const double t = (f * 16 + k) * 1e-3;
       const Vec3 goal(0.08 * std::sin(3.0 * t), 0.01, 0.03 - 0.3 * t);
       const ProxyTickResult r =
-          ProxyTick(d, p, frames[f], &frames[f - 1], k * 1e-3,
+          ProxyTick(pm, frames[f], &frames[f - 1], k * 1e-3,
                     DeviceSample{goal, Vec3(0.24 * std::cos(3.0 * t), 0.0, -0.3)}, 1e-3, &st);
       forces.push_back(r.force_D_N);
       for (int32_t i = 0; i < st.body.num_contacts; ++i) {

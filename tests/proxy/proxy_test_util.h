@@ -103,10 +103,10 @@ inline ProxySpec Spec(SnapshotMode mode = SnapshotMode::kNewest, bool shading = 
   return p;
 }
 
-/// One tick against a single static snapshot (mode a), device at p_D.
-inline ProxyTickResult TickAt(const DeviceSpec& d, const ProxySpec& p, const ClothSnapshot& s,
-                              const Vec3& p_D, ProxyState* state) {
-  return ProxyTick(d, p, s, nullptr, 0.0, DeviceSample{p_D, Vec3::Zero()}, 1e-3, state);
+/// One tick of `model` against a single static snapshot (mode a), device at p_D [m, device].
+inline ProxyTickResult TickAt(const ProxyModel& model, const ClothSnapshot& s, const Vec3& p_D,
+                              ProxyState* state) {
+  return ProxyTick(model, s, nullptr, 0.0, DeviceSample{p_D, Vec3::Zero()}, 1e-3, state);
 }
 
 /// Angle between two vectors [rad] (0 if either is zero).
@@ -128,6 +128,7 @@ void RunLockstep(const ClothModel& model, ClothState* state, const DeviceSpec& d
                  const ProxySpec& proxy, ProxyState* ps, double seconds, Sample&& sample,
                  OnTick&& on_tick, OnFrame&& on_frame) {
   const double frame_dt = 1.0 / 60.0;
+  const ProxyModel proxy_model = CompileProxyModel(device, proxy);
   ClothSnapshot prev = MakeClothSnapshot(model, *state, proxy.structure);
   ClothSnapshot next = MakeClothSnapshot(model, *state, proxy.structure);
   std::vector<ExternalForce> external(512);
@@ -146,7 +147,7 @@ void RunLockstep(const ClothModel& model, ClothState* state, const DeviceSpec& d
     const double frame_end = t + frame_dt;
     double since = 0.0;
     while (t < frame_end - 1e-9) {
-      const ProxyTickResult r = ProxyTick(device, proxy, next, &prev, since, sample(t), 1e-3, ps);
+      const ProxyTickResult r = ProxyTick(proxy_model, next, &prev, since, sample(t), 1e-3, ps);
       on_tick(t, since, r, prev, next);
       t = static_cast<double>(++tick) * 1e-3;
       since += 1e-3;

@@ -65,7 +65,7 @@ SlideRun Slide(const std::string& scene, SnapshotMode mode, double stiffness_N_p
   double rest_top = -1e300;
   for (const Vec3& x : rest) rest_top = std::max(rest_top, x.y());
   SlideRun run;
-  ProxyState ps = MakeProxyState(proxy);
+  ProxyState ps = MakeProxyState(CompileProxyModel(device, proxy));
   const Vec3 top(0.003, 0.05, 0.002);
   const Vec3 pressed(0.003, -0.02, 0.002);
   const Vec3 off(0.2, -0.02, 0.002);
