@@ -15,8 +15,8 @@
 #include <stdexcept>
 
 #include "haptic_loop/json_writer.h"
-#include "sim_loop/cpu_features.h"
 #include "sim_loop/scene_file.h"
+#include "sim_loop/simd.h"
 
 namespace felt::bench {
 
@@ -84,7 +84,7 @@ MachineInfo ReadMachineInfo() {
     }
   }
   if (info.affinity.empty()) info.affinity = "unknown";
-  info.vector_kernels = CpuHasAvx2() ? (CpuHasAvx512f() ? "avx512f+avx2" : "avx2") : "portable";
+  info.vector_kernels = SimdLevelName(ActiveSimdLevel());
   return info;
 }
 
