@@ -14,8 +14,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "base/cpu_features.h"
 #include "base/json_writer.h"
+#include "base/simd.h"
 
 namespace felt::report {
 
@@ -83,7 +83,7 @@ MachineInfo ReadMachineInfo() {
     }
   }
   if (info.affinity.empty()) info.affinity = "unknown";
-  info.vector_kernels = CpuHasAvx2() ? (CpuHasAvx512f() ? "avx512f+avx2" : "avx2") : "portable";
+  info.vector_kernels = SimdLevelName(ActiveSimdLevel());
   return info;
 }
 

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -11,7 +10,7 @@
 #include <string>
 #include <type_traits>
 
-#include "base/cpu_features.h"
+#include "base/simd.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -246,8 +245,6 @@ struct AabbSweepCounts {
   int32_t invalidated = 0;
 };
 
-std::atomic<bool> g_bvh_portable{false};
-
 // Portable passes: MinBox (SSE2 where available) and a lanewise comparison per node.
 AabbSweepCounts SweepAabbPortable(const AabbSweepArgs& args) {
   // A local copy: the byte stores to `changed` may alias anything, and would make the fields be
@@ -349,16 +346,20 @@ __attribute__((target("avx2"))) AabbSweepCounts SweepAabbAvx2(const AabbSweepArg
   }
   return {updates, invalidated};
 }
+#endif
 
-// True if this CPU runs AVX2 and the tests have not asked for the portable passes.
-bool BvhUsesAvx2() { return CpuHasAvx2() && !g_bvh_portable.load(std::memory_order_relaxed); }
+// The exact AABB repair's passes at each level (SimdTable): AVX2 from the AVX2 level up (AVX-512
+// has no kernel of its own here), else the portable passes; the same bits (simd_kernels_test.cc).
+using AabbSweepKernel = AabbSweepCounts (*)(const AabbSweepArgs& a);
+#if defined(__x86_64__)
+constexpr SimdTable<AabbSweepKernel> kAabbSweepKernels{SweepAabbPortable, SweepAabbAvx2,
+                                                       SweepAabbAvx2};
+#else
+constexpr SimdTable<AabbSweepKernel> kAabbSweepKernels{SweepAabbPortable, SweepAabbPortable,
+                                                       SweepAabbPortable};
 #endif
 
 }  // namespace
-
-void SetBvhPortableForTesting(bool portable) {
-  g_bvh_portable.store(portable, std::memory_order_relaxed);
-}
 
 BvhTopology BvhTopology::Make(int32_t num_triangles, int32_t arity) {
   if (arity != 2 && arity != 4) {
@@ -519,8 +520,9 @@ struct BvhImpl {
   // over the positions makes each vertex's rounded-outward float box (VertexBox), then a leaf is
   // the lanewise minimum of its three vertices' boxes and a parent that of its children's
   // (PackedAabb stores -hi, so min merges both bounds), each compared with the stored box and
-  // stored. AVX2 where the CPU has it, else the portable passes: the same bits. Same volumes and
-  // counters as Sweep<false, false> (whose AabbOps::Leaf and Merge are those minimums).
+  // stored. With the kernel of base/simd.h's level in use (AVX2 or the portable passes): the
+  // same bits. Same volumes and counters as Sweep<false, false> (whose AabbOps::Leaf and Merge are
+  // those minimums).
   static RepairStats SweepAabbExact(Bvh& h, std::span<const Vec3> x) {
     const BvhTopology& t = *h.topology_;
     const AabbSweepArgs args{x.data(),
@@ -535,11 +537,7 @@ struct BvhImpl {
                              static_cast<int32_t>(t.internal_desc.size()),
                              h.aabb_.data(),
                              h.changed_.data()};
-#if defined(__x86_64__)
-    const AabbSweepCounts n = BvhUsesAvx2() ? SweepAabbAvx2(args) : SweepAabbPortable(args);
-#else
-    const AabbSweepCounts n = SweepAabbPortable(args);
-#endif
+    const AabbSweepCounts n = PickSimd(kAabbSweepKernels)(args);
     RepairStats stats;
     stats.leaves_refit = args.num_slots;
     stats.parents_refit = n.invalidated;

@@ -74,10 +74,6 @@ struct alignas(32) PackedAabb {
   }
 };
 
-/// Test hook: true makes Bvh's exact AABB repair use its portable loop instead of the AVX2 one
-/// (the two give the same bits). Not thread-safe; tests only.
-void SetBvhPortableForTesting(bool portable);
-
 /// A sphere, world frame, m.
 struct BoundingSphere {
   Vec3 center = Vec3::Zero();

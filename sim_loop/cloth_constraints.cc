@@ -1,14 +1,13 @@
 // What is enforced after each substep: Provot's deformation constraints, the obstacles, the pins.
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstddef>
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
 
-#include "base/cpu_features.h"
+#include "base/simd.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
 
@@ -68,9 +67,6 @@ bool FirstContact(const ObstacleSpec& o, const Vec3& a, const Vec3& b, Vec3* hit
   }
   return false;
 }
-
-// Set by LimitProvotKernels: the widest kernels the sweeps may use.
-std::atomic<ProvotKernels> g_provot_kernels{ProvotKernels::kWidest};
 
 // Positions of ApplyProvot in structure-of-arrays form, single precision, metres from the first
 // particle (see ApplyProvot), and each particle's movability (1 free, 0 pinned:
@@ -161,6 +157,19 @@ void ProjectAttachments(const ProvotSoa& a, const int32_t* pin, const float* max
     a.y[p] -= scale * dy;
     a.z[p] -= scale * dz;
   }
+}
+
+// ProjectAttachments of every particle [0, n).
+void ProjectAttachmentsPortable(const ProvotSoa& a, const int32_t* pin, const float* max_len,
+                                size_t n) {
+  ProjectAttachments(a, pin, max_len, 0, n);
+}
+
+// The conversion kernels of a level without vector ones: they leave every particle to
+// ApplyProvot's scalar loops (0 particles done).
+size_t NoVectorToProvotSoa(const double*, size_t, const ProvotSoa&) { return 0; }
+size_t NoVectorFromProvotSoa(const ProvotSoa&, size_t, double, const double*, double*, double*) {
+  return 0;
 }
 
 #if defined(__x86_64__)
@@ -510,7 +519,9 @@ __attribute__((target("avx2"), always_inline)) inline void LanesToTriples(__m128
                       _mm_shuffle_ps(y, z, _MM_SHUFFLE(3, 3, 3, 3)), _MM_SHUFFLE(2, 0, 2, 0));
 }
 
-// ToProvotSoa four particles a step: the same subtraction and rounding per coordinate.
+// ApplyProvot's conversion into the single-precision arrays four particles a step: the same
+// subtraction and rounding per coordinate. Returns how many particles it did (the rest are
+// ApplyProvot's scalar loop's).
 __attribute__((target("avx2"))) size_t ToProvotSoaAvx2(const double* __restrict xo, size_t n,
                                                        const ProvotSoa& a) {
   const __m256d oa = _mm256_setr_pd(xo[0], xo[1], xo[2], xo[0]);
@@ -530,7 +541,8 @@ __attribute__((target("avx2"))) size_t ToProvotSoaAvx2(const double* __restrict 
   return p;
 }
 
-// FromProvotSoa four particles a step: the same operations per coordinate, so the same bits.
+// ApplyProvot's conversion back four particles a step: the same operations per coordinate, so
+// the same bits. Returns how many particles it did (the rest are ApplyProvot's scalar loop's).
 __attribute__((target("avx2"))) size_t FromProvotSoaAvx2(const ProvotSoa& a, size_t n, double inv_h,
                                                          const double* origin,
                                                          double* __restrict xo,
@@ -563,23 +575,10 @@ __attribute__((target("avx2"))) size_t FromProvotSoaAvx2(const ProvotSoa& a, siz
   return p;
 }
 
-// True if this CPU runs AVX2 and the tests have not asked for the portable loops.
-bool ProvotUsesAvx2() {
-  return CpuHasAvx2() &&
-         g_provot_kernels.load(std::memory_order_relaxed) != ProvotKernels::kPortable;
-}
-
-// True if this CPU runs AVX-512F and the tests have not asked for narrower kernels.
-bool ProvotUsesAvx512() {
-  return CpuHasAvx512f() &&
-         g_provot_kernels.load(std::memory_order_relaxed) == ProvotKernels::kWidest;
-}
-
-// ProjectAttachments eight particles a step: the same operations per lane (a correctly rounded
-// square root and division, no fused multiply-add), so the same bits.
-__attribute__((target("avx2"))) size_t ProjectAttachmentsAvx2(const ProvotSoa& a,
-                                                              const int32_t* pin,
-                                                              const float* max_len, size_t n) {
+// ProjectAttachmentsPortable eight particles a step: the same operations per lane (a correctly
+// rounded square root and division, no fused multiply-add), so the same bits.
+__attribute__((target("avx2"))) void ProjectAttachmentsAvx2(const ProvotSoa& a, const int32_t* pin,
+                                                            const float* max_len, size_t n) {
   size_t p = 0;
   for (; p + 8 <= n; p += 8) {
     const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(pin + p));
@@ -603,21 +602,44 @@ __attribute__((target("avx2"))) size_t ProjectAttachmentsAvx2(const ProvotSoa& a
     _mm256_storeu_ps(a.z + p,
                      _mm256_blendv_ps(pz, _mm256_sub_ps(pz, _mm256_mul_ps(scale, dz)), move));
   }
-  return p;
+  ProjectAttachments(a, pin, max_len, p, n);
 }
 #endif
 
-// One Gauss-Seidel sweep over a family: AVX-512 (families across rows) or AVX2 where the CPU has
-// it, else the portable loop.
-bool SweepFamily(const ProvotSoa& a, int32_t width, const ProvotFamily& f) {
+// ApplyProvot's kernels of one level (SimdTable); every level gives the same bits
+// (simd_kernels_test.cc, and cloth_provot_test.cc against a naive Gauss-Seidel).
+struct ProvotSimdKernels {
+  // The state's packed positions xo [3 n] into the single-precision arrays, a first run of
+  // particles; returns how many (ApplyProvot's scalar loop does the rest).
+  size_t (*to_soa)(const double* xo, size_t n, const ProvotSoa& a);
+  // One rank of long range attachments over particles [0, n) (ProjectAttachments).
+  void (*attachments)(const ProvotSoa& a, const int32_t* pin, const float* max_len, size_t n);
+  // One Gauss-Seidel sweep over a family along a row (dr = 0; SweepFamilyPortable).
+  bool (*sweep_along_rows)(const ProvotSoa& a, int32_t width, const ProvotFamily& f);
+  // One Gauss-Seidel sweep over a family across rows (dr > 0; SweepFamilyPortable).
+  bool (*sweep_across_rows)(const ProvotSoa& a, int32_t width, const ProvotFamily& f);
+  // The moves back into the state, positions and velocities, a first run of particles; returns
+  // how many (ApplyProvot's scalar loop does the rest).
+  size_t (*from_soa)(const ProvotSoa& a, size_t n, double inv_h, const double* origin, double* xo,
+                     double* vo);
+};
+
+constexpr ProvotSimdKernels kPortableProvotKernels{NoVectorToProvotSoa, ProjectAttachmentsPortable,
+                                                   SweepFamilyPortable, SweepFamilyPortable,
+                                                   NoVectorFromProvotSoa};
 #if defined(__x86_64__)
-  if (ProvotUsesAvx2()) {
-    if (f.dr > 0 && ProvotUsesAvx512()) return SweepAcrossRowsAvx512(a, width, f);
-    return SweepFamilyAvx2(a, width, f);
-  }
+constexpr ProvotSimdKernels kAvx2ProvotKernels{ToProvotSoaAvx2, ProjectAttachmentsAvx2,
+                                               SweepFamilyAvx2, SweepFamilyAvx2, FromProvotSoaAvx2};
+// AVX-512F only for the families across rows; the rest as AVX2.
+constexpr ProvotSimdKernels kAvx512ProvotKernels{ToProvotSoaAvx2, ProjectAttachmentsAvx2,
+                                                 SweepFamilyAvx2, SweepAcrossRowsAvx512,
+                                                 FromProvotSoaAvx2};
+constexpr SimdTable<ProvotSimdKernels> kProvotKernels{kPortableProvotKernels, kAvx2ProvotKernels,
+                                                      kAvx512ProvotKernels};
+#else
+constexpr SimdTable<ProvotSimdKernels> kProvotKernels{
+    kPortableProvotKernels, kPortableProvotKernels, kPortableProvotKernels};
 #endif
-  return SweepFamilyPortable(a, width, f);
-}
 
 }  // namespace
 
@@ -664,10 +686,6 @@ double ObstacleDistance(const ObstacleSpec& o, const Vec3& p, Vec3* normal) {
   return len - capsule.radius_m;
 }
 
-void LimitProvotKernels(ProvotKernels widest) {
-  g_provot_kernels.store(widest, std::memory_order_relaxed);
-}
-
 ProvotLimits ProvotLimitsOf(const ProvotFamily& f) {
   const float max_len = static_cast<float>(f.max_length_m);
   const float max2 = max_len * max_len;
@@ -675,6 +693,8 @@ ProvotLimits ProvotLimitsOf(const ProvotFamily& f) {
 }
 
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
+  // The kernels of the level in use, picked once per call.
+  const ProvotSimdKernels& kernels = PickSimd(kProvotKernels);
   const size_t n = static_cast<size_t>(model.num_particles());
   const size_t stride = ProvotSoaStride(n);
   float* soa = state->scratch->provot_soa.data();
@@ -685,11 +705,7 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   double* __restrict xo = state->x.data()->data();
   const double origin[3] = {xo[0], xo[1], xo[2]};
   const double ox = origin[0], oy = origin[1], oz = origin[2];
-  size_t converted = 0;
-#if defined(__x86_64__)
-  if (ProvotUsesAvx2()) converted = ToProvotSoaAvx2(xo, n, a);
-#endif
-  for (size_t p = converted; p < n; ++p) {
+  for (size_t p = kernels.to_soa(xo, n, a); p < n; ++p) {
     a.x[p] = static_cast<float>(xo[3 * p] - ox);
     a.y[p] = static_cast<float>(xo[3 * p + 1] - oy);
     a.z[p] = static_cast<float>(xo[3 * p + 2] - oz);
@@ -697,20 +713,17 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   // Long range attachments first: each free particle back into the ball around its pins (Kim,
   // Chentanez & Mueller 2012), nearest first; the pins are kinematic, so only the particle moves.
   for (size_t k = 0; k < static_cast<size_t>(model.attachment_ranks); ++k) {
-    const int32_t* pin = model.attachment_pin.data() + k * n;
-    const float* max_len = model.attachment_max_m.data() + k * n;
-    size_t done = 0;
-#if defined(__x86_64__)
-    if (ProvotUsesAvx2()) done = ProjectAttachmentsAvx2(a, pin, max_len, n);
-#endif
-    ProjectAttachments(a, pin, max_len, done, n);
+    kernels.attachments(a, model.attachment_pin.data() + k * n,
+                        model.attachment_max_m.data() + k * n, n);
   }
   // Sweeps over every family, coarse to fine; converged once no pair of a sweep was more than
   // kProvotConverged over its limit.
   for (int32_t sweep = 0; sweep < model.spec.provot.iterations; ++sweep) {
     bool loose = false;
     for (const ProvotFamily& family : model.provot_families) {
-      loose = SweepFamily(a, model.width, family) || loose;
+      const auto sweep_family =
+          family.dr > 0 ? kernels.sweep_across_rows : kernels.sweep_along_rows;
+      loose = sweep_family(a, model.width, family) || loose;
     }
     if (!loose) break;
   }
@@ -718,11 +731,7 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   // its position keeps every bit); velocities follow, v += dx / h, so (x, v) stay consistent.
   const double inv_h = 1.0 / h_s;
   double* __restrict vo = state->v.data()->data();
-  size_t written = 0;
-#if defined(__x86_64__)
-  if (ProvotUsesAvx2()) written = FromProvotSoaAvx2(a, n, inv_h, origin, xo, vo);
-#endif
-  for (size_t p = written; p < n; ++p) {
+  for (size_t p = kernels.from_soa(a, n, inv_h, origin, xo, vo); p < n; ++p) {
     const double mx =
         static_cast<double>(a.x[p]) - static_cast<double>(static_cast<float>(xo[3 * p] - ox));
     const double my =

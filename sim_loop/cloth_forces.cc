@@ -10,7 +10,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "base/cpu_features.h"
+#include "base/simd.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
 
@@ -164,8 +164,9 @@ __attribute__((target("avx2"), always_inline)) inline void SpringLanes(const Soa
   *sz = _mm256_mul_pd(scale, dz);
 }
 
-// FamilySpringForces four springs at a time with AVX2, where the CPU has it (the build targets
-// baseline x86-64, whose SSE2 has no 4-wide double): the same bits as the portable loop.
+// FamilySpringForces four springs at a time with AVX2 (the build targets baseline x86-64, whose
+// SSE2 has no 4-wide double; kSpringKernels picks this where the CPU has AVX2): the same bits as
+// the portable loop.
 __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
                                                             const SpringFamily& family,
                                                             ptrdiff_t off, ptrdiff_t lo,
@@ -215,21 +216,7 @@ __attribute__((target("avx2"))) void FamilySpringForcesBothEndsAvx2(const SoaVie
     _mm256_storeu_pd(a.fz + q, _mm256_sub_pd(_mm256_loadu_pd(a.fz + q), sz));
   }
 }
-#endif
 
-// The family's spring forces into s[lo, hi): AVX2 where available, else the portable loop.
-void FamilySpringForcesBest(const SoaViews& a, const SpringFamily& family, ptrdiff_t off,
-                            ptrdiff_t lo, ptrdiff_t hi) {
-#if defined(__x86_64__)
-  if (CpuHasAvx2()) {
-    FamilySpringForcesAvx2(a, family, off, lo, hi);
-    return;
-  }
-#endif
-  FamilySpringForces(a, family, off, lo, hi);
-}
-
-#if defined(__x86_64__)
 // SubtractFrom four at a time with AVX2 (the same bits).
 __attribute__((target("avx2"))) void SubtractFromAvx2(double* __restrict f,
                                                       const double* __restrict s, ptrdiff_t count) {
@@ -241,16 +228,31 @@ __attribute__((target("avx2"))) void SubtractFromAvx2(double* __restrict f,
 }
 #endif
 
-// f[k] -= s[k] for k < count: AVX2 where available, else the portable loop.
-void SubtractFromBest(double* f, const double* s, ptrdiff_t count) {
+// The spring kernels of one level (SimdTable): AVX2 where the level has it, else the portable
+// loops; every level gives the same bits (simd_kernels_test.cc).
+struct SpringKernels {
+  // The forces of a family's springs with end i in [lo, hi) into s, and added to end i
+  // (FamilySpringForces).
+  void (*end_i)(const SoaViews& a, const SpringFamily& family, ptrdiff_t off, ptrdiff_t lo,
+                ptrdiff_t hi);
+  // f[k] -= s[k] for k < count (SubtractFrom).
+  void (*subtract)(double* f, const double* s, ptrdiff_t count);
+  // Both ends in one pass for off >= 4 (FamilySpringForcesBothEndsAvx2); null: two passes.
+  void (*both_ends)(const SoaViews& a, const SpringFamily& family, ptrdiff_t off, ptrdiff_t lo,
+                    ptrdiff_t hi);
+};
+
+constexpr SpringKernels kPortableSpringKernels{FamilySpringForces, SubtractFrom, nullptr};
 #if defined(__x86_64__)
-  if (CpuHasAvx2()) {
-    SubtractFromAvx2(f, s, count);
-    return;
-  }
+constexpr SpringKernels kAvx2SpringKernels{FamilySpringForcesAvx2, SubtractFromAvx2,
+                                           FamilySpringForcesBothEndsAvx2};
+// AVX-512 has no spring kernels of its own: its entry is AVX2's.
+constexpr SimdTable<SpringKernels> kSpringKernels{kPortableSpringKernels, kAvx2SpringKernels,
+                                                  kAvx2SpringKernels};
+#else
+constexpr SimdTable<SpringKernels> kSpringKernels{kPortableSpringKernels, kPortableSpringKernels,
+                                                  kPortableSpringKernels};
 #endif
-  SubtractFrom(f, s, count);
-}
 
 // Splits n packed (x, y, z) triples into three arrays, and sets f = e - drag v per coordinate.
 void SplitState(const double* __restrict x, const double* __restrict v, const double* __restrict e,
@@ -280,33 +282,32 @@ void SplitState(const double* __restrict x, const double* __restrict v, const do
 // Adds every spring of `family` to the forces: f_i += s, f_j -= s (grid stencil, no indices).
 // Row by row over the columns [c_lo, c_hi) where springs start: every end i first (fused into the
 // kernel), then every end j = i + off, so each particle's sum takes its terms in the same order
-// as one pass of each over the whole grid. With AVX2 and off >= 4, one pass does both ends in
-// that same order per particle (FamilySpringForcesBothEndsAvx2).
-void AddFamilyForces(const SoaViews& a, int32_t width, int32_t height, const SpringFamily& family) {
+// as one pass of each over the whole grid. Where the level has a both-ends kernel and off >= 4,
+// one pass does both ends in that same order per particle (FamilySpringForcesBothEndsAvx2).
+void AddFamilyForces(const SpringKernels& kernels, const SoaViews& a, int32_t width, int32_t height,
+                     const SpringFamily& family) {
   const int32_t c_lo = std::max(0, -family.dc), c_hi = width - std::max(0, family.dc);
   const int32_t rows = height - family.dr;
   if (rows <= 0 || c_hi <= c_lo) return;
   const ptrdiff_t off = static_cast<ptrdiff_t>(family.dr) * width + family.dc;
-#if defined(__x86_64__)
-  if (off >= 4 && CpuHasAvx2()) {
+  if (off >= 4 && kernels.both_ends != nullptr) {
     // Both ends in one pass, from the last row and column down (FamilySpringForcesBothEndsAvx2).
     for (int32_t r = rows - 1; r >= 0; --r) {
       const ptrdiff_t row = static_cast<ptrdiff_t>(r) * width;
-      FamilySpringForcesBothEndsAvx2(a, family, off, row + c_lo, row + c_hi);
+      kernels.both_ends(a, family, off, row + c_lo, row + c_hi);
     }
     return;
   }
-#endif
   for (int32_t r = 0; r < rows; ++r) {
     const ptrdiff_t row = static_cast<ptrdiff_t>(r) * width;
-    FamilySpringForcesBest(a, family, off, row + c_lo, row + c_hi);
+    kernels.end_i(a, family, off, row + c_lo, row + c_hi);
   }
   const ptrdiff_t count = c_hi - c_lo;
   for (int32_t r = 0; r < rows; ++r) {
     const ptrdiff_t lo = static_cast<ptrdiff_t>(r) * width + c_lo;
-    SubtractFromBest(a.fx + lo + off, a.sx + lo, count);
-    SubtractFromBest(a.fy + lo + off, a.sy + lo, count);
-    SubtractFromBest(a.fz + lo + off, a.sz + lo, count);
+    kernels.subtract(a.fx + lo + off, a.sx + lo, count);
+    kernels.subtract(a.fy + lo + off, a.sy + lo, count);
+    kernels.subtract(a.fz + lo + off, a.sz + lo, count);
   }
 }
 
@@ -320,9 +321,11 @@ void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std:
   const SoaViews soa = Views(&scratch->soa, static_cast<size_t>(n));
   // Into structure-of-arrays; external forces and viscous drag F = -c v (001 §6.1).
   SplitState(x.data()->data(), v.data()->data(), ext->data(), drag, static_cast<size_t>(n), soa);
-  // Springs, one family (type and direction) at a time over whole rows.
+  // Springs, one family (type and direction) at a time over whole rows, with the kernels of the
+  // level in use (picked once per call).
+  const SpringKernels& kernels = PickSimd(kSpringKernels);
   for (const SpringFamily& family : model.spring_families) {
-    AddFamilyForces(soa, model.width, model.height, family);
+    AddFamilyForces(kernels, soa, model.width, model.height, family);
   }
   // a = g + F / m for free particles; pinned particles (inv_mass 0) do not accelerate.
   const Vec3 g = model.spec.cloth.gravity_m_per_s2;

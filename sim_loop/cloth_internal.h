@@ -75,7 +75,7 @@ constexpr size_t ProvotSoaStride(size_t n) { return (n + 1023) / 1024 * 1024 + 3
 
 /// Accelerations [m/s^2] at positions x and velocities v: gravity, drag, springs, and the frame's
 /// external forces (scratch.external_N); zero for pinned particles. Works in scratch.soa (spring
-/// families as grid stencils, AVX2 where the CPU has it).
+/// families as grid stencils, with the kernels of base/simd.h's level in use).
 void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
                           ClothState::Scratch* scratch, std::span<Vec3> a);
 
@@ -86,7 +86,7 @@ bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state);
 
 /// Provot 1995 (000_25210a744b053ca5.txt slides 9-10): the long range attachments, then sweeps over
 /// model.provot_families, shortening every pair longer than its limit; velocities are corrected by
-/// the move / h_s.
+/// the move / h_s. Single precision, with the kernels of base/simd.h's level in use.
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state);
 
 /// A Provot family's limit as ApplyProvot's single-precision sweeps use it: max2 = the squared
@@ -99,17 +99,6 @@ struct ProvotLimits {
 
 /// The limits of family f (computed one way for the kernels and the tests' reference).
 ProvotLimits ProvotLimitsOf(const ProvotFamily& f);
-
-/// The widest vector kernels ApplyProvot's sweeps may use; the CPU may allow fewer. Every level
-/// gives the same bits.
-enum class ProvotKernels {
-  kPortable,  ///< the scalar loops only
-  kAvx2,      ///< AVX2, eight pairs a step
-  kWidest,    ///< also AVX-512F, sixteen pairs a step, for the families across rows (the default)
-};
-
-/// Tests only: limits ApplyProvot's sweeps to `widest` (so one machine checks every level).
-void LimitProvotKernels(ProvotKernels widest);
 
 /// Keeps free particles outside every declared obstacle (surface + margin), sweeping the path
 /// from scratch.x_start so a fast particle cannot tunnel through an obstacle, whether it started

@@ -2,11 +2,10 @@
 // rounding: every box must contain what it bounds with no tolerance, at any scale (1 km offsets
 // with 0.1 mm cells, coordinates near zero, beyond float's range), and every query must still
 // answer exactly as the naive reference, including points exactly on vertices, edges and the
-// surface and spheres that graze an edge at exactly their radius. Also: the AVX2 and portable
-// repair passes give the same bits.
+// surface and spheres that graze an edge at exactly their radius. (That the AVX2 and portable
+// repair passes give the same bits is simd_kernels_test.cc's.)
 #include <gtest/gtest.h>
 
-#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -173,32 +172,6 @@ TEST(CollisionFloatBoxesTest, QueriesMatchNaiveAtLargeOffsetsAndTinyCells) {
   const int64_t scale = testing::Sanitized() ? 5 : 1;  // 60 queries per cloth instead of 300
   EXPECT_GT(nonempty, 1000 / scale);
   EXPECT_GT(hits, 1000 / scale);
-}
-
-TEST(CollisionFloatBoxesTest, Avx2AndPortableRepairsGiveTheSameBits) {
-  const auto cloths = MakeTestCloths(23, 9);
-  for (int32_t arity : {2, 4}) {
-    Bvh fast(cloths[0].triangles, cloths[0].x,
-             {BoundingVolume::kAabb, arity, BvhRepair::kBottomUp, 0.0});
-    Bvh portable = fast;
-    for (int pass = 0; pass < 2; ++pass) {
-      for (const TestCloth& c : cloths) {
-        if (c.triangles != cloths[0].triangles) continue;  // the degenerate one has more
-        SetBvhPortableForTesting(false);
-        const RepairStats a = fast.Repair(c.x);
-        SetBvhPortableForTesting(true);
-        const RepairStats b = portable.Repair(c.x);
-        SetBvhPortableForTesting(false);
-        const std::string what = c.name + " arity " + std::to_string(arity);
-        EXPECT_EQ(a.node_updates, b.node_updates) << what;
-        EXPECT_EQ(a.parents_refit, b.parents_refit) << what;
-        ASSERT_EQ(fast.aabbs().size(), portable.aabbs().size());
-        EXPECT_EQ(
-            std::memcmp(fast.aabbs().data(), portable.aabbs().data(), fast.aabbs().size_bytes()), 0)
-            << what;
-      }
-    }
-  }
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "base/simd.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
 #include "tests/sim_loop/cloth_test_util.h"
@@ -232,9 +233,8 @@ TEST(ProvotTest, ColouredSweepsGiveTheBitsOfNaiveGaussSeidel) {
   // Every kernel level (AVX-512 and AVX2 where the CPU has them) and the portable loops; odd and
   // even grids (the vector kernels' tails), with and without the multiresolution families and
   // attachments, one sweep and several.
-  for (ProvotKernels kernels :
-       {ProvotKernels::kWidest, ProvotKernels::kAvx2, ProvotKernels::kPortable}) {
-    LimitProvotKernels(kernels);
+  for (SimdLevel level : {SimdLevel::kAvx512, SimdLevel::kAvx2, SimdLevel::kPortable}) {
+    LimitSimdLevel(level);
     for (int32_t grid : {7, 13, 32, 64}) {
       for (bool multiresolution : {false, true}) {
         for (int32_t iterations : {1, 4}) {
@@ -250,15 +250,15 @@ TEST(ProvotTest, ColouredSweepsGiveTheBitsOfNaiveGaussSeidel) {
           ReferenceProvot(model, h, &naive);
           EXPECT_TRUE(BitwiseEqual(fast.x, naive.x))
               << grid << " multiresolution " << multiresolution << " sweeps " << iterations
-              << " kernels " << static_cast<int>(kernels);
+              << " kernels " << SimdLevelName(ActiveSimdLevel());
           EXPECT_TRUE(BitwiseEqual(fast.v, naive.v))
               << grid << " multiresolution " << multiresolution << " sweeps " << iterations
-              << " kernels " << static_cast<int>(kernels);
+              << " kernels " << SimdLevelName(ActiveSimdLevel());
         }
       }
     }
   }
-  LimitProvotKernels(ProvotKernels::kWidest);
+  LimitSimdLevel(kWidestSimdLevel);
 }
 
 TEST(ProvotTest, SweepsNeverMovePinsAndOnlyShortenPairs) {
