@@ -1,11 +1,11 @@
 #include "collision/mesh.h"
 
-#include <cassert>
+#include "base/check.h"
 
 namespace felt {
 
 std::vector<Triangle> MakeGridTriangles(int32_t width, int32_t height) {
-  assert(width >= 2 && height >= 2);
+  FELT_CHECK(width >= 2 && height >= 2);
   std::vector<Triangle> triangles;
   triangles.reserve(static_cast<size_t>(2 * (width - 1) * (height - 1)));
   for (int32_t row = 0; row + 1 < height; ++row) {
@@ -24,7 +24,7 @@ std::vector<Triangle> MakeGridTriangles(int32_t width, int32_t height) {
 
 void ComputeVertexNormals(std::span<const Vec3> x, std::span<const Triangle> triangles,
                           std::span<Vec3> normals) {
-  assert(normals.size() == x.size());
+  FELT_CHECK(normals.size() == x.size());
   for (Vec3& n : normals) n.setZero();
   // Sum the area-weighted face normals (|cross| = 2 area) into each vertex.
   for (const Triangle& t : triangles) {

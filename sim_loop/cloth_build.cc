@@ -1,7 +1,6 @@
 // Validation of a SimSpec into a ClothModel, and the state it is stepped in.
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -10,6 +9,7 @@
 #include <string_view>
 #include <utility>
 
+#include "base/check.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
 
@@ -30,8 +30,7 @@ constexpr int32_t kMaxAttachedStride = 8;
 // its corners, and a scene with many separate pins pays for four.
 constexpr size_t kMaxAttachedGroups = 4;
 
-constexpr int64_t kMaxParticles = int64_t{1} << 22;  // 2048 x 2048; keeps 3n in int32 range
-constexpr double kUnitTolerance = 1e-9;              // |norm - 1| and |u . v| allowed for axes
+constexpr double kUnitTolerance = 1e-9;  // |norm - 1| and |u . v| allowed for axes
 
 // Formats any streamable value the way error messages show it.
 template <typename T>
@@ -181,6 +180,10 @@ void ValidateIntegration(const IntegrationSpec& s) {
          "must be in [0, " + Show(kMaxSubstepsPerFrame) + "] (0 = auto), got " + Show(s.substeps));
   }
   RequirePositive("integration.frame_rate_hz", s.frame_rate_hz);
+  if (s.frame_rate_hz > kMaxFrameRate_hz) {
+    Fail("integration.frame_rate_hz",
+         "must be in (0, " + Show(kMaxFrameRate_hz) + "], got " + Show(s.frame_rate_hz));
+  }
   RequirePositive("integration.max_frame_dt_s", s.max_frame_dt_s);
   RequireFinite("integration.auto_safety", s.auto_safety);
   if (!(s.auto_safety > 0.0 && s.auto_safety <= 1.0)) {
@@ -196,8 +199,11 @@ void ValidateIntegration(const IntegrationSpec& s) {
 }
 
 void ValidateProvot(const ProvotSpec& s) {
-  RequireNonNegative("provot.max_elongation", s.max_elongation);
-  if (s.iterations < 1) Fail("provot.iterations", "must be >= 1, got " + Show(s.iterations));
+  RequirePositive("provot.max_elongation", s.max_elongation);  // the scene file's rule too
+  if (s.iterations < 1 || s.iterations > kMaxProvotIterations) {
+    Fail("provot.iterations",
+         "must be in [1, " + Show(kMaxProvotIterations) + "], got " + Show(s.iterations));
+  }
 }
 
 // Appends the springs of one type between (c, r) and (c + dc, r + dr) for every valid pair, and
@@ -396,7 +402,7 @@ void DenseAttachments(ClothModel* model) {
   if (free_particles == 0 || model->attachments.empty()) return;
   // BuildAttachments gives every free particle the same count, particle by particle.
   const size_t ranks = model->attachments.size() / free_particles;
-  assert(ranks * free_particles == model->attachments.size());
+  FELT_CHECK(ranks * free_particles == model->attachments.size());
   model->attachment_ranks = static_cast<int32_t>(ranks);
   model->attachment_pin.resize(ranks * n);
   model->attachment_max_m.assign(ranks * n, 0.0f);
@@ -515,8 +521,12 @@ int64_t ProvotPairCount(const ClothModel& model) {
 ClothModel BuildClothModel(const SimSpec& spec) {
   const ClothSpec& cs = spec.cloth;
   // Validate the cloth, field by field.
-  if (cs.width < 2) Fail("cloth.width", "must be >= 2, got " + Show(cs.width));
-  if (cs.height < 2) Fail("cloth.height", "must be >= 2, got " + Show(cs.height));
+  if (cs.width < 2 || cs.width > kMaxGridSide) {
+    Fail("cloth.width", "must be in [2, " + Show(kMaxGridSide) + "], got " + Show(cs.width));
+  }
+  if (cs.height < 2 || cs.height > kMaxGridSide) {
+    Fail("cloth.height", "must be in [2, " + Show(kMaxGridSide) + "], got " + Show(cs.height));
+  }
   if (int64_t{cs.width} * cs.height > kMaxParticles) {
     Fail("cloth.width", "width * height must be <= " + Show(kMaxParticles) + ", got " +
                             Show(int64_t{cs.width} * cs.height));

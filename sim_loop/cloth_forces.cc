@@ -1,8 +1,9 @@
 // Forces of the mass-spring cloth (001_0f9f1b7fedff7723.txt §2, §6.1): gravity, viscous drag,
+
+#include "base/check.h"
 // springs with a dashpot along each spring, external point forces; and the energy diagnostics.
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -24,7 +25,7 @@ static_assert(sizeof(Vec3) == 3 * sizeof(double));
 
 void AddSpringForces(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
                      std::span<Vec3> f) {
-  assert(x.size() == v.size() && x.size() == f.size());
+  FELT_CHECK(x.size() == v.size() && x.size() == f.size());
   // Flat loop over raw coordinates (a Vec3 is three packed doubles): no Eigen temporaries, and
   // restrict tells the compiler x, v and f do not alias, so it keeps the loads in registers.
   const double* __restrict xp = x.data()->data();

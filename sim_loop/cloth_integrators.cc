@@ -1,10 +1,11 @@
 // The time integrators behind IntegrateSubstep (001_0f9f1b7fedff7723.txt §3, §6.2), one switch
+
+#include "base/check.h"
 // per substep and tight loops over flat arrays inside each. Pinned particles have zero
 // acceleration, so every scheme moves them with the velocity ApplyPins gave them.
 
 #include <Eigen/SparseCore>
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #include <utility>
 #include <vector>
@@ -294,9 +295,9 @@ int32_t ValueIndex(const Eigen::SparseMatrix<double, Eigen::RowMajor>& A, int32_
   const int* begin = A.innerIndexPtr() + A.outerIndexPtr()[row];
   const int* end = A.innerIndexPtr() + A.outerIndexPtr()[row + 1];
   const int* it = std::lower_bound(begin, end, col);
-  assert(it != end && *it == col);
+  FELT_CHECK(it != end && *it == col);
   // Three consecutive columns of one block sit next to each other in a row.
-  assert(it + 2 < end && it[2] == col + 2);
+  FELT_CHECK(it + 2 < end && it[2] == col + 2);
   return static_cast<int32_t>(it - A.innerIndexPtr());
 }
 

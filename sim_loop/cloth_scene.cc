@@ -12,7 +12,6 @@ namespace felt {
 
 namespace {
 
-constexpr int32_t kMaxGridSide = 4096;  // 16.7 M particles: far beyond real time, still sized
 constexpr double kAxisOrthogonalityTolerance = 1e-3;  // |cos| between u_axis and v_axis
 
 constexpr std::array<NamedValue<PinKind>, 3> kPinKinds = {{
@@ -152,6 +151,10 @@ ClothSpec ParseCloth(const SceneTable& cloth) {
   // Grid and placement.
   spec.width = cloth.Integer("width", spec.width, InRange(2, kMaxGridSide));
   spec.height = cloth.Integer("height", spec.height, InRange(2, kMaxGridSide));
+  if (int64_t{spec.width} * spec.height > kMaxParticles) {
+    cloth.Fail("width", "width * height must be <= " + std::to_string(kMaxParticles) + ", got " +
+                            std::to_string(int64_t{spec.width} * spec.height));
+  }
   spec.spacing_m = cloth.Number("spacing_m", spec.spacing_m, Positive());
   spec.mass_kg = cloth.Number("mass_kg", spec.mass_kg, Positive());
   spec.origin_m = cloth.Vector("origin_m", spec.origin_m);
@@ -206,7 +209,8 @@ IntegrationSpec ParseIntegration(const SceneTable& table) {
     }
   }
   // Timing.
-  spec.frame_rate_hz = table.Number("frame_rate_hz", spec.frame_rate_hz, InRangeOpenMin(0, 10000));
+  spec.frame_rate_hz =
+      table.Number("frame_rate_hz", spec.frame_rate_hz, InRangeOpenMin(0, kMaxFrameRate_hz));
   const double nominal_dt_s = 1.0 / spec.frame_rate_hz;
   spec.max_frame_dt_s = table.Number("max_frame_dt_s", spec.max_frame_dt_s, Positive());
   if (spec.max_frame_dt_s < nominal_dt_s) {
@@ -230,7 +234,7 @@ ProvotSpec ParseProvot(const SceneTable& table) {
   ProvotSpec spec;
   spec.enabled = table.Bool("enabled", spec.enabled);
   spec.max_elongation = table.Number("max_elongation", spec.max_elongation, Positive());
-  spec.iterations = table.Integer("iterations", spec.iterations, InRange(1, 10000));
+  spec.iterations = table.Integer("iterations", spec.iterations, InRange(1, kMaxProvotIterations));
   spec.shear = table.Bool("shear", spec.shear);
   spec.long_range_attachments = table.Bool("long_range_attachments", spec.long_range_attachments);
   spec.multiresolution = table.Bool("multiresolution", spec.multiresolution);

@@ -114,6 +114,13 @@ struct ClothSpec {
   std::vector<ObstacleSpec> obstacles;  ///< only these are built and tested
 };
 
+/// Limits that the scene parser (sim_loop/cloth_scene.h) and BuildClothModel both enforce, so a
+/// key's rule is the same wherever it is validated.
+inline constexpr int32_t kMaxGridSide = 4096;               ///< particles along u or v
+inline constexpr int64_t kMaxParticles = int64_t{1} << 22;  ///< width * height (2048 x 2048)
+inline constexpr double kMaxFrameRate_hz = 10000.0;         ///< integration.frame_rate_hz
+inline constexpr int32_t kMaxProvotIterations = 10000;      ///< provot.iterations
+
 /// The most substeps one nominal frame may take, explicit or auto (one rule for the scene parser
 /// and BuildClothModel).
 inline constexpr int32_t kMaxSubstepsPerFrame = 100000;

@@ -320,6 +320,9 @@ TEST(SceneFileErrors, OutOfRange) {
             "t.toml:3:3: cloth.structural.stiffness_N_per_m: must be > 0, got -5");
   EXPECT_EQ(ErrorOf("[cloth]\nwidth = 1\n"),
             "t.toml:2:1: cloth.width: must be in [2, 4096], got 1");
+  // The same rules as BuildClothModel's (sim_loop/cloth_spec.h's limits), with the line.
+  EXPECT_EQ(ErrorOf("[cloth]\nwidth = 4096\nheight = 2048\n"),
+            "t.toml:2:1: cloth.width: width * height must be <= 4194304, got 8388608");
   EXPECT_EQ(ErrorOf("[cloth]\nspacing_m = 0.0\n"),
             "t.toml:2:1: cloth.spacing_m: must be > 0, got 0.0");
   EXPECT_EQ(ErrorOf("[cloth]\ndrag_N_s_per_m = -0.5\n"),

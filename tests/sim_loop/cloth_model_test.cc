@@ -37,13 +37,14 @@ struct BadSpec {
 
 TEST(ClothModelTest, ValidationErrorsNameTheFieldAndRule) {
   const std::vector<BadSpec> cases = {
-      {[](SimSpec* s) { s->cloth.width = 1; }, "cloth.width: must be >= 2, got 1"},
-      {[](SimSpec* s) { s->cloth.height = 0; }, "cloth.height: must be >= 2, got 0"},
+      {[](SimSpec* s) { s->cloth.width = 1; }, "cloth.width: must be in [2, 4096], got 1"},
+      {[](SimSpec* s) { s->cloth.height = 0; }, "cloth.height: must be in [2, 4096], got 0"},
+      {[](SimSpec* s) { s->cloth.width = 4097; }, "cloth.width: must be in [2, 4096], got 4097"},
       {[](SimSpec* s) {
-         s->cloth.width = 5000;
-         s->cloth.height = 1000;
+         s->cloth.width = 4096;
+         s->cloth.height = 2048;
        },
-       "cloth.width: width * height must be <= 4194304, got 5000000"},
+       "cloth.width: width * height must be <= 4194304, got 8388608"},
       {[](SimSpec* s) { s->cloth.spacing_m = 0.0; }, "cloth.spacing_m: must be > 0, got 0"},
       {[](SimSpec* s) { s->cloth.mass_kg = NAN; }, "cloth.mass_kg: must be finite"},
       {[](SimSpec* s) { s->cloth.u_axis = Vec3(2, 0, 0); }, "cloth.u_axis: must be a unit vector"},
@@ -118,6 +119,8 @@ TEST(ClothModelTest, ValidationErrorsNameTheFieldAndRule) {
        "integration.substeps: must be in [0, 100000] (0 = auto), got -2"},
       {[](SimSpec* s) { s->integration.frame_rate_hz = 0; },
        "integration.frame_rate_hz: must be > 0, got 0"},
+      {[](SimSpec* s) { s->integration.frame_rate_hz = 20000; },
+       "integration.frame_rate_hz: must be in (0, 10000], got 20000"},
       {[](SimSpec* s) { s->integration.max_frame_dt_s = -1; },
        "integration.max_frame_dt_s: must be > 0"},
       {[](SimSpec* s) { s->integration.auto_safety = 1.5; },
@@ -129,8 +132,13 @@ TEST(ClothModelTest, ValidationErrorsNameTheFieldAndRule) {
       {[](SimSpec* s) { s->integration.integrator = static_cast<IntegratorKind>(42); },
        "integration.integrator: unknown integrator 42"},
       {[](SimSpec* s) { s->provot.max_elongation = -0.1; },
-       "provot.max_elongation: must be >= 0, got -0.10000000000000001"},
-      {[](SimSpec* s) { s->provot.iterations = 0; }, "provot.iterations: must be >= 1, got 0"},
+       "provot.max_elongation: must be > 0, got -0.10000000000000001"},
+      {[](SimSpec* s) { s->provot.max_elongation = 0.0; },
+       "provot.max_elongation: must be > 0, got 0"},
+      {[](SimSpec* s) { s->provot.iterations = 0; },
+       "provot.iterations: must be in [1, 10000], got 0"},
+      {[](SimSpec* s) { s->provot.iterations = 10001; },
+       "provot.iterations: must be in [1, 10000], got 10001"},
       {[](SimSpec* s) {
          s->integration.integrator = IntegratorKind::kExplicitEuler;
          s->cloth.structural->damping_N_s_per_m = 0;
