@@ -113,7 +113,7 @@ std::string JsonNumber(double value) {
 RunStats RunFrames(const ClothModel& model, int64_t frames, bool fast, ClothState* state) {
   RunStats stats;
   stats.frame_ms.reserve(static_cast<size_t>(frames));
-  const double frame_dt_s = 1.0 / model.spec.integration.frame_rate_hz;
+  const double frame_dt_s = 1.0 / model.frame_rate_hz;
   const int64_t period_ns = std::max<int64_t>(1, std::llround(frame_dt_s * 1e9));
   const std::span<const ExternalForce> no_external;
 
@@ -158,16 +158,15 @@ RunStats RunFrames(const ClothModel& model, int64_t frames, bool fast, ClothStat
 
 void PrintStats(const SceneInfo& info, const std::string& file, const ClothModel& model,
                 const ClothState& state, const RunStats& stats, bool fast) {
-  const IntegrationSpec& integration = model.spec.integration;
   std::printf("felt run: %s (%s)\n", info.name.c_str(), file.c_str());
   if (!info.description.empty()) std::printf("  %s\n", info.description.c_str());
   std::printf("  %d x %d particles, %zu springs, %zu pinned particles, %zu obstacles\n",
               model.width, model.height, model.springs.size(), model.pinned.size(),
-              model.spec.cloth.obstacles.size());
+              model.obstacles.size());
   std::printf("  %s, %d substeps per frame (%s), %s Hz, %s\n",
-              std::string(ToName(integration.integrator)).c_str(), model.substeps,
-              integration.substeps == 0 ? "auto" : "fixed",
-              FormatSceneNumber(integration.frame_rate_hz).c_str(),
+              std::string(ToName(model.integrator)).c_str(), model.substeps,
+              model.auto_substeps ? "auto" : "fixed",
+              FormatSceneNumber(model.frame_rate_hz).c_str(),
               fast ? "as fast as possible (--fast)" : "real time");
   std::printf("frames             %lld (%.3f s simulated in %.3f s wall)\n",
               static_cast<long long>(stats.frames), stats.sim_time_s, stats.wall_s);
@@ -182,7 +181,7 @@ void PrintStats(const SceneInfo& info, const std::string& file, const ClothModel
               static_cast<unsigned long long>(state.counters.nan_events));
   std::printf("clamped frames     %llu\n",
               static_cast<unsigned long long>(state.counters.clamped_frames));
-  if (integration.integrator == IntegratorKind::kImplicitEuler) {
+  if (model.integrator == IntegratorKind::kImplicitEuler) {
     std::printf("cg not converged   %llu\n",
                 static_cast<unsigned long long>(state.counters.cg_not_converged));
   }
@@ -197,16 +196,15 @@ void PrintStats(const SceneInfo& info, const std::string& file, const ClothModel
 void WriteJson(std::ofstream& out, const std::string& json_path, const SceneInfo& info,
                const std::string& file, const ClothModel& model, const ClothState& state,
                const RunStats& stats, bool fast) {
-  const IntegrationSpec& integration = model.spec.integration;
   out << "{\n"
       << "  \"scene\": " << JsonString(info.name) << ",\n"
       << "  \"file\": " << JsonString(file) << ",\n"
       << "  \"width\": " << model.width << ",\n"
       << "  \"height\": " << model.height << ",\n"
-      << "  \"integrator\": " << JsonString(std::string(ToName(integration.integrator))) << ",\n"
+      << "  \"integrator\": " << JsonString(std::string(ToName(model.integrator))) << ",\n"
       << "  \"substeps_per_frame\": " << model.substeps << ",\n"
-      << "  \"auto_substeps\": " << (integration.substeps == 0 ? "true" : "false") << ",\n"
-      << "  \"frame_rate_hz\": " << JsonNumber(integration.frame_rate_hz) << ",\n"
+      << "  \"auto_substeps\": " << (model.auto_substeps ? "true" : "false") << ",\n"
+      << "  \"frame_rate_hz\": " << JsonNumber(model.frame_rate_hz) << ",\n"
       << "  \"realtime\": " << (fast ? "false" : "true") << ",\n"
       << "  \"frames\": " << stats.frames << ",\n"
       << "  \"substeps\": " << stats.substeps << ",\n"

@@ -108,19 +108,36 @@ struct ExternalForce {
   double radius_m = 0.0;           ///< spring: the proxy sphere's radius, world, m (>= 0)
 };
 
-/// The validated, immutable cloth: shared read-only by every thread.
+/// The validated, immutable cloth: shared read-only by every thread. Compiled from a SimSpec by
+/// BuildClothModel; it keeps what the kernels read, not the spec.
 struct ClothModel {
-  SimSpec spec;                         ///< the spec it was built from, as validated
-  int32_t width = 0;                    ///< particles along u
-  int32_t height = 0;                   ///< particles along v
-  std::vector<Vec3> rest_position_m;    ///< [width*height] rest places, index = row*width + col
-  std::vector<double> inv_mass_per_kg;  ///< [width*height] 1/m, 0 for pinned particles
-  std::vector<int32_t> pinned;          ///< indices of pinned particles
-  std::vector<int32_t> pin_spec;        ///< [pinned.size()] index into spec.cloth.pins
-  std::vector<Spring> springs;          ///< only the spring types the spec declares
-  std::vector<Triangle> triangles;      ///< 2 (W-1)(H-1), see MakeGridTriangles
-  int32_t substeps = 1;      ///< per nominal frame, resolved from spec ("auto" -> number)
-  double stable_dt_s = 0.0;  ///< the integrator's stability limit, s (StableStep)
+  int32_t width = 0;                      ///< particles along u
+  int32_t height = 0;                     ///< particles along v
+  double spacing_m = 0.0;                 ///< rest distance between grid neighbours, m
+  std::vector<Vec3> rest_position_m;      ///< [width*height] rest places, index = row*width + col
+  std::vector<double> inv_mass_per_kg;    ///< [width*height] 1/m, 0 for pinned particles
+  std::vector<int32_t> pinned;            ///< indices of pinned particles
+  std::vector<int32_t> pin_spec;          ///< [pinned.size()] index of its [[cloth.pins]] entry
+  std::vector<PinMotionSpec> pin_motion;  ///< [pinned.size()] that entry's scripted motion
+  std::vector<Spring> springs;            ///< only the spring types the spec declares
+  std::vector<Triangle> triangles;        ///< 2 (W-1)(H-1), see MakeGridTriangles
+  std::vector<ObstacleSpec> obstacles;   ///< the scene's obstacles, world frame (only these tested)
+  Vec3 gravity_m_per_s2 = Vec3::Zero();  ///< world frame, m/s^2
+  double drag_N_s_per_m = 0.0;           ///< viscous drag per particle, F = -c v
+
+  // Integration (IntegrationSpec, validated).
+  IntegratorKind integrator = IntegratorKind::kLeapfrogVerlet;  ///< the step's integrator
+  bool auto_substeps = true;      ///< substeps chosen from the stability limit ("auto")
+  int32_t substeps = 1;           ///< per nominal frame, resolved ("auto" -> number)
+  double frame_rate_hz = 60.0;    ///< nominal frame rate, Hz
+  double max_frame_dt_s = 0.0;    ///< a late frame integrates at most this much time, s
+  int32_t cg_max_iterations = 0;  ///< implicit Euler: conjugate-gradient iteration cap
+  double cg_tolerance = 0.0;      ///< implicit Euler: relative residual to stop at
+  double stable_dt_s = 0.0;       ///< the integrator's stability limit, s (StableStep)
+
+  // Provot (ProvotSpec, validated).
+  bool provot_enabled = false;    ///< Provot's constraints are applied after each substep
+  int32_t provot_iterations = 0;  ///< Gauss-Seidel sweeps per substep
 
   // Derived constants (filled by BuildClothModel; read by the kernels and the benchmarks).
   double particle_mass_kg = 0.0;      ///< mass of every particle (pinned ones included)
@@ -178,9 +195,17 @@ struct ClothState {
   double time_s = 0.0;        ///< simulated time
   ClothCounters counters;
   // Scratch (integrator stages, previous positions, last good state, CG buffers) lives in an
-  // opaque block owned here so StepFrame never allocates.
+  // opaque block owned here so StepFrame never allocates. A copy of the state copies it too (the
+  // integrator's history is part of the state), so two states never share it.
   struct Scratch;
-  std::shared_ptr<Scratch> scratch;
+  std::unique_ptr<Scratch> scratch;
+
+  ClothState();
+  ~ClothState();
+  ClothState(const ClothState& other);             ///< deep copy (allocates)
+  ClothState& operator=(const ClothState& other);  ///< deep copy (allocates)
+  ClothState(ClothState&& other) noexcept;
+  ClothState& operator=(ClothState&& other) noexcept;
 };
 
 /// Number of particle pairs Provot's sweeps visit (every family's pairs on the grid), per sweep.

@@ -459,7 +459,7 @@ double MaxGridSymbol(const std::vector<SpringFamily>& families, Weight weight) {
 // m (MaxGridSymbol). The default curtain: S_max = 8.4 N/m against the Gershgorin row bound
 // 2 sum k = 12.8 N/m used before, so 1.23 times the stable step. The dashpots (along the spring
 // only) give the same bound on the damping rates with c in place of k.
-void ComputeFrequencyBounds(ClothModel* model) {
+void ComputeFrequencyBounds(const SimSpec& spec, ClothModel* model) {
   double tau_min = std::numeric_limits<double>::infinity(), tau_max = 0.0;
   for (const SpringFamily& f : model->spring_families) {
     const double tau = f.damping_N_s_per_m / f.stiffness_N_per_m;
@@ -480,14 +480,14 @@ void ComputeFrequencyBounds(ClothModel* model) {
   // dashpot acts: those modes are damped by drag alone. With Provot on, structural springs (and
   // shear ones if constrained) end each substep at most (1 + e) long, bend springs (two
   // structural ones end to end) too, and unconstrained shear springs at most sqrt(2) (1 + e).
-  const ProvotSpec& provot = model->spec.provot;
+  const ProvotSpec& provot = spec.provot;
   double ratio = std::numeric_limits<double>::infinity();
   if (provot.enabled) {
-    ratio = (1.0 + provot.max_elongation) *
-            (provot.shear || !model->spec.cloth.shear ? 1.0 : std::sqrt(2.0));
+    ratio =
+        (1.0 + provot.max_elongation) * (provot.shear || !spec.cloth.shear ? 1.0 : std::sqrt(2.0));
   }
   model->omega_transverse_rad_per_s = model->omega_max_rad_per_s * std::sqrt(1.0 - 1.0 / ratio);
-  model->drag_rate_per_s = model->spec.cloth.drag_N_s_per_m / model->particle_mass_kg;
+  model->drag_rate_per_s = model->drag_N_s_per_m / model->particle_mass_kg;
   model->damping_time_min_s = model->spring_families.empty() ? 0.0 : tau_min;
   model->damping_time_max_s = tau_max;
   model->gamma_max_per_s = gamma + model->drag_rate_per_s;
@@ -552,9 +552,21 @@ ClothModel BuildClothModel(const SimSpec& spec) {
   ValidateProvot(spec.provot);
 
   ClothModel model;
-  model.spec = spec;
   model.width = cs.width;
   model.height = cs.height;
+  model.spacing_m = cs.spacing_m;
+  model.obstacles = cs.obstacles;
+  model.gravity_m_per_s2 = cs.gravity_m_per_s2;
+  model.drag_N_s_per_m = cs.drag_N_s_per_m;
+  const IntegrationSpec& is = spec.integration;
+  model.integrator = is.integrator;
+  model.auto_substeps = is.substeps == 0;
+  model.frame_rate_hz = is.frame_rate_hz;
+  model.max_frame_dt_s = is.max_frame_dt_s;
+  model.cg_max_iterations = is.cg_max_iterations;
+  model.cg_tolerance = is.cg_tolerance;
+  model.provot_enabled = spec.provot.enabled;
+  model.provot_iterations = spec.provot.iterations;
   const int32_t n = model.num_particles();
 
   // Rest places and uniform masses (001 §6.1: the cloth's mass is divided uniformly).
@@ -585,6 +597,7 @@ ClothModel BuildClothModel(const SimSpec& spec) {
       holder[p] = static_cast<int32_t>(k);
       model.pinned.push_back(p);
       model.pin_spec.push_back(static_cast<int32_t>(k));
+      model.pin_motion.push_back(cs.pins[k].motion);
       model.pin_scripted.push_back(IsScripted(cs.pins[k].motion) ? 1 : 0);
       model.inv_mass_per_kg[p] = 0.0;
     }
@@ -617,8 +630,7 @@ ClothModel BuildClothModel(const SimSpec& spec) {
   }
 
   // Substeps: fixed, or derived from the integrator's stability limit with the safety factor.
-  ComputeFrequencyBounds(&model);
-  const IntegrationSpec& is = spec.integration;
+  ComputeFrequencyBounds(spec, &model);
   model.stable_dt_s = StableStep(model, is.integrator);
   const double frame_s = 1.0 / is.frame_rate_hz;
   if (is.substeps > 0) {
@@ -649,7 +661,7 @@ ClothState MakeClothState(const ClothModel& model) {
   state.v.assign(n, Vec3::Zero());
   state.normals.assign(n, Vec3::Zero());
   ComputeVertexNormals(state.x, model.triangles, state.normals);
-  state.scratch = std::make_shared<ClothState::Scratch>();
+  state.scratch = std::make_unique<ClothState::Scratch>();
   ClothState::Scratch& s = *state.scratch;
   for (std::vector<Vec3>* a : {&s.force_N, &s.external_N, &s.accel, &s.x_stage, &s.v_stage,
                                &s.kx_sum, &s.kv_sum, &s.x_start, &s.a_last, &s.x_prev}) {
@@ -658,7 +670,7 @@ ClothState MakeClothState(const ClothModel& model) {
   s.restart.assign(n, 0);
   s.soa.assign(12 * SoaStride(static_cast<size_t>(n)), 0.0);
   s.provot_soa.assign(3 * ProvotSoaStride(n), 0.0f);
-  if (model.spec.integration.integrator == IntegratorKind::kImplicitEuler) {
+  if (model.integrator == IntegratorKind::kImplicitEuler) {
     BuildImplicitPattern(model, &s);
   }
   // Pins start where their script puts them at t = 0; that is the first good state.
@@ -669,5 +681,23 @@ ClothState MakeClothState(const ClothModel& model) {
 }
 
 void ResetIntegratorHistory(ClothState* state) { state->scratch->history_valid = false; }
+
+ClothState::ClothState() = default;
+ClothState::~ClothState() = default;
+ClothState::ClothState(ClothState&& other) noexcept = default;
+ClothState& ClothState::operator=(ClothState&& other) noexcept = default;
+
+ClothState::ClothState(const ClothState& other)
+    : x(other.x),
+      v(other.v),
+      normals(other.normals),
+      time_s(other.time_s),
+      counters(other.counters),
+      scratch(other.scratch ? std::make_unique<Scratch>(*other.scratch) : nullptr) {}
+
+ClothState& ClothState::operator=(const ClothState& other) {
+  if (this != &other) *this = ClothState(other);
+  return *this;
+}
 
 }  // namespace felt

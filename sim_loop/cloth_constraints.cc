@@ -718,7 +718,7 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   }
   // Sweeps over every family, coarse to fine; converged once no pair of a sweep was more than
   // kProvotConverged over its limit.
-  for (int32_t sweep = 0; sweep < model.spec.provot.iterations; ++sweep) {
+  for (int32_t sweep = 0; sweep < model.provot_iterations; ++sweep) {
     bool loose = false;
     for (const ProvotFamily& family : model.provot_families) {
       const auto sweep_family =
@@ -748,7 +748,7 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
 }
 
 void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state) {
-  const auto& obstacles = model.spec.cloth.obstacles;
+  const auto& obstacles = model.obstacles;
   const Vec3* x_start = state->scratch->x_start.data();
   for (int32_t p = 0; p < model.num_particles(); ++p) {
     if (model.inv_mass_per_kg[p] == 0.0) continue;
@@ -811,11 +811,10 @@ void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state) {
 }
 
 void ApplyPins(const ClothModel& model, double t_s, ClothState* state) {
-  const auto& pins = model.spec.cloth.pins;
   for (size_t k = 0; k < model.pinned.size(); ++k) {
     const int32_t p = model.pinned[k];
     if (model.pin_scripted[k]) {
-      const PinMotionSpec& motion = pins[model.pin_spec[k]].motion;
+      const PinMotionSpec& motion = model.pin_motion[k];
       state->x[p] = model.rest_position_m[p] + PinOffset(motion, t_s);
       state->v[p] = PinVelocity(motion, t_s);
     } else {

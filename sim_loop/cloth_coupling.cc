@@ -210,8 +210,7 @@ double MaxCouplingStiffness(const ClothModel& model, double max_weight, double h
 }
 
 double MaxCouplingStiffness(const ClothModel& model, double max_weight) {
-  const IntegrationSpec& is = model.spec.integration;
-  return MaxCouplingStiffness(model, max_weight, 1.0 / (is.frame_rate_hz * model.substeps));
+  return MaxCouplingStiffness(model, max_weight, 1.0 / (model.frame_rate_hz * model.substeps));
 }
 
 int32_t CouplingSubsteps(const ClothModel& model, std::span<const ExternalForce> external,

@@ -317,7 +317,7 @@ void AddFamilyForces(const SpringKernels& kernels, const SoaViews& a, int32_t wi
 void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
                           ClothState::Scratch* scratch, std::span<Vec3> a) {
   const int32_t n = model.num_particles();
-  const double drag = model.spec.cloth.drag_N_s_per_m;
+  const double drag = model.drag_N_s_per_m;
   const Vec3* ext = scratch->external_N.data();
   const SoaViews soa = Views(&scratch->soa, static_cast<size_t>(n));
   // Into structure-of-arrays; external forces and viscous drag F = -c v (001 §6.1).
@@ -329,7 +329,7 @@ void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std:
     AddFamilyForces(kernels, soa, model.width, model.height, family);
   }
   // a = g + F / m for free particles; pinned particles (inv_mass 0) do not accelerate.
-  const Vec3 g = model.spec.cloth.gravity_m_per_s2;
+  const Vec3 g = model.gravity_m_per_s2;
   const double* inv_mass = model.inv_mass_per_kg.data();
   const double* __restrict fx = soa.fx;
   const double* __restrict fy = soa.fy;
@@ -363,7 +363,7 @@ double MaxStretchOf(const ClothModel& model, const ClothState& state, SpringType
 }
 
 double TotalEnergy(const ClothModel& model, const ClothState& state) {
-  const Vec3& g = model.spec.cloth.gravity_m_per_s2;
+  const Vec3& g = model.gravity_m_per_s2;
   const double m = model.particle_mass_kg;
   double kinetic = 0.0, gravity = 0.0, elastic = 0.0;
   for (int32_t p = 0; p < model.num_particles(); ++p) {

@@ -204,8 +204,8 @@ bool ImplicitEuler(const ClothModel& model, double h, ClothState* st) {
   ClothState::Scratch& s = *st->scratch;
   const int32_t n = model.num_particles();
   const double m = model.particle_mass_kg;
-  const double drag = model.spec.cloth.drag_N_s_per_m;
-  const Vec3 g = model.spec.cloth.gravity_m_per_s2;
+  const double drag = model.drag_N_s_per_m;
+  const Vec3 g = model.gravity_m_per_s2;
   const double* inv_mass = model.inv_mass_per_kg.data();
   double* value = s.A.valuePtr();
   std::fill(value, value + s.A.nonZeros(), 0.0);
@@ -252,21 +252,20 @@ bool ImplicitEuler(const ClothModel& model, double h, ClothState* st) {
   }
 
   // Preconditioned conjugate gradients from dv = 0 (Baraff & Witkin 1998 §5.3).
-  const IntegrationSpec& is = model.spec.integration;
   for (Eigen::Index row = 0; row < s.A.rows(); ++row) {
     s.inv_diag[row] = 1.0 / value[s.diag_offset[row / 3][row % 3] + row % 3];
   }
   s.dv.setZero();
   s.r = s.b;
   const double b_norm2 = s.b.squaredNorm();
-  const double threshold = is.cg_tolerance * is.cg_tolerance * b_norm2;
+  const double threshold = model.cg_tolerance * model.cg_tolerance * b_norm2;
   bool converged = true;
   if (b_norm2 > 0.0) {
     s.z = s.inv_diag.cwiseProduct(s.r);
     s.p = s.z;
     double rz = s.r.dot(s.z);
     converged = false;
-    for (int32_t it = 0; it < is.cg_max_iterations; ++it) {
+    for (int32_t it = 0; it < model.cg_max_iterations; ++it) {
       MultiplyA(s.A, s.p, &s.Ap);
       const double alpha = rz / s.p.dot(s.Ap);
       s.dv += alpha * s.p;
@@ -340,7 +339,7 @@ void BuildImplicitPattern(const ClothModel& model, ClothState::Scratch* s) {
 
 bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state) {
   bool converged = true;
-  switch (model.spec.integration.integrator) {
+  switch (model.integrator) {
     case IntegratorKind::kLeapfrogVerlet:
       LeapfrogVerlet(model, h_s, state);
       break;
@@ -373,8 +372,8 @@ bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state) {
 
 void SyncVerletHistory(const ClothModel& model, int32_t p, double h_s, ClothState* state) {
   ClothState::Scratch& s = *state->scratch;
-  if (model.spec.integration.integrator == IntegratorKind::kLeapfrogVerlet) s.restart[p] = 1;
-  if (model.spec.integration.integrator != IntegratorKind::kBasicVerlet) return;
+  if (model.integrator == IntegratorKind::kLeapfrogVerlet) s.restart[p] = 1;
+  if (model.integrator != IntegratorKind::kBasicVerlet) return;
   // Invert v = (x - x_prev) / h + h/2 a_last for x_prev.
   s.x_prev[p] = state->x[p] - h_s * (state->v[p] - (0.5 * h_s) * s.a_last[p]);
 }

@@ -50,16 +50,15 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   FrameResult result;
   if (!(frame_dt_s > 0.0)) return result;
   ClothState::Scratch& s = *state->scratch;
-  const IntegrationSpec& is = model.spec.integration;
 
   // Clamp a late frame, then cut it into substeps no longer than the nominal one.
   double dt = frame_dt_s;
-  if (dt > is.max_frame_dt_s) {
-    dt = is.max_frame_dt_s;
+  if (dt > model.max_frame_dt_s) {
+    dt = model.max_frame_dt_s;
     result.clamped = true;
     ++state->counters.clamped_frames;
   }
-  const double h_nominal = 1.0 / (is.frame_rate_hz * model.substeps);
+  const double h_nominal = 1.0 / (model.frame_rate_hz * model.substeps);
   const int32_t plain = std::max(1, static_cast<int32_t>(std::ceil(dt / h_nominal - 1e-9)));
   // A held contact spring too stiff for this substep gets shorter substeps (up to a bound).
   const int32_t substeps = CouplingSubsteps(model, external, dt, plain);
@@ -69,8 +68,8 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   result.dt_s = dt;
 
   GatherExternalForces(model, external, h, state);
-  const bool obstacles = !model.spec.cloth.obstacles.empty();
-  const bool provot = model.spec.provot.enabled && !model.provot_families.empty();
+  const bool obstacles = !model.obstacles.empty();
+  const bool provot = model.provot_enabled && !model.provot_families.empty();
   const double t0 = state->time_s;
   for (int32_t k = 0; k < substeps; ++k) {
     // Integrate, then constrain: Provot (000 slide 9), obstacles, pins at the substep's end time.

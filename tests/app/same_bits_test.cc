@@ -55,7 +55,7 @@ uint64_t SceneStateHash(const std::string& scene, int frames) {
   const SceneDocument doc = LoadSceneDocument(std::string(FELT_SOURCE_DIR "/scenes/") + scene);
   const ClothModel model = BuildClothModel(ParseSimSpec(doc));
   ClothState state = MakeClothState(model);
-  const double frame_dt_s = 1.0 / model.spec.integration.frame_rate_hz;
+  const double frame_dt_s = 1.0 / model.frame_rate_hz;
   for (int f = 0; f < frames; ++f) StepFrame(model, {}, frame_dt_s, &state);
   Fnv1a h;
   h.AddVector(state.x);

@@ -66,7 +66,7 @@ void ReferenceProvot(const ClothModel& model, double h_s, ClothState* state) {
     x[a.particle].y() -= scale * dy;
     x[a.particle].z() -= scale * dz;
   }
-  for (int32_t sweep = 0; sweep < model.spec.provot.iterations; ++sweep) {
+  for (int32_t sweep = 0; sweep < model.provot_iterations; ++sweep) {
     bool loose = false;
     for (const ProvotFamily& f : model.provot_families) {
       const ProvotLimits lim = ProvotLimitsOf(f);
@@ -105,7 +105,7 @@ ClothState Scrambled(const ClothModel& model, double amplitude, uint32_t seed) {
   ClothState state = MakeClothState(model);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double a = amplitude * model.spec.cloth.spacing_m;
+  const double a = amplitude * model.spacing_m;
   for (size_t p = 0; p < state.x.size(); ++p) {
     if (model.inv_mass_per_kg[p] == 0.0) continue;
     state.x[p] += a * Vec3(u(rng), u(rng), u(rng));

@@ -361,6 +361,24 @@ TEST(ClothStepTest, StalledFrameIsClamped) {
   EXPECT_TRUE(BitwiseEqual(state.x, before.x));
 }
 
+TEST(ClothStepTest, ACopiedStateOwnsItsIntegratorHistory) {
+  // Leapfrog carries the last acceleration in the state's scratch: a copy must carry its own, so
+  // stepping the original does not change how the copy steps (they once shared one block).
+  const ClothModel model = BuildClothModel(Curtain(8));
+  ClothState original = MakeClothState(model);
+  for (int f = 0; f < 3; ++f) StepFrame(model, {}, kFrame_s, &original);
+  ClothState copy = original;
+  ClothState moved_from = original;
+  const ClothState moved = std::move(moved_from);
+  for (int f = 0; f < 3; ++f) StepFrame(model, {}, kFrame_s, &original);
+  ClothState copy_stepped = copy;
+  for (int f = 0; f < 3; ++f) StepFrame(model, {}, kFrame_s, &copy_stepped);
+  EXPECT_TRUE(BitwiseEqual(copy_stepped.x, original.x));
+  EXPECT_TRUE(BitwiseEqual(copy_stepped.v, original.v));
+  EXPECT_TRUE(BitwiseEqual(moved.x, copy.x));
+  EXPECT_NE(copy.scratch.get(), original.scratch.get());
+}
+
 TEST(ClothStepTest, TenMinutesWithDampingKeepEnergyBounded) {
   // 36000 frames of a small flag swinging from two corners under a sinusoidal push.
   const ClothModel model = BuildClothModel(HorizontalCurtain(5));

@@ -75,7 +75,7 @@ TEST(FrameMotionTest, AClothHeldStillByItsConstraintsPublishesNoMotion) {
   std::vector<Vec3> v(state.x.size());
   StepFrame(model, {}, kMotionFrame_s, &state);
   FillSnapshotWithFrameMotion(state, x_start, kMotionFrame_s, 1, v, &s);
-  const double h = 1.0 / (model.spec.integration.frame_rate_hz * model.substeps);
+  const double h = 1.0 / (model.frame_rate_hz * model.substeps);
   EXPECT_GT(MaxSpeed(state.v), 0.25 * h * 9.81) << "the state's velocity is not the motion";
   EXPECT_LT(s.max_speed_m_per_s, 0.02 * MaxSpeed(state.v));
 }

@@ -60,7 +60,7 @@ ClothState ScrambledState(const ClothModel& model, double amplitude, double stre
   ClothState state = MakeClothState(model);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double a = amplitude * model.spec.cloth.spacing_m;
+  const double a = amplitude * model.spacing_m;
   const double top = state.x[0].y();
   for (size_t p = 0; p < state.x.size(); ++p) {
     state.scratch->external_N[p] = 1e-3 * Vec3(u(rng), u(rng), u(rng));
