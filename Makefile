@@ -5,7 +5,7 @@ SHELL := /bin/bash
 # Debian packages the build, tests and plots need.
 PACKAGES := cmake ninja-build g++ gcc make pkg-config libeigen3-dev cyclonedds-dev \
             cyclonedds-tools libddsc0debian libspdlog-dev libcli11-dev libtomlplusplus-dev \
-            libgtest-dev googletest gnuplot-nox
+            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev
 JOBS ?= $(shell nproc)
 BUILD ?= build
 CMAKE_FLAGS ?=

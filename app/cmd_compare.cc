@@ -63,46 +63,40 @@ std::string Table(const std::vector<VariantSummary>& summaries) {
       rows);
 }
 
-std::string Json(const CompareArgs& args, const report::MachineInfo& machine,
-                 const std::string& load_end, const CompareResult& result) {
-  std::vector<std::string> items;
+std::string CompareJson(const CompareArgs& args, const report::MachineInfo& machine,
+                        const std::string& load_end, const CompareResult& result) {
+  Json variants = Json::array();
   for (const VariantSummary& s : result.summaries) {
-    report::JsonRecord r;
-    r.String("name", s.name)
-        .String("overrides", s.overrides)
-        .Integer("ticks", s.ticks)
-        .Integer("frames", s.frames)
-        .Number("tick_us_median", s.tick_us_median)
-        .Number("tick_us_p99", s.tick_us_p99)
-        .Number("frame_ms_median", s.frame_ms_median)
-        .Number("frame_ms_p99", s.frame_ms_p99)
-        .Number("timer_overhead_us", s.timer_overhead_us)
-        .Number("force_rms_error_N", s.force_rms_error_N)
-        .Number("force_max_error_N", s.force_max_error_N)
-        .Number("max_jump_N", s.max_jump_N)
-        .Number("max_jump_vs_ref_N", s.max_jump_vs_ref_N)
-        .Number("peak_force_N", s.peak_force_N)
-        .Integer("contacts", static_cast<int64_t>(s.contacts))
-        .Integer("contact_mismatches", static_cast<int64_t>(s.contact_mismatches))
-        .Integer("clamped_ticks", static_cast<int64_t>(s.clamped_ticks))
-        .Integer("stalled_ticks", static_cast<int64_t>(s.stalled_ticks))
-        .Integer("nan_events", static_cast<int64_t>(s.nan_events));
-    items.push_back(r.str());
+    variants.push_back(Json{{"name", s.name},
+                            {"overrides", s.overrides},
+                            {"ticks", s.ticks},
+                            {"frames", s.frames},
+                            {"tick_us_median", s.tick_us_median},
+                            {"tick_us_p99", s.tick_us_p99},
+                            {"frame_ms_median", s.frame_ms_median},
+                            {"frame_ms_p99", s.frame_ms_p99},
+                            {"timer_overhead_us", s.timer_overhead_us},
+                            {"force_rms_error_N", s.force_rms_error_N},
+                            {"force_max_error_N", s.force_max_error_N},
+                            {"max_jump_N", s.max_jump_N},
+                            {"max_jump_vs_ref_N", s.max_jump_vs_ref_N},
+                            {"peak_force_N", s.peak_force_N},
+                            {"contacts", static_cast<int64_t>(s.contacts)},
+                            {"contact_mismatches", static_cast<int64_t>(s.contact_mismatches)},
+                            {"clamped_ticks", static_cast<int64_t>(s.clamped_ticks)},
+                            {"stalled_ticks", static_cast<int64_t>(s.stalled_ticks)},
+                            {"nan_events", static_cast<int64_t>(s.nan_events)}});
   }
-  report::JsonRecord top;
-  top.String("command", CommandLine(args))
-      .String("trace", args.trace)
-      .String("scene", args.scene)
-      .String("reference", result.summaries.front().name)
-      .Integer("devices", result.runs.front().devices)
-      .Number("tick_dt_s", result.runs.front().tick_dt_s)
-      .Raw("machine", report::MachineJson(machine))
-      .String("load_average_end", load_end);
-  // The variants array on its own lines, after the one-line header members.
-  std::string text = top.str();
-  text.pop_back();  // the closing brace
-  text += ", \"variants\": " + report::JsonArray(items, 2) + "}\n";
-  return text;
+  Json top{{"command", CommandLine(args)},
+           {"trace", args.trace},
+           {"scene", args.scene},
+           {"reference", result.summaries.front().name},
+           {"devices", result.runs.front().devices},
+           {"tick_dt_s", result.runs.front().tick_dt_s},
+           {"machine", report::MachineJson(machine)},
+           {"load_average_end", load_end}};
+  top["variants"] = variants;
+  return JsonText(top);
 }
 
 int Compare(const CompareArgs& args) {
@@ -129,7 +123,8 @@ int Compare(const CompareArgs& args) {
       ref.devices, ref.name.c_str(), result.summaries.front().timer_overhead_us,
       machine.load_average.c_str(), load_end.c_str(), table.c_str());
   std::fflush(stdout);
-  if (!args.json.empty()) report::WriteTextFile(args.json, Json(args, machine, load_end, result));
+  if (!args.json.empty())
+    report::WriteTextFile(args.json, CompareJson(args, machine, load_end, result));
   if (!args.md.empty()) {
     const std::string header =
         report::ReportHeader("felt compare: " + args.trace, CommandLine(args), machine, load_end);

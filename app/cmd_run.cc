@@ -24,6 +24,8 @@
 #include <vector>
 
 #include "app/command.h"
+#include "base/json.h"
+#include "base/report.h"
 #include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_scene.h"
@@ -74,39 +76,10 @@ void SleepUntil(int64_t deadline_ns) {
   }
 }
 
-// Nearest-rank percentile (p in [0, 100]) of `samples`; 0 for none. Kept local to this command
-// until a shared statistics header exists.
-double Percentile(std::vector<double> samples, double p) {
-  if (samples.empty()) return 0.0;
-  std::sort(samples.begin(), samples.end());
-  const double rank = std::ceil(p / 100.0 * static_cast<double>(samples.size()));
-  const size_t index =
-      static_cast<size_t>(std::clamp(rank, 1.0, static_cast<double>(samples.size())));
-  return samples[index - 1];
-}
-
-// A string as a JSON string literal.
-std::string JsonString(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char escaped[8];
-      std::snprintf(escaped, sizeof(escaped), "\\u%04x", static_cast<unsigned>(c));
-      out += escaped;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
-
-// A number for JSON: non-finite values become null.
-std::string JsonNumber(double value) {
-  if (!std::isfinite(value)) return "null";
-  return FormatSceneNumber(value);
+// The nearest-rank percentile of the frame times [ms] (p in [0, 100]); 0 when no frame ran, as
+// this command has always printed.
+double FrameMsPercentile(const RunStats& stats, double p) {
+  return stats.frame_ms.empty() ? 0.0 : report::Percentile(stats.frame_ms, p);
 }
 
 // Steps `model` for `frames` frames of nominal length, in real time unless `fast`.
@@ -171,8 +144,8 @@ void PrintStats(const SceneInfo& info, const std::string& file, const ClothModel
   std::printf("frames             %lld (%.3f s simulated in %.3f s wall)\n",
               static_cast<long long>(stats.frames), stats.sim_time_s, stats.wall_s);
   std::printf("substeps           %lld\n", static_cast<long long>(stats.substeps));
-  std::printf("frame compute ms   p50 %.3f  p99 %.3f  max %.3f\n", Percentile(stats.frame_ms, 50),
-              Percentile(stats.frame_ms, 99), Percentile(stats.frame_ms, 100));
+  std::printf("frame compute ms   p50 %.3f  p99 %.3f  max %.3f\n", FrameMsPercentile(stats, 50),
+              FrameMsPercentile(stats, 99), FrameMsPercentile(stats, 100));
   std::printf("max stretch        %.4f (at the end %.4f)\n", stats.max_stretch,
               stats.final_stretch);
   std::printf("energy J           start %.6g  end %.6g  min %.6g  max %.6g\n", stats.energy_start_J,
@@ -196,35 +169,35 @@ void PrintStats(const SceneInfo& info, const std::string& file, const ClothModel
 void WriteJson(std::ofstream& out, const std::string& json_path, const SceneInfo& info,
                const std::string& file, const ClothModel& model, const ClothState& state,
                const RunStats& stats, bool fast) {
-  out << "{\n"
-      << "  \"scene\": " << JsonString(info.name) << ",\n"
-      << "  \"file\": " << JsonString(file) << ",\n"
-      << "  \"width\": " << model.width << ",\n"
-      << "  \"height\": " << model.height << ",\n"
-      << "  \"integrator\": " << JsonString(std::string(ToName(model.integrator))) << ",\n"
-      << "  \"substeps_per_frame\": " << model.substeps << ",\n"
-      << "  \"auto_substeps\": " << (model.auto_substeps ? "true" : "false") << ",\n"
-      << "  \"frame_rate_hz\": " << JsonNumber(model.frame_rate_hz) << ",\n"
-      << "  \"realtime\": " << (fast ? "false" : "true") << ",\n"
-      << "  \"frames\": " << stats.frames << ",\n"
-      << "  \"substeps\": " << stats.substeps << ",\n"
-      << "  \"sim_time_s\": " << JsonNumber(stats.sim_time_s) << ",\n"
-      << "  \"wall_s\": " << JsonNumber(stats.wall_s) << ",\n"
-      << "  \"frame_ms\": {\"p50\": " << JsonNumber(Percentile(stats.frame_ms, 50))
-      << ", \"p99\": " << JsonNumber(Percentile(stats.frame_ms, 99))
-      << ", \"max\": " << JsonNumber(Percentile(stats.frame_ms, 100)) << "},\n"
-      << "  \"max_stretch\": " << JsonNumber(stats.max_stretch) << ",\n"
-      << "  \"final_stretch\": " << JsonNumber(stats.final_stretch) << ",\n"
-      << "  \"energy_J\": {\"start\": " << JsonNumber(stats.energy_start_J)
-      << ", \"end\": " << JsonNumber(stats.energy_end_J)
-      << ", \"min\": " << JsonNumber(stats.energy_min_J)
-      << ", \"max\": " << JsonNumber(stats.energy_max_J) << "},\n"
-      << "  \"nan_events\": " << state.counters.nan_events << ",\n"
-      << "  \"clamped_frames\": " << state.counters.clamped_frames << ",\n"
-      << "  \"cg_not_converged\": " << state.counters.cg_not_converged << ",\n"
-      << "  \"overruns\": " << stats.overruns << ",\n"
-      << "  \"skipped_periods\": " << stats.skipped_periods << "\n"
-      << "}\n";
+  const Json frame_ms{{"p50", FrameMsPercentile(stats, 50)},
+                      {"p99", FrameMsPercentile(stats, 99)},
+                      {"max", FrameMsPercentile(stats, 100)}};
+  const Json energy_J{{"start", stats.energy_start_J},
+                      {"end", stats.energy_end_J},
+                      {"min", stats.energy_min_J},
+                      {"max", stats.energy_max_J}};
+  out << JsonText(Json{{"scene", info.name},
+                       {"file", file},
+                       {"width", model.width},
+                       {"height", model.height},
+                       {"integrator", ToName(model.integrator)},
+                       {"substeps_per_frame", model.substeps},
+                       {"auto_substeps", model.auto_substeps},
+                       {"frame_rate_hz", model.frame_rate_hz},
+                       {"realtime", !fast},
+                       {"frames", stats.frames},
+                       {"substeps", stats.substeps},
+                       {"sim_time_s", stats.sim_time_s},
+                       {"wall_s", stats.wall_s},
+                       {"frame_ms", frame_ms},
+                       {"max_stretch", stats.max_stretch},
+                       {"final_stretch", stats.final_stretch},
+                       {"energy_J", energy_J},
+                       {"nan_events", state.counters.nan_events},
+                       {"clamped_frames", state.counters.clamped_frames},
+                       {"cg_not_converged", state.counters.cg_not_converged},
+                       {"overruns", stats.overruns},
+                       {"skipped_periods", stats.skipped_periods}});
   out.flush();
   if (!out) throw std::runtime_error("--json " + json_path + ": write failed");
 }

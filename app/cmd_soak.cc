@@ -6,21 +6,17 @@
 // JSON and a markdown table. Exits 3 when a threshold is crossed (defaults: issue 7's target).
 // SIGINT/SIGTERM stop both children cleanly; children also get SIGTERM should this process die
 // (PR_SET_PDEATHSIG), so none is left behind (docs/replay.md).
-#include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
 #include <spdlog/spdlog.h>
-#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -38,7 +34,9 @@
 #include <vector>
 
 #include "app/command.h"
-#include "base/json_writer.h"
+#include "base/json.h"
+#include "base/process.h"
+#include "base/report.h"
 #include "recordings/trace.h"
 #include "scene/scene_file.h"
 #include "server/server_spec.h"
@@ -58,203 +56,41 @@ constexpr int kExitInterrupted = 130;          // SIGINT/SIGTERM (128 + SIGINT, 
 constexpr int64_t kStopGraceNs = 10000000000;  // SIGINT, then SIGKILL after 10 s
 constexpr size_t kTailLines = 40;              // output lines kept per child for error reports
 
-// ---- A small JSON reader (for serve's and replay's own JSON files) ----
-
-// A parsed JSON value: null, boolean, number, string, object (members in order) or array.
-struct JsonValue {
-  enum class Kind { kNull, kBool, kNumber, kString, kObject, kArray };
-  Kind kind = Kind::kNull;
-  bool boolean = false;
-  double number = 0.0;
-  std::string text;
-  std::vector<std::pair<std::string, JsonValue>> members;
-  std::vector<JsonValue> items;
-
-  // The value at a dotted path ("haptic.lateness_us.p99"), or null when absent.
-  const JsonValue* Find(std::string_view path) const {
-    const JsonValue* v = this;
-    while (!path.empty()) {
-      const size_t dot = path.find('.');
-      const std::string_view key = path.substr(0, dot);
-      if (v->kind != Kind::kObject) return nullptr;
-      const JsonValue* next = nullptr;
-      for (const auto& [k, child] : v->members) {
-        if (k == key) next = &child;
-      }
-      if (next == nullptr) return nullptr;
-      v = next;
-      path = dot == std::string_view::npos ? std::string_view() : path.substr(dot + 1);
-    }
-    return v;
-  }
-};
-
-// Recursive-descent parser of RFC 8259 JSON; errors name the file and the byte offset.
-class JsonReader {
- public:
-  JsonReader(std::string text, std::string file) : text_(std::move(text)), file_(std::move(file)) {}
-
-  JsonValue Parse() {
-    JsonValue v = Value();
-    Skip();
-    if (pos_ != text_.size()) Fail("trailing characters after the document");
-    return v;
-  }
-
- private:
-  [[noreturn]] void Fail(const std::string& what) const {
-    throw std::runtime_error(file_ + ": JSON: byte " + std::to_string(pos_) + ": " + what);
-  }
-  void Skip() {
-    while (pos_ < text_.size() && std::strchr(" \t\r\n", text_[pos_]) != nullptr) ++pos_;
-  }
-  bool Eat(char c) {
-    Skip();
-    if (pos_ < text_.size() && text_[pos_] == c) {
-      ++pos_;
-      return true;
-    }
-    return false;
-  }
-  void Expect(char c) {
-    if (!Eat(c)) Fail(std::string("expected '") + c + "'");
-  }
-  bool Word(std::string_view word) {
-    if (text_.compare(pos_, word.size(), word) != 0) return false;
-    pos_ += word.size();
-    return true;
-  }
-  std::string String() {
-    Expect('"');
-    std::string out;
-    while (pos_ < text_.size() && text_[pos_] != '"') {
-      char c = text_[pos_++];
-      if (c == '\\') {
-        if (pos_ >= text_.size()) Fail("unterminated escape");
-        c = text_[pos_++];
-        switch (c) {
-          case 'n':
-            c = '\n';
-            break;
-          case 't':
-            c = '\t';
-            break;
-          case 'r':
-            c = '\r';
-            break;
-          case 'b':
-            c = '\b';
-            break;
-          case 'f':
-            c = '\f';
-            break;
-          case 'u': {
-            // Only what JsonWriter emits: \u00XX control characters.
-            if (pos_ + 4 > text_.size()) Fail("short \\u escape");
-            unsigned code = 0;
-            const auto [end, ec] =
-                std::from_chars(text_.data() + pos_, text_.data() + pos_ + 4, code, 16);
-            if (ec != std::errc() || end != text_.data() + pos_ + 4 || code > 0x7f) {
-              Fail("unsupported \\u escape");
-            }
-            pos_ += 4;
-            c = static_cast<char>(code);
-            break;
-          }
-          default:
-            break;  // '"', '\\', '/'
-        }
-      }
-      out += c;
-    }
-    if (pos_ >= text_.size()) Fail("unterminated string");
-    ++pos_;
-    return out;
-  }
-  JsonValue Value() {
-    Skip();
-    if (pos_ >= text_.size()) Fail("unexpected end of the document");
-    JsonValue v;
-    const char c = text_[pos_];
-    if (c == '{') {
-      ++pos_;
-      v.kind = JsonValue::Kind::kObject;
-      if (Eat('}')) return v;
-      do {
-        Skip();
-        std::string key = String();
-        Expect(':');
-        v.members.emplace_back(std::move(key), Value());
-      } while (Eat(','));
-      Expect('}');
-    } else if (c == '[') {
-      ++pos_;
-      v.kind = JsonValue::Kind::kArray;
-      if (Eat(']')) return v;
-      do {
-        v.items.push_back(Value());
-      } while (Eat(','));
-      Expect(']');
-    } else if (c == '"') {
-      v.kind = JsonValue::Kind::kString;
-      v.text = String();
-    } else if (Word("true")) {
-      v.kind = JsonValue::Kind::kBool;
-      v.boolean = true;
-    } else if (Word("false")) {
-      v.kind = JsonValue::Kind::kBool;
-    } else if (Word("null")) {
-      v.kind = JsonValue::Kind::kNull;
-    } else {
-      v.kind = JsonValue::Kind::kNumber;
-      const auto [end, ec] =
-          std::from_chars(text_.data() + pos_, text_.data() + text_.size(), v.number);
-      if (ec != std::errc()) Fail("expected a value");
-      pos_ = static_cast<size_t>(end - text_.data());
-    }
-    return v;
-  }
-
-  std::string text_;
-  std::string file_;
-  size_t pos_ = 0;
-};
+// ---- serve's and replay's JSON files ----
 
 // Reads and parses a JSON file; throws std::runtime_error naming the file.
-JsonValue ReadJsonFile(const std::string& path) {
+Json ReadJsonFile(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(path + ": cannot read: " + std::strerror(errno));
   std::stringstream text;
   text << in.rdbuf();
-  return JsonReader(text.str(), path).Parse();
+  return ParseJson(text.str(), path);
 }
 
-// Copies object `v` member by member into `json` under `key` (arrays are not written: serve's and
-// replay's JSON have none).
-void CopyObject(JsonWriter& json, std::string_view key, const JsonValue& v) {
-  json.BeginObject(key);
-  for (const auto& [k, child] : v.members) {
-    switch (child.kind) {
-      case JsonValue::Kind::kObject:
-        CopyObject(json, k, child);
-        break;
-      case JsonValue::Kind::kNumber:
-        json.Number(k, child.number);
-        break;
-      case JsonValue::Kind::kBool:
-        json.Bool(k, child.boolean);
-        break;
-      case JsonValue::Kind::kString:
-        json.String(k, child.text);
-        break;
-      case JsonValue::Kind::kNull:
-        json.Number(k, std::nan(""));
-        break;  // written as null
-      case JsonValue::Kind::kArray:
-        break;
-    }
+// The value at a dotted path ("haptic.lateness_us.p99"), or null when absent.
+const Json* Find(const Json& root, std::string_view path) {
+  const Json* v = &root;
+  while (!path.empty()) {
+    const size_t dot = path.find('.');
+    if (!v->is_object()) return nullptr;
+    const auto next = v->find(std::string(path.substr(0, dot)));
+    if (next == v->end()) return nullptr;
+    v = &*next;
+    path = dot == std::string_view::npos ? std::string_view() : path.substr(dot + 1);
   }
-  json.EndObject();
+  return v;
+}
+
+// The number at `path`, NaN when absent (or null: a non-finite number).
+double Num(const Json& root, std::string_view path) {
+  const Json* v = Find(root, path);
+  return v != nullptr && v->is_number() ? v->get<double>() : std::nan("");
+}
+
+// The boolean at `path`, false when absent.
+bool Flag(const Json& root, std::string_view path) {
+  const Json* v = Find(root, path);
+  return v != nullptr && v->is_boolean() && v->get<bool>();
 }
 
 // ---- /proc readings ----
@@ -287,25 +123,14 @@ double ReadCpuS(pid_t pid) {
   return static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
 }
 
-// The three load averages of /proc/loadavg as text ("1.02 0.98 0.75").
-std::string LoadAverage() {
-  std::ifstream in("/proc/loadavg");
-  std::string one, five, fifteen;
-  in >> one >> five >> fifteen;
-  return one + " " + five + " " + fifteen;
-}
-
 // ---- Child processes ----
 
-// One child: `felt <args>` with stdout and stderr into a pipe that this process reads.
+// One child: `felt <args>` with stdout and stderr into a pipe that this process reads. Its
+// Process kills and reaps it should it still run when this goes out of scope (an exception path):
+// no orphan is ever left behind.
 struct Child {
   std::string name;
-  pid_t pid = -1;
-  int out_fd = -1;
-  bool running = false;
-  int exit_code = -1;   // when it exited normally
-  int term_signal = 0;  // when a signal ended it
-  rusage usage{};
+  Process process;
   int64_t stop_sent_ns = 0;  // when SIGINT was sent (0 = not yet)
   std::string partial;       // the unfinished last line
   std::deque<std::string> tail;
@@ -314,116 +139,43 @@ struct Child {
   // Reads what is available, line by line; calls on_line for each complete line.
   template <typename OnLine>
   void Drain(OnLine&& on_line) {
-    char buffer[4096];
-    while (out_fd >= 0) {
-      const ssize_t n = read(out_fd, buffer, sizeof(buffer));
-      if (n < 0) return;  // EAGAIN: nothing now
-      if (n == 0) {
-        // End of file: the child has closed its output; poll() skips a negative fd.
-        close(out_fd);
-        out_fd = -1;
-        if (!partial.empty()) partial += '\n';
-      }
-      partial.append(buffer, static_cast<size_t>(std::max<ssize_t>(n, 0)));
-      size_t newline = 0;
-      while ((newline = partial.find('\n')) != std::string::npos) {
-        std::string line = partial.substr(0, newline);
-        partial.erase(0, newline + 1);
-        if (echo) std::printf("[%s] %s\n", name.c_str(), line.c_str());
-        on_line(line);
-        tail.push_back(std::move(line));
-        if (tail.size() > kTailLines) tail.pop_front();
-      }
+    if (process.output_fd() < 0) return;
+    // At the end of the output, an unfinished last line is still a line.
+    if (!process.ReadOutput(&partial) && !partial.empty()) partial += '\n';
+    size_t newline = 0;
+    while ((newline = partial.find('\n')) != std::string::npos) {
+      std::string line = partial.substr(0, newline);
+      partial.erase(0, newline + 1);
+      if (echo) std::printf("[%s] %s\n", name.c_str(), line.c_str());
+      on_line(line);
+      tail.push_back(std::move(line));
+      if (tail.size() > kTailLines) tail.pop_front();
     }
-  }
-
-  // Reaps the child when it has exited (never blocks); true when it is (now) gone.
-  bool Reap() {
-    if (!running) return true;
-    int status = 0;
-    const pid_t r = wait4(pid, &status, WNOHANG, &usage);
-    if (r != pid) return false;
-    running = false;
-    if (WIFEXITED(status)) exit_code = WEXITSTATUS(status);
-    if (WIFSIGNALED(status)) term_signal = WTERMSIG(status);
-    return true;
   }
 
   // Asks the child to stop (SIGINT: serve and replay stop cleanly and write their reports).
   void RequestStop() {
-    if (running && stop_sent_ns == 0) {
-      kill(pid, SIGINT);
+    if (process.running() && stop_sent_ns == 0) {
+      process.Signal(SIGINT);
       stop_sent_ns = transport::MonotonicNowNs();
     }
-  }
-
-  // What ended it, for messages.
-  std::string Outcome() const {
-    if (running) return "still running";
-    if (term_signal != 0) return std::string("killed by signal ") + strsignal(term_signal);
-    return "exit code " + std::to_string(exit_code);
   }
 };
 
 // Starts `exe args...` with its output into a pipe; it gets SIGTERM when this process dies.
-Child Spawn(const std::string& name, const std::string& exe, const std::vector<std::string>& args,
-            bool echo) {
-  // Everything the child needs is prepared before fork: after it, only async-signal-safe calls.
-  std::vector<std::string> all;
-  all.push_back(exe);
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0) {
-    throw std::runtime_error("soak: pipe2 failed: " + std::string(std::strerror(errno)));
-  }
-  const pid_t parent = getpid();
-  const pid_t pid = fork();
-  if (pid < 0) {
-    close(fds[0]);
-    close(fds[1]);
-    throw std::runtime_error("soak: fork failed: " + std::string(std::strerror(errno)));
-  }
-  if (pid == 0) {
-    // The child: die with the parent (and check it has not died already), output to the pipe.
-    prctl(PR_SET_PDEATHSIG, SIGTERM);
-    if (getppid() != parent) _exit(126);
-    dup2(fds[1], STDOUT_FILENO);
-    dup2(fds[1], STDERR_FILENO);
-    execv(exe.c_str(), argv.data());
-    constexpr char kMessage[] = "felt soak: execv failed\n";
-    (void)!write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
-    _exit(127);
-  }
-  close(fds[1]);
-  fcntl(fds[0], F_SETFL, fcntl(fds[0], F_GETFL) | O_NONBLOCK);
+Child SpawnChild(const std::string& name, const std::string& exe,
+                 const std::vector<std::string>& args, bool echo) {
+  std::vector<std::string> argv = {exe};
+  argv.insert(argv.end(), args.begin(), args.end());
+  SpawnOptions options;
+  options.output = SpawnOptions::Output::kPipe;
+  options.die_with_parent = true;
   Child child;
   child.name = name;
-  child.pid = pid;
-  child.out_fd = fds[0];
-  child.running = true;
+  child.process = Process::Spawn(argv, options);
   child.echo = echo;
   return child;
 }
-
-// Kills and reaps whatever child is still running when it goes out of scope (an exception
-// path): no orphan is ever left behind.
-struct ChildGuard {
-  std::vector<Child*> children;
-  ~ChildGuard() {
-    for (Child* c : children) {
-      if (c->running) {
-        kill(c->pid, SIGKILL);
-        waitpid(c->pid, nullptr, 0);
-        c->running = false;
-      }
-      if (c->out_fd >= 0) close(c->out_fd);
-      c->out_fd = -1;
-    }
-  }
-};
 
 // ---- The soak ----
 
@@ -456,11 +208,6 @@ struct Check {
 std::string Fixed(double v, int decimals) {
   if (!std::isfinite(v)) return "n/a";
   return fmt::format("{:.{}f}", v, decimals);
-}
-
-double Num(const JsonValue& root, std::string_view path) {
-  const JsonValue* v = root.Find(path);
-  return v != nullptr && v->kind == JsonValue::Kind::kNumber ? v->number : std::nan("");
 }
 
 int Soak(const SoakArgs& args) {
@@ -497,7 +244,7 @@ int Soak(const SoakArgs& args) {
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
 
-  const std::string load_start = LoadAverage();
+  const std::string load_start = report::LoadAverage();
   std::printf("felt soak: %.1f s of %s into %s over DDS domain %u (device %s), load %s\n",
               duration_s, args.trace.c_str(), args.scene.c_str(), domain, device_id.c_str(),
               load_start.c_str());
@@ -520,10 +267,8 @@ int Soak(const SoakArgs& args) {
                                                 replay_json,
                                                 "--discovery-timeout",
                                                 fmt::format("{}", args.discovery_timeout_s)};
-  Child serve, replay;
-  ChildGuard guard{{&serve, &replay}};  // destroyed first: kills what still runs on an exception
-  serve = Spawn("serve", exe, serve_args, args.verbose);
-  replay = Spawn("replay", exe, replay_args, args.verbose);
+  Child serve = SpawnChild("serve", exe, serve_args, args.verbose);
+  Child replay = SpawnChild("replay", exe, replay_args, args.verbose);
 
   // Watch: output, the start of publication, RSS once a second, the ends.
   const int64_t start_ns = transport::MonotonicNowNs();
@@ -537,38 +282,39 @@ int Soak(const SoakArgs& args) {
     if (publishing_ns == 0 && line.find("felt replay: publishing") != std::string::npos) {
       // The replay starts now: the server's memory and CPU at the start.
       publishing_ns = transport::MonotonicNowNs();
-      rss_start_kb = rss_max_kb = ReadRssKb(serve.pid);
-      serve_cpu_start_s = ReadCpuS(serve.pid);
-      replay_cpu_start_s = ReadCpuS(replay.pid);
+      rss_start_kb = rss_max_kb = ReadRssKb(serve.process.pid());
+      serve_cpu_start_s = ReadCpuS(serve.process.pid());
+      replay_cpu_start_s = ReadCpuS(replay.process.pid());
       next_rss_ns = publishing_ns + 1000000000;
     }
   };
-  while (serve.running || replay.running) {
-    pollfd fds[2] = {{serve.out_fd, POLLIN, 0}, {replay.out_fd, POLLIN, 0}};
+  while (serve.process.running() || replay.process.running()) {
+    pollfd fds[2] = {{serve.process.output_fd(), POLLIN, 0},
+                     {replay.process.output_fd(), POLLIN, 0}};
     (void)poll(fds, 2, 100);
     serve.Drain([](const std::string&) {});
     replay.Drain(on_replay_line);
     const int64_t now_ns = transport::MonotonicNowNs();
     if (publishing_ns != 0 && replay_end_ns == 0 && now_ns >= next_rss_ns) {
-      rss_max_kb = std::max(rss_max_kb, ReadRssKb(serve.pid));
+      rss_max_kb = std::max(rss_max_kb, ReadRssKb(serve.process.pid()));
       next_rss_ns += 1000000000;
     }
     // The replay's end: the server's memory and CPU at the end, then the server is stopped.
-    if (replay.running && replay.Reap()) {
+    if (replay.process.running() && replay.process.Poll()) {
       replay.Drain(on_replay_line);
     }
-    if (!replay.running && replay_end_ns == 0) {
+    if (!replay.process.running() && replay_end_ns == 0) {
       replay_end_ns = now_ns;
-      if (serve.running) {
-        rss_end_kb = ReadRssKb(serve.pid);
+      if (serve.process.running()) {
+        rss_end_kb = ReadRssKb(serve.process.pid());
         rss_max_kb = std::max(rss_max_kb, rss_end_kb);
-        serve_cpu_end_s = ReadCpuS(serve.pid);
+        serve_cpu_end_s = ReadCpuS(serve.process.pid());
       }
       serve.RequestStop();
     }
-    if (serve.running && serve.Reap()) {
+    if (serve.process.running() && serve.process.Poll()) {
       serve.Drain([](const std::string&) {});
-      if (replay.running) {
+      if (replay.process.running()) {
         serve_died = true;
         replay.RequestStop();
       }
@@ -587,19 +333,20 @@ int Soak(const SoakArgs& args) {
     }
     // A child that does not stop within the grace time is killed.
     for (Child* c : {&serve, &replay}) {
-      if (c->running && c->stop_sent_ns != 0 && now_ns - c->stop_sent_ns > kStopGraceNs) {
-        kill(c->pid, SIGKILL);
+      if (c->process.running() && c->stop_sent_ns != 0 && now_ns - c->stop_sent_ns > kStopGraceNs) {
+        c->process.Signal(SIGKILL);
       }
     }
   }
-  const std::string load_end = LoadAverage();
+  const std::string load_end = report::LoadAverage();
   const double window_s = publishing_ns != 0 && replay_end_ns != 0
                               ? static_cast<double>(replay_end_ns - publishing_ns) / 1e9
                               : std::nan("");
 
   // The children's failures: their last output.
   const auto failed = [](const Child& c) {
-    return c.term_signal != 0 || (c.exit_code != 0 && c.exit_code != -1);
+    return c.process.term_signal() != 0 ||
+           (c.process.exit_code() != 0 && c.process.exit_code() != -1);
   };
   // After SIGINT/SIGTERM, a child that ended on the SIGINT passed on (even before its handler was
   // installed) or gave up early is expected, not a failure.
@@ -608,7 +355,7 @@ int Soak(const SoakArgs& args) {
   if (child_failed) {
     for (const Child* c : {&serve, &replay}) {
       std::fprintf(stderr, "felt soak: %s: %s; its last output:\n", c->name.c_str(),
-                   c->Outcome().c_str());
+                   c->process.Outcome().c_str());
       for (const std::string& line : c->tail) std::fprintf(stderr, "  | %s\n", line.c_str());
     }
     if (serve_died) std::fprintf(stderr, "felt soak: the server ended before the replay\n");
@@ -616,16 +363,9 @@ int Soak(const SoakArgs& args) {
   }
 
   // The children's reports (missing when a child failed early).
-  JsonValue serve_report, replay_report;
-  bool have_serve = false, have_replay = false;
-  if (std::filesystem::exists(serve_json)) {
-    serve_report = ReadJsonFile(serve_json);
-    have_serve = true;
-  }
-  if (std::filesystem::exists(replay_json)) {
-    replay_report = ReadJsonFile(replay_json);
-    have_replay = true;
-  }
+  Json serve_report, replay_report;  // null when missing
+  if (std::filesystem::exists(serve_json)) serve_report = ReadJsonFile(serve_json);
+  if (std::filesystem::exists(replay_json)) replay_report = ReadJsonFile(replay_json);
   if (args.keep_files) {
     std::printf("felt soak: the children's reports are in %s\n", dir.c_str());
   } else {
@@ -636,19 +376,19 @@ int Soak(const SoakArgs& args) {
   const double serve_cpu_s = serve_cpu_start_s >= 0 && serve_cpu_end_s >= 0
                                  ? serve_cpu_end_s - serve_cpu_start_s
                                  : std::nan("");
-  const double replay_total_cpu_s =
-      static_cast<double>(replay.usage.ru_utime.tv_sec + replay.usage.ru_stime.tv_sec) +
-      static_cast<double>(replay.usage.ru_utime.tv_usec + replay.usage.ru_stime.tv_usec) / 1e6;
+  const double replay_total_cpu_s = static_cast<double>(replay.process.usage().ru_utime.tv_sec +
+                                                        replay.process.usage().ru_stime.tv_sec) +
+                                    static_cast<double>(replay.process.usage().ru_utime.tv_usec +
+                                                        replay.process.usage().ru_stime.tv_usec) /
+                                        1e6;
   const double replay_cpu_s =
       replay_cpu_start_s >= 0 ? replay_total_cpu_s - replay_cpu_start_s : std::nan("");
   const double rss_growth_kb = rss_start_kb >= 0 && rss_end_kb >= 0
                                    ? static_cast<double>(rss_end_kb - rss_start_kb)
                                    : std::nan("");
   // Pointer samples lost: known only when the replay saw the server's status before and after.
-  const JsonValue* server_counts = replay_report.Find("server_counts");
-  const double pointer_lost = server_counts != nullptr && server_counts->boolean
-                                  ? Num(replay_report, "pointer_lost")
-                                  : std::nan("");
+  const double pointer_lost =
+      Flag(replay_report, "server_counts") ? Num(replay_report, "pointer_lost") : std::nan("");
   const double dropped =
       pointer_lost + Num(replay_report, "forces_lost") + Num(replay_report, "publish_failures");
 
@@ -669,53 +409,42 @@ int Soak(const SoakArgs& args) {
   }
 
   // JSON.
-  JsonWriter json;
-  json.BeginObject();
-  json.String("command", fmt::format("felt soak --minutes {} --scene {} --trace {}", args.minutes,
-                                     args.scene, args.trace));
-  json.Number("minutes", args.minutes);
-  json.String("scene", args.scene);
-  json.String("trace", args.trace);
-  json.String("device_id", device_id);
-  json.Unsigned("domain", domain);
-  json.String("load_average_start", load_start);
-  json.String("load_average_end", load_end);
-  json.Number("window_s", window_s);
-  json.Bool("interrupted", interrupted);
-  json.Bool("children_ok", !child_failed);
-  json.BeginObject("server");
-  json.Integer("exit_code", serve.exit_code);
-  json.Integer("rss_start_kB", rss_start_kb);
-  json.Integer("rss_end_kB", rss_end_kb);
-  json.Integer("rss_max_kB", rss_max_kb);
-  json.Number("rss_growth_kB", rss_growth_kb);
-  json.Number("cpu_s", serve_cpu_s);
-  json.Number("cpu_percent", serve_cpu_s / window_s * 100.0);
-  if (have_serve) CopyObject(json, "stats", serve_report);
-  json.EndObject();
-  json.BeginObject("replay");
-  json.Integer("exit_code", replay.exit_code);
-  json.Number("cpu_s", replay_cpu_s);
-  json.Number("cpu_percent", replay_cpu_s / window_s * 100.0);
-  if (have_replay) CopyObject(json, "report", replay_report);
-  json.EndObject();
-  json.BeginObject("thresholds");
-  json.Number("max_dropped", args.max_dropped);
-  json.Number("max_rss_growth_kB", args.max_rss_growth_kb);
-  json.Number("max_haptic_lateness_p99_us", args.max_lateness_p99_us);
-  json.Number("max_haptic_lateness_p999_us", args.max_lateness_p999_us);
-  json.EndObject();
-  json.BeginObject("checks");
+  Json server{{"exit_code", serve.process.exit_code()},
+              {"rss_start_kB", rss_start_kb},
+              {"rss_end_kB", rss_end_kb},
+              {"rss_max_kB", rss_max_kb},
+              {"rss_growth_kB", rss_growth_kb},
+              {"cpu_s", serve_cpu_s},
+              {"cpu_percent", serve_cpu_s / window_s * 100.0}};
+  if (!serve_report.is_null()) server["stats"] = serve_report;
+  Json replayed{{"exit_code", replay.process.exit_code()},
+                {"cpu_s", replay_cpu_s},
+                {"cpu_percent", replay_cpu_s / window_s * 100.0}};
+  if (!replay_report.is_null()) replayed["report"] = replay_report;
+  Json check_json = Json::object();
   for (const Check& c : checks) {
-    json.BeginObject(c.name);
-    json.Number("value", c.value);
-    json.Number("limit", c.limit);
-    json.Bool("pass", c.pass);
-    json.EndObject();
+    check_json[c.name] = Json{{"value", c.value}, {"limit", c.limit}, {"pass", c.pass}};
   }
-  json.EndObject();
-  json.Bool("pass", pass && !child_failed);
-  json.EndObject();
+  const Json json{{"command", fmt::format("felt soak --minutes {} --scene {} --trace {}",
+                                          args.minutes, args.scene, args.trace)},
+                  {"minutes", args.minutes},
+                  {"scene", args.scene},
+                  {"trace", args.trace},
+                  {"device_id", device_id},
+                  {"domain", domain},
+                  {"load_average_start", load_start},
+                  {"load_average_end", load_end},
+                  {"window_s", window_s},
+                  {"interrupted", interrupted},
+                  {"children_ok", !child_failed},
+                  {"server", server},
+                  {"replay", replayed},
+                  {"thresholds", Json{{"max_dropped", args.max_dropped},
+                                      {"max_rss_growth_kB", args.max_rss_growth_kb},
+                                      {"max_haptic_lateness_p99_us", args.max_lateness_p99_us},
+                                      {"max_haptic_lateness_p999_us", args.max_lateness_p999_us}}},
+                  {"checks", check_json},
+                  {"pass", pass && !child_failed}};
 
   // Markdown.
   std::string md = "# felt soak\n\n";
@@ -724,7 +453,7 @@ int Soak(const SoakArgs& args) {
   md += fmt::format("Load average (1, 5, 15 min): start {}, end {}. Replay window {} s.\n\n",
                     load_start, load_end, Fixed(window_s, 1));
   md += "| quantity | p50 | p99 | p99.9 | max |\n|---|---|---|---|---|\n";
-  const auto row = [&](const std::string& label, const JsonValue& root, const std::string& path,
+  const auto row = [&](const std::string& label, const Json& root, const std::string& path,
                        int decimals) {
     md += fmt::format(
         "| {} | {} | {} | {} | {} |\n", label, Fixed(Num(root, path + ".p50"), decimals),
@@ -742,10 +471,7 @@ int Soak(const SoakArgs& args) {
   const auto item = [&](const std::string& label, const std::string& value) {
     md += fmt::format("| {} | {} |\n", label, value);
   };
-  item("realtime (SCHED_FIFO)",
-       serve_report.Find("realtime") != nullptr && serve_report.Find("realtime")->boolean
-           ? "true"
-           : "false");
+  item("realtime (SCHED_FIFO)", Flag(serve_report, "realtime") ? "true" : "false");
   item("haptic ticks / overruns", Fixed(Num(serve_report, "haptic.ticks"), 0) + " / " +
                                       Fixed(Num(serve_report, "haptic.overruns"), 0));
   item("sim frames / overruns", Fixed(Num(serve_report, "sim.frames"), 0) + " / " +
@@ -773,7 +499,7 @@ int Soak(const SoakArgs& args) {
   // Files.
   if (!args.json.empty()) {
     std::ofstream out(args.json);
-    out << json.str();
+    out << JsonText(json);
     if (!out) throw std::runtime_error("cannot write --json file '" + args.json + "'");
   }
   std::string md_path = args.md;
@@ -796,8 +522,7 @@ int Soak(const SoakArgs& args) {
       Fixed(Num(serve_report, "haptic.lateness_us.max"), 0).c_str(),
       Fixed(Num(serve_report, "haptic.ticks"), 0).c_str(),
       Fixed(Num(serve_report, "haptic.overruns"), 0).c_str(),
-      serve_report.Find("realtime") != nullptr && serve_report.Find("realtime")->boolean ? "true"
-                                                                                         : "false");
+      Flag(serve_report, "realtime") ? "true" : "false");
   std::printf("sim loop      frame ms p50 %s p99 %s max %s; %s frames\n",
               Fixed(Num(serve_report, "sim.frame_ms.p50"), 2).c_str(),
               Fixed(Num(serve_report, "sim.frame_ms.p99"), 2).c_str(),

@@ -14,7 +14,6 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "base/json_writer.h"
 #include "base/simd.h"
 
 namespace felt::report {
@@ -115,64 +114,14 @@ std::string Fixed(double value, int decimals) {
   return buf;
 }
 
-void JsonRecord::Key(std::string_view key) {
-  if (!body_.empty()) body_ += ", ";
-  body_ += JsonQuote(key);
-  body_ += ": ";
-}
-
-JsonRecord& JsonRecord::Number(std::string_view key, double value) {
-  Key(key);
-  body_ += std::isfinite(value) ? ShortestNumberText(value) : std::string("null");
-  return *this;
-}
-
-JsonRecord& JsonRecord::Integer(std::string_view key, int64_t value) {
-  Key(key);
-  body_ += std::to_string(value);
-  return *this;
-}
-
-JsonRecord& JsonRecord::Bool(std::string_view key, bool value) {
-  Key(key);
-  body_ += value ? "true" : "false";
-  return *this;
-}
-
-JsonRecord& JsonRecord::String(std::string_view key, std::string_view value) {
-  Key(key);
-  body_ += JsonQuote(value);
-  return *this;
-}
-
-JsonRecord& JsonRecord::Raw(std::string_view key, std::string_view json) {
-  Key(key);
-  body_ += json;
-  return *this;
-}
-
-std::string JsonRecord::str() const { return "{" + body_ + "}"; }
-
-std::string JsonArray(const std::vector<std::string>& items, int indent) {
-  if (items.empty()) return "[]";
-  const std::string pad(static_cast<size_t>(indent), ' ');
-  std::string out = "[\n";
-  for (size_t k = 0; k < items.size(); ++k) {
-    out += pad + "  " + items[k] + (k + 1 < items.size() ? ",\n" : "\n");
-  }
-  return out + pad + "]";
-}
-
-std::string MachineJson(const MachineInfo& machine) {
-  return JsonRecord()
-      .Integer("cpus_online", machine.cpus_online)
-      .String("cpu_model", machine.cpu_model)
-      .String("date_utc", machine.date_utc)
-      .String("load_average", machine.load_average)
-      .Integer("niceness", machine.niceness)
-      .String("affinity", machine.affinity)
-      .String("vector_kernels", machine.vector_kernels)
-      .str();
+Json MachineJson(const MachineInfo& machine) {
+  return Json{{"cpus_online", machine.cpus_online},
+              {"cpu_model", machine.cpu_model},
+              {"date_utc", machine.date_utc},
+              {"load_average", machine.load_average},
+              {"niceness", machine.niceness},
+              {"affinity", machine.affinity},
+              {"vector_kernels", machine.vector_kernels}};
 }
 
 std::string MarkdownTable(const std::vector<std::string>& header, const std::vector<bool>& right,

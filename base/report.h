@@ -1,19 +1,24 @@
 #pragma once
-// What every report-writing command shares (the benchmarks, `felt compare`): order statistics, the
-// machine's description for a report's header, one-line JSON records and arrays, Markdown and CSV
-// tables. Not real-time safe (everything here allocates).
+// What every report-writing command shares (the benchmarks, `felt compare`): order statistics (the
+// project's one percentile), the machine's description for a report's header (text and JSON),
+// Markdown and CSV tables. Not real-time safe (everything here allocates).
 
 #include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "base/json.h"
+
 namespace felt::report {
 
-/// Nearest-rank percentile (`p` in [0, 100]) of `samples`; NaN for none.
+/// The project's one percentile: nearest rank, the smallest sample with at least
+/// ceil(p / 100 * n) of the n samples at or below it (`p` in [0, 100], so p = 0 gives the smallest
+/// and p = 100 the largest), in the samples' unit. NaN for no samples: a caller that reports 0 for
+/// none says so where it calls.
 double Percentile(std::vector<double> samples, double p);
 
-/// The median (nearest rank, p = 50) of `samples`; NaN for none.
+/// The median (Percentile at p = 50) of `samples`, in their unit; NaN for none.
 double Median(std::vector<double> samples);
 
 /// CPU time [ms] this thread has used so far (CLOCK_THREAD_CPUTIME_ID): unlike the wall clock it
@@ -53,34 +58,9 @@ std::string Sig(double value, int digits = 4);
 /// `value` with `decimals` decimals ("%.*f"), or "-" when not finite.
 std::string Fixed(double value, int decimals = 3);
 
-/// A JSON object written on one line, members in the order they are added. Keys and strings are
-/// escaped; non-finite numbers are written as null.
-class JsonRecord {
- public:
-  /// Adds a floating-point member (shortest round-trip form).
-  JsonRecord& Number(std::string_view key, double value);
-  /// Adds an integer member.
-  JsonRecord& Integer(std::string_view key, int64_t value);
-  /// Adds a boolean member.
-  JsonRecord& Bool(std::string_view key, bool value);
-  /// Adds a string member.
-  JsonRecord& String(std::string_view key, std::string_view value);
-  /// Adds a member whose value is already JSON text (an object or an array).
-  JsonRecord& Raw(std::string_view key, std::string_view json);
-  /// The object, e.g. {"grid": 64, "frame_ms_median": 0.91}.
-  std::string str() const;
-
- private:
-  void Key(std::string_view key);
-  std::string body_;
-};
-
-/// A JSON array of already written JSON values, one per line, indented by `indent` spaces.
-std::string JsonArray(const std::vector<std::string>& items, int indent);
-
 /// A JSON object of the machine's description (cpus_online, cpu_model, date_utc, load_average,
 /// niceness, affinity, vector_kernels).
-std::string MachineJson(const MachineInfo& machine);
+Json MachineJson(const MachineInfo& machine);
 
 /// A Markdown table: a header row, the alignment row (numbers right-aligned: `right` per column),
 /// then the rows. Cells must not contain '|'.

@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "app/command.h"
-#include "base/json_writer.h"
+#include "base/json.h"
 #include "bench/bench_util.h"
 #include "sim_loop/cloth.h"
 
@@ -214,36 +214,36 @@ int Run(const Args& args) {
                 "cpu_ms_median", "cpu_ms_p99", "max_stretch", "timed_max_stretch", "final_stretch",
                 "max_shear_stretch", "timed_max_shear_stretch", "nan_events", "target"},
                Rows(results)));
-  std::vector<std::string> items;
+  Json items = Json::array();
   for (const GridResult& r : results) {
-    JsonRecord rec;
-    rec.Integer("grid", r.grid)
-        .Number("frame_ms_median", Median(r.wall_ms))
-        .Number("frame_ms_p99", Percentile(r.wall_ms, 99))
-        .Number("cpu_ms_median", Median(r.cpu_ms))
-        .Number("cpu_ms_p99", Percentile(r.cpu_ms, 99))
-        .Number("max_stretch", r.max_stretch)
-        .Number("timed_max_stretch", r.timed_stretch)
-        .Number("final_stretch", r.final_stretch)
-        .Number("max_shear_stretch", r.max_shear)
-        .Number("timed_max_shear_stretch", r.timed_shear)
-        .Number("final_shear_stretch", r.final_shear)
-        .Integer("substeps", r.substeps)
-        .Integer("particles", r.particles)
-        .Integer("springs", r.springs)
-        .Integer("provot_constraints", r.provot_constraints)
-        .Integer("frames", static_cast<int64_t>(r.wall_ms.size()))
-        .Integer("nan_events", static_cast<int64_t>(r.nan_events));
+    Json rec{{"grid", r.grid},
+             {"frame_ms_median", Median(r.wall_ms)},
+             {"frame_ms_p99", Percentile(r.wall_ms, 99)},
+             {"cpu_ms_median", Median(r.cpu_ms)},
+             {"cpu_ms_p99", Percentile(r.cpu_ms, 99)},
+             {"max_stretch", r.max_stretch},
+             {"timed_max_stretch", r.timed_stretch},
+             {"final_stretch", r.final_stretch},
+             {"max_shear_stretch", r.max_shear},
+             {"timed_max_shear_stretch", r.timed_shear},
+             {"final_shear_stretch", r.final_shear},
+             {"substeps", r.substeps},
+             {"particles", r.particles},
+             {"springs", r.springs},
+             {"provot_constraints", r.provot_constraints},
+             {"frames", static_cast<int64_t>(r.wall_ms.size())},
+             {"nan_events", static_cast<int64_t>(r.nan_events)}};
     if (r.target_ms) {
-      rec.Number("target_ms", *r.target_ms).Bool("target_met", TargetMet(r));
+      rec["target_ms"] = *r.target_ms;
+      rec["target_met"] = TargetMet(r);
     }
-    items.push_back(rec.str());
+    items.push_back(rec);
   }
-  const std::string json = "{\n  \"command\": " + JsonQuote(cmd) +
-                           ",\n  \"machine\": " + MachineJson(machine) +
-                           ",\n  \"load_average_end\": " + JsonQuote(load_end) +
-                           ",\n  \"settle_frames\": " + std::to_string(args.settle_frames) +
-                           ",\n  \"grids\": " + JsonArray(items, 2) + "\n}\n";
+  const std::string json = JsonText(Json{{"command", cmd},
+                                         {"machine", MachineJson(machine)},
+                                         {"load_average_end", load_end},
+                                         {"settle_frames", args.settle_frames},
+                                         {"grids", items}});
   const std::string json_path = args.json.empty() ? args.out + "/cloth.json" : args.json;
   WriteTextFile(json_path, json);
   std::printf("wrote %s/cloth.md, %s/cloth.csv, %s\n", args.out.c_str(), args.out.c_str(),

@@ -26,6 +26,8 @@
 #include <vector>
 
 #include "app/command.h"
+#include "base/json.h"
+#include "base/report.h"
 #include "collision/collision_structure.h"
 #include "collision/mesh.h"
 #include "rt/realtime.h"
@@ -89,21 +91,6 @@ long long StealTicks() {
     if (!(f >> x)) return -1;
   }
   return v[7];
-}
-
-// Median (the upper one for an even count) of a copy; NaN when empty.
-double Median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
-double Percentile(std::vector<double> v, double q) {
-  if (v.empty()) return std::nan("");
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
 }
 
 double Max(const std::vector<double>& v) {
@@ -282,9 +269,9 @@ void BenchRepair(const Settings& s, const FrameCycle& cyc,
       break;
     }
   }
-  rec->repair_ms_median = Median(ms);
+  rec->repair_ms_median = report::Median(ms);
   rec->repair_ms_max = Max(ms);
-  rec->repair_cpu_ms_median = Median(cpu_ms);
+  rec->repair_cpu_ms_median = report::Median(cpu_ms);
   rec->node_updates = Mean(updates);
   rec->repairs = static_cast<int64_t>(ms.size());
   if (const Bvh* b = std::get_if<Bvh>(&st)) rec->nodes = b->num_nodes();
@@ -382,13 +369,13 @@ void BenchQuery(const Settings& s, const FrameCycle& cyc,
         1000.0 * static_cast<double>(steal1 - steal0) / static_cast<double>(sysconf(_SC_CLK_TCK));
   }
   rec->empty_us_max = Max(empty);
-  rec->empty_us_p999 = Percentile(empty, 0.999);
+  rec->empty_us_p999 = report::Percentile(empty, 99.9);
   rec->queries = ticks;
-  rec->query_us_median = Median(all);
-  rec->query_us_p99 = Percentile(all, 0.99);
+  rec->query_us_median = report::Median(all);
+  rec->query_us_p99 = report::Percentile(all, 99);
   rec->query_us_max = Max(all);
-  rec->query_us_p999 = Percentile(all, 0.999);
-  rec->query_cpu_us_median = Median(cpu);
+  rec->query_us_p999 = report::Percentile(all, 99.9);
+  rec->query_cpu_us_median = report::Median(cpu);
   rec->query_cpu_us_max = Max(cpu);
   rec->query_us_max_unpreempted = Max(unpreempted);
   // Worst case without the machine's noise: re-run the 100 slowest ticks 5 times each (with the
@@ -425,10 +412,10 @@ void BenchQuery(const Settings& s, const FrameCycle& cyc,
       1.0 - static_cast<double>(unpreempted.size()) / static_cast<double>(ticks);
   rec->query_contact_us_mean = Mean(contact);
   rec->query_free_us_mean = Mean(free);
-  rec->query_contact_us_median = Median(contact);
-  rec->query_free_us_median = Median(free);
+  rec->query_contact_us_median = report::Median(contact);
+  rec->query_free_us_median = report::Median(free);
   rec->contact_fraction = static_cast<double>(contact.size()) / static_cast<double>(ticks);
-  rec->within_us_median = Median(within);
+  rec->within_us_median = report::Median(within);
   rec->within_us_max = Max(within);
 }
 
@@ -466,50 +453,49 @@ void WriteCsv(const std::string& path, const std::vector<Record>& recs) {
   }
 }
 
-std::string JsonNum(double v, int prec) { return std::isnan(v) ? "null" : Num(v, prec); }
-
 void WriteJson(const std::string& path, const std::vector<Record>& recs, const RunInfo& info) {
-  std::ofstream f(path);
-  if (!f) throw std::runtime_error("cannot write " + path);
-  f << "{\n  \"command\": \"" << info.cmd << "\",\n  \"load_average_start\": \"" << info.load_start
-    << "\",\n  \"load_average_end\": \"" << info.load_end << "\",\n  \"query_realtime\": \""
-    << info.realtime << "\",\n  \"cpu_dma_latency_zero\": \"" << info.dma_latency
-    << "\",\n  \"cloth\": \"analytic swinging sagging sheet\",\n"
-    << "  \"proxy_radius_m\": " << kProxyRadius << ",\n  \"inflation_m\": " << kInflation
-    << ",\n  \"records\": [\n";
-  for (size_t i = 0; i < recs.size(); ++i) {
-    const Record& r = recs[i];
-    f << "    {\"structure\": \"" << r.structure << "\", \"grid\": " << r.grid
-      << ", \"triangles\": " << r.triangles
-      << ", \"repair_ms_median\": " << JsonNum(r.repair_ms_median, 5)
-      << ", \"repair_ms_max\": " << JsonNum(r.repair_ms_max, 5)
-      << ", \"repair_cpu_ms_median\": " << JsonNum(r.repair_cpu_ms_median, 5)
-      << ", \"node_updates\": " << JsonNum(r.node_updates, 1)
-      << ", \"nodes\": " << JsonNum(r.nodes, 0) << ", \"repairs\": " << r.repairs
-      << ", \"query_us_median\": " << JsonNum(r.query_us_median, 3)
-      << ", \"query_us_p99\": " << JsonNum(r.query_us_p99, 3)
-      << ", \"query_us_max\": " << JsonNum(r.query_us_max, 3)
-      << ", \"query_us_max_unpreempted\": " << JsonNum(r.query_us_max_unpreempted, 3)
-      << ", \"preempted_fraction\": " << JsonNum(r.preempted_fraction, 4)
-      << ", \"query_us_max_rerun\": " << JsonNum(r.query_us_max_rerun, 3)
-      << ", \"query_contact_us_mean\": " << JsonNum(r.query_contact_us_mean, 3)
-      << ", \"query_free_us_mean\": " << JsonNum(r.query_free_us_mean, 3)
-      << ", \"contact_fraction\": " << JsonNum(r.contact_fraction, 3)
-      << ", \"queries\": " << r.queries
-      << ", \"within_us_median\": " << JsonNum(r.within_us_median, 3)
-      << ", \"within_us_max\": " << JsonNum(r.within_us_max, 3)
-      << ", \"query_us_p999\": " << JsonNum(r.query_us_p999, 3)
-      << ", \"query_cpu_us_median\": " << JsonNum(r.query_cpu_us_median, 3)
-      << ", \"query_cpu_us_max\": " << JsonNum(r.query_cpu_us_max, 3)
-      << ", \"empty_us_max\": " << JsonNum(r.empty_us_max, 3)
-      << ", \"empty_us_p999\": " << JsonNum(r.empty_us_p999, 3)
-      << ", \"slow_ticks\": " << r.slow_ticks
-      << ", \"slow_ticks_no_switch\": " << r.slow_ticks_no_switch
-      << ", \"steal_ms\": " << JsonNum(r.steal_ms, 1)
-      << ", \"realtime\": " << (r.realtime ? "true" : "false") << "}"
-      << (i + 1 < recs.size() ? "," : "") << "\n";
+  Json records = Json::array();
+  for (const Record& r : recs) {
+    records.push_back(Json{{"structure", r.structure},
+                           {"grid", r.grid},
+                           {"triangles", r.triangles},
+                           {"repair_ms_median", RoundedJson(r.repair_ms_median, 5)},
+                           {"repair_ms_max", RoundedJson(r.repair_ms_max, 5)},
+                           {"repair_cpu_ms_median", RoundedJson(r.repair_cpu_ms_median, 5)},
+                           {"node_updates", RoundedJson(r.node_updates, 1)},
+                           {"nodes", RoundedJson(r.nodes, 0)},
+                           {"repairs", r.repairs},
+                           {"query_us_median", RoundedJson(r.query_us_median, 3)},
+                           {"query_us_p99", RoundedJson(r.query_us_p99, 3)},
+                           {"query_us_max", RoundedJson(r.query_us_max, 3)},
+                           {"query_us_max_unpreempted", RoundedJson(r.query_us_max_unpreempted, 3)},
+                           {"preempted_fraction", RoundedJson(r.preempted_fraction, 4)},
+                           {"query_us_max_rerun", RoundedJson(r.query_us_max_rerun, 3)},
+                           {"query_contact_us_mean", RoundedJson(r.query_contact_us_mean, 3)},
+                           {"query_free_us_mean", RoundedJson(r.query_free_us_mean, 3)},
+                           {"contact_fraction", RoundedJson(r.contact_fraction, 3)},
+                           {"queries", r.queries},
+                           {"within_us_median", RoundedJson(r.within_us_median, 3)},
+                           {"within_us_max", RoundedJson(r.within_us_max, 3)},
+                           {"query_us_p999", RoundedJson(r.query_us_p999, 3)},
+                           {"query_cpu_us_median", RoundedJson(r.query_cpu_us_median, 3)},
+                           {"query_cpu_us_max", RoundedJson(r.query_cpu_us_max, 3)},
+                           {"empty_us_max", RoundedJson(r.empty_us_max, 3)},
+                           {"empty_us_p999", RoundedJson(r.empty_us_p999, 3)},
+                           {"slow_ticks", r.slow_ticks},
+                           {"slow_ticks_no_switch", r.slow_ticks_no_switch},
+                           {"steal_ms", RoundedJson(r.steal_ms, 1)},
+                           {"realtime", r.realtime}});
   }
-  f << "  ]\n}\n";
+  report::WriteTextFile(path, JsonText(Json{{"command", info.cmd},
+                                            {"load_average_start", info.load_start},
+                                            {"load_average_end", info.load_end},
+                                            {"query_realtime", info.realtime},
+                                            {"cpu_dma_latency_zero", info.dma_latency},
+                                            {"cloth", "analytic swinging sagging sheet"},
+                                            {"proxy_radius_m", kProxyRadius},
+                                            {"inflation_m", kInflation},
+                                            {"records", records}}));
 }
 
 const Record* Find(const std::vector<Record>& recs, const std::string& name, int32_t grid) {

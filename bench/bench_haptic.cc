@@ -30,6 +30,8 @@
 #include <vector>
 
 #include "app/command.h"
+#include "base/json.h"
+#include "base/report.h"
 #include "proxy/proxy.h"
 #include "proxy/proxy_scene.h"
 #include "recordings/generate.h"
@@ -71,12 +73,7 @@ struct ModeStats {
   uint64_t catches = 0;
 
   double rms() const { return ticks > 0 ? std::sqrt(err2_sum / ticks) : 0.0; }
-  double median_us() const {
-    if (tick_us.empty()) return 0.0;
-    std::vector<double> v = tick_us;
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  }
+  double median_us() const { return tick_us.empty() ? 0.0 : report::Median(tick_us); }
   double max_us() const {
     return tick_us.empty() ? 0.0 : *std::max_element(tick_us.begin(), tick_us.end());
   }
@@ -370,11 +367,7 @@ int Run(const Args& args) {
       }
     }
   }
-  auto median = [](std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  };
+  auto median = [](const std::vector<double>& v) { return v.empty() ? 0.0 : report::Median(v); };
 
   // Markdown and CSV tables.
   std::string md = fmt::format(
@@ -406,20 +399,28 @@ int Run(const Args& args) {
       "\nPer mode over every trace (and, after the slash, over the swinging-cloth traces):\n\n"
       "| mode | force_rms_error_N | max_force_jump_N | pop_through | max_penetration_um | "
       "deep_ticks | tick_us_median | tick_us_max |\n|---|---|---|---|---|---|---|---|\n";
-  std::string json = "{\n  \"grid\": " + std::to_string(args.grid) + ",\n  \"modes\": [\n";
-  std::string json_swing = "  \"swing_modes\": [\n";
+  // One mode's figures: forces [N], penetration [um], tick times [us].
+  const auto mode_json = [](SnapshotMode mode, double rms_N, double max_jump_N, auto pops,
+                            double max_penetration_m, auto deep_ticks, double median_us,
+                            double max_us) {
+    return Json{{"mode", SnapshotModeName(mode)},
+                {"force_rms_error_N", RoundedJson(rms_N, 6)},
+                {"max_force_jump_N", RoundedJson(max_jump_N, 6)},
+                {"pop_through", pops},
+                {"max_penetration_um", RoundedJson(1e6 * max_penetration_m, 6)},
+                {"deep_ticks", deep_ticks},
+                {"tick_us_median", RoundedJson(median_us, 3)},
+                {"tick_us_max", RoundedJson(max_us, 3)}};
+  };
+  Json modes = Json::array(), swing_modes = Json::array(), run_items = Json::array();
   for (int m = 0; m < 4; ++m) {
     auto obj = [&](const Aggregate& a) {
       const double max_us = a.us.empty() ? 0.0 : *std::max_element(a.us.begin(), a.us.end());
-      return fmt::format(
-          "    {{\"mode\": \"{}\", \"force_rms_error_N\": {:.6f}, \"max_force_jump_N\": {:.6f}, "
-          "\"pop_through\": {}, \"max_penetration_um\": {:.6f}, \"deep_ticks\": {}, "
-          "\"tick_us_median\": {:.3f}, \"tick_us_max\": {:.3f}}}",
-          SnapshotModeName(kModes[m]), a.ticks > 0 ? std::sqrt(a.err2 / a.ticks) : 0.0, a.max_jump,
-          a.pops, 1e6 * a.max_penetration_m, a.deep_ticks, median(a.us), max_us);
+      return mode_json(kModes[m], a.ticks > 0 ? std::sqrt(a.err2 / a.ticks) : 0.0, a.max_jump,
+                       a.pops, a.max_penetration_m, a.deep_ticks, median(a.us), max_us);
     };
-    json += obj(all[m]) + (m < 3 ? ",\n" : "\n");
-    json_swing += obj(swing[m]) + (m < 3 ? ",\n" : "\n");
+    modes.push_back(obj(all[m]));
+    swing_modes.push_back(obj(swing[m]));
     const double max_us_all =
         all[m].us.empty() ? 0.0 : *std::max_element(all[m].us.begin(), all[m].us.end());
     md += fmt::format(
@@ -431,27 +432,23 @@ int Run(const Args& args) {
         1e6 * swing[m].max_penetration_m, all[m].deep_ticks, swing[m].deep_ticks, median(all[m].us),
         max_us_all);
   }
-  json += "  ],\n" + json_swing + "  ],\n  \"runs\": [\n";
-  for (size_t k = 0; k < runs.size(); ++k) {
-    const RunResult& r = runs[k];
-    json += fmt::format(
-        "    {{\"trace\": \"{}\", \"cloth\": \"{}\", \"sim_healthy\": {}, "
-        "\"reference_max_jump_N\": {:.6f}, \"reference_max_penetration_um\": {:.6f}, "
-        "\"modes\": [\n",
-        r.trace, r.source, r.sim_healthy ? "true" : "false", r.reference_max_jump_N,
-        1e6 * r.reference_max_penetration_m);
+  for (const RunResult& r : runs) {
+    Json run_modes = Json::array();
     for (int m = 0; m < 4; ++m) {
       const ModeStats& s = r.modes[m];
-      json += fmt::format(
-          "      {{\"mode\": \"{}\", \"force_rms_error_N\": {:.6f}, \"max_force_jump_N\": {:.6f}, "
-          "\"pop_through\": {}, \"max_penetration_um\": {:.6f}, \"deep_ticks\": {}, "
-          "\"tick_us_median\": {:.3f}, \"tick_us_max\": {:.3f}}}{}\n",
-          SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N, s.pop_through,
-          1e6 * s.max_penetration_m, s.deep_ticks, s.median_us(), s.max_us(), m < 3 ? "," : "");
+      run_modes.push_back(mode_json(kModes[m], s.rms(), s.max_jump_N, s.pop_through,
+                                    s.max_penetration_m, s.deep_ticks, s.median_us(), s.max_us()));
     }
-    json += std::string("    ]}") + (k + 1 < runs.size() ? ",\n" : "\n");
+    run_items.push_back(
+        Json{{"trace", r.trace},
+             {"cloth", r.source},
+             {"sim_healthy", r.sim_healthy},
+             {"reference_max_jump_N", RoundedJson(r.reference_max_jump_N, 6)},
+             {"reference_max_penetration_um", RoundedJson(1e6 * r.reference_max_penetration_m, 6)},
+             {"modes", run_modes}});
   }
-  json += "  ]\n}\n";
+  const std::string json = JsonText(Json{
+      {"grid", args.grid}, {"modes", modes}, {"swing_modes", swing_modes}, {"runs", run_items}});
 
   std::fputs(md.c_str(), stdout);
   auto write = [](const std::string& path, const std::string& text) {

@@ -39,7 +39,7 @@
 #include <vector>
 
 #include "app/command.h"
-#include "base/json_writer.h"
+#include "base/json.h"
 #include "bench/bench_util.h"
 #include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
@@ -586,67 +586,61 @@ bool WriteReports(const Args& args, const Settings& s, const std::string& cmd,
                           "cpu_ms_median", "rms_error_m", "energy_drift", "energy_max_dev",
                           "max_stretch", "stable"},
                          all_cells));
-  std::vector<std::string> row_items, step_items, ref_items;
+  Json row_items = Json::array(), step_items = Json::array(), ref_items = Json::array();
   for (const Row& r : rows) {
-    row_items.push_back(JsonRecord()
-                            .Integer("grid", r.grid)
-                            .Bool("provot", r.provot)
-                            .String("integrator", ToName(r.kind))
-                            .Bool("auto", r.is_auto)
-                            .Integer("substeps", r.substeps)
-                            .Number("h_s", r.h_s)
-                            .Integer("timed_frames", r.timed_frames)
-                            .Number("frame_ms_median", r.ms_median)
-                            .Number("frame_ms_p99", r.ms_p99)
-                            .Number("cpu_ms_median", r.cpu_ms_median)
-                            .Number("rms_error_m", r.rms_error_m)
-                            .Number("energy_drift", r.energy_drift)
-                            .Number("energy_max_dev", r.energy_max_dev)
-                            .Bool("energy_finite", r.energy_finite)
-                            .Number("energy_blowup_s", r.energy_blowup_s)
-                            .Number("max_stretch", r.max_stretch)
-                            .Bool("stable", r.stable)
-                            .Number("unstable_at_s", r.unstable_at_s)
-                            .Integer("nan_events", static_cast<int64_t>(r.nan_events))
-                            .Number("row_cpu_s", r.cpu_s)
-                            .str());
+    row_items.push_back(Json{{"grid", r.grid},
+                             {"provot", r.provot},
+                             {"integrator", ToName(r.kind)},
+                             {"auto", r.is_auto},
+                             {"substeps", r.substeps},
+                             {"h_s", r.h_s},
+                             {"timed_frames", r.timed_frames},
+                             {"frame_ms_median", r.ms_median},
+                             {"frame_ms_p99", r.ms_p99},
+                             {"cpu_ms_median", r.cpu_ms_median},
+                             {"rms_error_m", r.rms_error_m},
+                             {"energy_drift", r.energy_drift},
+                             {"energy_max_dev", r.energy_max_dev},
+                             {"energy_finite", r.energy_finite},
+                             {"energy_blowup_s", r.energy_blowup_s},
+                             {"max_stretch", r.max_stretch},
+                             {"stable", r.stable},
+                             {"unstable_at_s", r.unstable_at_s},
+                             {"nan_events", static_cast<int64_t>(r.nan_events)},
+                             {"row_cpu_s", r.cpu_s}});
   }
   for (const StableStepResult& st : results.steps) {
-    step_items.push_back(JsonRecord()
-                             .Integer("grid", st.grid)
-                             .String("integrator", ToName(st.kind))
-                             .Integer("min_stable_substeps", st.min_stable_substeps)
-                             .Number("h_max_s", st.h_max_s)
-                             .Number("h_first_unstable_s", st.h_unstable_s)
-                             .Number("stable_dt_s", st.theory_dt_s)
-                             .Number("ratio_to_stable_dt",
-                                     std::isfinite(st.theory_dt_s) && st.min_stable_substeps > 0
-                                         ? st.h_max_s / st.theory_dt_s
-                                         : kNaN)
-                             .Integer("auto_substeps", st.auto_substeps)
-                             .Integer("probes", st.probes)
-                             .Number("probes_cpu_s", st.cpu_s)
-                             .str());
+    step_items.push_back(
+        Json{{"grid", st.grid},
+             {"integrator", ToName(st.kind)},
+             {"min_stable_substeps", st.min_stable_substeps},
+             {"h_max_s", st.h_max_s},
+             {"h_first_unstable_s", st.h_unstable_s},
+             {"stable_dt_s", st.theory_dt_s},
+             {"ratio_to_stable_dt", std::isfinite(st.theory_dt_s) && st.min_stable_substeps > 0
+                                        ? st.h_max_s / st.theory_dt_s
+                                        : kNaN},
+             {"auto_substeps", st.auto_substeps},
+             {"probes", st.probes},
+             {"probes_cpu_s", st.cpu_s}});
   }
   for (const auto& [key, ref] : results.references) {
-    ref_items.push_back(JsonRecord()
-                            .Integer("grid", key.first)
-                            .Bool("provot", key.second)
-                            .Integer("substeps", ref.substeps)
-                            .Number("h_s", ref.h_s)
-                            .Number("error_estimate_m", ref.error_estimate_m)
-                            .Number("cpu_s", ref.cpu_s)
-                            .str());
+    ref_items.push_back(Json{{"grid", key.first},
+                             {"provot", key.second},
+                             {"substeps", ref.substeps},
+                             {"h_s", ref.h_s},
+                             {"error_estimate_m", ref.error_estimate_m},
+                             {"cpu_s", ref.cpu_s}});
   }
-  const std::string json = "{\n  \"command\": " + JsonQuote(cmd) +
-                           ",\n  \"complete\": " + (progress.empty() ? "true" : "false") +
-                           ",\n  \"machine\": " + MachineJson(machine) +
-                           ",\n  \"load_average_end\": " + JsonQuote(load_end) +
-                           ",\n  \"timed_frames\": " + std::to_string(s.timed_frames) +
-                           ",\n  \"error_time_s\": " + FormatSceneNumber(s.error_frames / 60.0) +
-                           ",\n  \"references\": " + JsonArray(ref_items, 2) +
-                           ",\n  \"rows\": " + JsonArray(row_items, 2) +
-                           ",\n  \"stable_steps\": " + JsonArray(step_items, 2) + "\n}\n";
+  const std::string json = JsonText(Json{{"command", cmd},
+                                         {"complete", progress.empty()},
+                                         {"machine", MachineJson(machine)},
+                                         {"load_average_end", load_end},
+                                         {"timed_frames", s.timed_frames},
+                                         {"error_time_s", s.error_frames / 60.0},
+                                         {"references", ref_items},
+                                         {"rows", row_items},
+                                         {"stable_steps", step_items}});
   const std::string json_path = args.json.empty() ? args.out + "/integrators.json" : args.json;
   WriteTextFile(json_path, json);
   const std::string dat = args.out + "/integrators_plot.dat";

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "app/command.h"
-#include "base/json_writer.h"
+#include "base/json.h"
 #include "haptic_loop/pointer_source.h"
 #include "recordings/trace.h"
 #include "rt/loop_runner.h"
@@ -144,62 +144,53 @@ void PrintTable(const std::vector<LoopResult>& results, double seconds, const ch
 }
 
 // One setting's JSON: ticks, overruns, skipped, >1 ms count, realtime steps, lateness.
-void WriteSettingJson(JsonWriter& json, std::string_view key, const LoopResult& r) {
-  json.BeginObject(key);
-  json.Bool("realtime", r.report.fifo_granted);
-  json.String("realtime_steps", r.report.Summary());
-  json.Integer("spin_us", r.setting.realtime.spin_us);
-  json.Unsigned("ticks", r.stats->ticks);
-  json.Unsigned("overruns", r.stats->overruns);
-  json.Unsigned("skipped_periods", r.stats->skipped_periods);
-  json.Unsigned("late_over_1ms", r.stats->lateness.CountAtLeastNs(kLateNs));
-  WriteHistogramJson(json, "lateness_us", r.stats->lateness, 1e3);
-  WriteHistogramJson(json, "period_us", r.stats->period, 1e3);
-  json.EndObject();
+Json SettingJson(const LoopResult& r) {
+  return Json{{"realtime", r.report.fifo_granted},
+              {"realtime_steps", r.report.Summary()},
+              {"spin_us", r.setting.realtime.spin_us},
+              {"ticks", r.stats->ticks},
+              {"overruns", r.stats->overruns},
+              {"skipped_periods", r.stats->skipped_periods},
+              {"late_over_1ms", r.stats->lateness.CountAtLeastNs(kLateNs)},
+              {"lateness_us", HistogramJson(r.stats->lateness, 1e3)},
+              {"period_us", HistogramJson(r.stats->period, 1e3)}};
 }
 
 // {"seconds_per_setting", "empty": {<the fifo_spin row as lateness_us, overruns, ticks>,
 // "settings": {normal, fifo, fifo_spin}}, "server": {lateness_us, overruns, ticks, ...}}.
 std::string BenchJson(const std::vector<LoopResult>& results, double seconds, const char* dma,
                       const ServerReport* server) {
-  JsonWriter json;
-  json.BeginObject();
-  json.Number("seconds_per_setting", seconds);
-  json.Number("period_us", static_cast<double>(kPeriodNs) / 1e3);
-  json.String("cpu_dma_latency_held", dma);
   const LoopResult& server_like = results.back();  // the setting the server runs with
-  json.BeginObject("empty");
-  json.String("setting", server_like.setting.name);
-  json.Bool("realtime", server_like.report.fifo_granted);
-  json.Unsigned("ticks", server_like.stats->ticks);
-  json.Unsigned("overruns", server_like.stats->overruns);
-  json.Unsigned("skipped_periods", server_like.stats->skipped_periods);
-  WriteHistogramJson(json, "lateness_us", server_like.stats->lateness, 1e3);
-  json.BeginObject("settings");
-  for (const LoopResult& r : results) WriteSettingJson(json, r.setting.name, r);
-  json.EndObject();
-  json.EndObject();
+  Json settings = Json::object();
+  for (const LoopResult& r : results) settings[r.setting.name] = SettingJson(r);
+  Json json{{"seconds_per_setting", seconds},
+            {"period_us", static_cast<double>(kPeriodNs) / 1e3},
+            {"cpu_dma_latency_held", dma},
+            {"empty", Json{{"setting", server_like.setting.name},
+                           {"realtime", server_like.report.fifo_granted},
+                           {"ticks", server_like.stats->ticks},
+                           {"overruns", server_like.stats->overruns},
+                           {"skipped_periods", server_like.stats->skipped_periods},
+                           {"lateness_us", HistogramJson(server_like.stats->lateness, 1e3)},
+                           {"settings", settings}}}};
   if (server != nullptr) {
-    json.BeginObject("server");
-    json.String("setting", server_like.setting.name);
-    json.String("cloth", "64 x 64 curtain");
-    json.Bool("realtime", server->realtime);
-    json.Unsigned("ticks", server->haptic.ticks);
-    json.Unsigned("overruns", server->haptic.overruns);
-    json.Unsigned("skipped_periods", server->haptic.skipped_periods);
-    json.Unsigned("late_over_1ms", server->haptic.lateness.CountAtLeastNs(kLateNs));
-    WriteHistogramJson(json, "lateness_us", server->haptic.lateness, 1e3);
-    WriteHistogramJson(json, "compute_us", server->haptic.compute, 1e3);
-    WriteHistogramJson(json, "snapshot_age_us", server->haptic.snapshot_age, 1e3);
-    json.Unsigned("sim_frames", server->sim.ticks);
-    json.Unsigned("sim_overruns", server->sim.overruns);
-    WriteHistogramJson(json, "sim_frame_ms", server->sim.compute, 1e6);
-    json.Unsigned("contacts", server->contacts);
-    json.Number("peak_force_N", server->peak_force_N);
-    json.EndObject();
+    json["server"] = Json{{"setting", server_like.setting.name},
+                          {"cloth", "64 x 64 curtain"},
+                          {"realtime", server->realtime},
+                          {"ticks", server->haptic.ticks},
+                          {"overruns", server->haptic.overruns},
+                          {"skipped_periods", server->haptic.skipped_periods},
+                          {"late_over_1ms", server->haptic.lateness.CountAtLeastNs(kLateNs)},
+                          {"lateness_us", HistogramJson(server->haptic.lateness, 1e3)},
+                          {"compute_us", HistogramJson(server->haptic.compute, 1e3)},
+                          {"snapshot_age_us", HistogramJson(server->haptic.snapshot_age, 1e3)},
+                          {"sim_frames", server->sim.ticks},
+                          {"sim_overruns", server->sim.overruns},
+                          {"sim_frame_ms", HistogramJson(server->sim.compute, 1e6)},
+                          {"contacts", server->contacts},
+                          {"peak_force_N", server->peak_force_N}};
   }
-  json.EndObject();
-  return json.str();
+  return JsonText(json);
 }
 
 /// What the server half gave.

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "app/command.h"
-#include "base/json_writer.h"
+#include "base/json.h"
 #include "bench/bench_util.h"
 #include "sim_loop/cloth.h"
 
@@ -43,7 +43,7 @@ struct Case {
   std::string result;
   std::string criterion;
   bool pass = false;
-  JsonRecord metrics;  // the numbers behind `result`
+  Json metrics = Json::object();  // the numbers behind `result`
 };
 
 // True if every position, velocity and normal of `state` is finite.
@@ -121,13 +121,13 @@ Case StiffSprings(const Args& args, double factor) {
              (run.finite ? "yes" : "no") + ", NaN events " +
              std::to_string(state.counters.nan_events) + ", max energy rise " + Sig(rise, 3) +
              " M g L, max stretch " + Fixed(run.max_stretch, 4);
-  c.metrics.Number("spring_factor", factor)
-      .Integer("substeps", model.substeps)
-      .Number("stable_dt_s", model.stable_dt_s)
-      .Bool("finite", run.finite)
-      .Integer("nan_events", static_cast<int64_t>(state.counters.nan_events))
-      .Number("energy_rise_over_MgL", rise)
-      .Number("max_stretch", run.max_stretch);
+  c.metrics = Json{{"spring_factor", factor},
+                   {"substeps", model.substeps},
+                   {"stable_dt_s", model.stable_dt_s},
+                   {"finite", run.finite},
+                   {"nan_events", static_cast<int64_t>(state.counters.nan_events)},
+                   {"energy_rise_over_MgL", rise},
+                   {"max_stretch", run.max_stretch}};
   return c;
 }
 
@@ -159,13 +159,13 @@ Case SuperElasticity(const Args& args, int32_t grid) {
   c.result = "max stretch Provot off " + Fixed(stretch[0], 3) + " (final " +
              Fixed(final_stretch[0], 3) + "), Provot on " + Fixed(stretch[1], 4) + " (final " +
              Fixed(final_stretch[1], 4) + ")";
-  c.metrics.Integer("grid", grid)
-      .Integer("substeps", substeps)
-      .Number("max_stretch_provot_off", stretch[0])
-      .Number("final_stretch_provot_off", final_stretch[0])
-      .Number("max_stretch_provot_on", stretch[1])
-      .Number("final_stretch_provot_on", final_stretch[1])
-      .Bool("finite", finite[0] && finite[1]);
+  c.metrics = Json{{"grid", grid},
+                   {"substeps", substeps},
+                   {"max_stretch_provot_off", stretch[0]},
+                   {"final_stretch_provot_off", final_stretch[0]},
+                   {"max_stretch_provot_on", stretch[1]},
+                   {"final_stretch_provot_on", final_stretch[1]},
+                   {"finite", finite[0] && finite[1]}};
   return c;
 }
 
@@ -215,11 +215,11 @@ Case ThinObstacle(const Args& args, double speed_m_per_s) {
   c.result = std::string(below == 0 ? "did not pass through" : "PASSED THROUGH") +
              " (particle-frames below the plate: " + std::to_string(below) +
              "); min distance to the plate surface " + Sig(min_distance_m * 1e3, 4) + " mm";
-  c.metrics.Number("speed_m_per_s", speed_m_per_s)
-      .Integer("substeps", model.substeps)
-      .Integer("particle_frames_below", below)
-      .Number("min_distance_m", min_distance_m)
-      .Bool("finite", finite);
+  c.metrics = Json{{"speed_m_per_s", speed_m_per_s},
+                   {"substeps", model.substeps},
+                   {"particle_frames_below", below},
+                   {"min_distance_m", min_distance_m},
+                   {"finite", finite}};
   return c;
 }
 
@@ -251,9 +251,9 @@ Case Degenerate(const Args& args, bool to_point) {
   c.result = std::string("finite ") + (run.finite ? "yes" : "no") + ", NaN events " +
              std::to_string(state.counters.nan_events) + ", max stretch after 1 s " +
              Fixed(run.final_stretch, 4);
-  c.metrics.Bool("finite", run.finite)
-      .Integer("nan_events", static_cast<int64_t>(state.counters.nan_events))
-      .Number("final_stretch", run.final_stretch);
+  c.metrics = Json{{"finite", run.finite},
+                   {"nan_events", static_cast<int64_t>(state.counters.nan_events)},
+                   {"final_stretch", run.final_stretch}};
   return c;
 }
 
@@ -275,7 +275,7 @@ Case ZeroSpacing(const Args& args) {
   c.criterion = "refused by BuildClothModel with a message naming the field";
   c.pass = refused && message.find("cloth.spacing_m") != std::string::npos;
   c.result = refused ? "refused: \"" + message + "\"" : "accepted";
-  c.metrics.Bool("refused", refused).String("message", message);
+  c.metrics = Json{{"refused", refused}, {"message", message}};
   return c;
 }
 
@@ -308,9 +308,9 @@ Case InjectNaN(const Args& args, bool velocity) {
   c.result = std::string("recovered ") + (hit.recovered ? "yes" : "no") + ", nan_events " +
              std::to_string(state.counters.nan_events) + ", finite after " +
              (finite_after && rest.finite ? "yes" : "no");
-  c.metrics.Bool("recovered", hit.recovered)
-      .Integer("nan_events", static_cast<int64_t>(state.counters.nan_events))
-      .Bool("finite_after", finite_after && rest.finite);
+  c.metrics = Json{{"recovered", hit.recovered},
+                   {"nan_events", static_cast<int64_t>(state.counters.nan_events)},
+                   {"finite_after", finite_after && rest.finite}};
   return c;
 }
 
@@ -338,12 +338,12 @@ Case StalledFrame(const Args& args) {
              Sig(late.dt_s * 1e3, 4) + " ms in " + std::to_string(late.substeps) +
              " substeps), finite " + (finite ? "yes" : "no") + ", energy change " +
              Sig(e_after - e_before, 3) + " J (" + Sig(jump, 3) + " M g L)";
-  c.metrics.Bool("clamped", late.clamped)
-      .Number("integrated_dt_s", late.dt_s)
-      .Integer("substeps", late.substeps)
-      .Bool("finite", finite)
-      .Number("energy_jump_J", e_after - e_before)
-      .Number("energy_jump_over_MgL", jump);
+  c.metrics = Json{{"clamped", late.clamped},
+                   {"integrated_dt_s", late.dt_s},
+                   {"substeps", late.substeps},
+                   {"finite", finite},
+                   {"energy_jump_J", e_after - e_before},
+                   {"energy_jump_over_MgL", jump}};
   return c;
 }
 
@@ -397,19 +397,19 @@ Case OneHour(const Args& args, bool undamped, int32_t substeps = 0) {
              "; drift (final - start) " + Sig(drift, 3) + " M g L, spread " + Sig(spread, 3) +
              " M g L; finite " + (run.finite ? "yes" : "no") + ", max stretch " +
              Fixed(run.max_stretch, 3);
-  c.metrics.Number("simulated_s", seconds)
-      .Number("wall_s", wall_s)
-      .Integer("substeps", model.substeps)
-      .Number("energy_start_J", run.energy_start_J)
-      .Number("energy_min_J", run.energy_min_J)
-      .Number("energy_max_J", run.energy_max_J)
-      .Number("energy_final_J", run.energy_final_J)
-      .Number("energy_scale_MgL_J", scale)
-      .Number("drift_over_MgL", drift)
-      .Number("spread_over_MgL", spread)
-      .Bool("finite", run.finite)
-      .Integer("nan_events", static_cast<int64_t>(state.counters.nan_events))
-      .Number("max_stretch", run.max_stretch);
+  c.metrics = Json{{"simulated_s", seconds},
+                   {"wall_s", wall_s},
+                   {"substeps", model.substeps},
+                   {"energy_start_J", run.energy_start_J},
+                   {"energy_min_J", run.energy_min_J},
+                   {"energy_max_J", run.energy_max_J},
+                   {"energy_final_J", run.energy_final_J},
+                   {"energy_scale_MgL_J", scale},
+                   {"drift_over_MgL", drift},
+                   {"spread_over_MgL", spread},
+                   {"finite", run.finite},
+                   {"nan_events", static_cast<int64_t>(state.counters.nan_events)},
+                   {"max_stretch", run.max_stretch}};
   return c;
 }
 
@@ -471,22 +471,20 @@ int Run(const Args& args) {
       table + "\n" + std::to_string(passed) + " of " + std::to_string(cases.size()) +
       " cases pass.\n";
   WriteTextFile(args.out + "/stability.md", md);
-  std::vector<std::string> items;
+  Json items = Json::array();
   for (const Case& c : cases) {
-    items.push_back(JsonRecord()
-                        .String("case", c.name)
-                        .String("parameters", c.parameters)
-                        .String("result", c.result)
-                        .String("criterion", c.criterion)
-                        .Bool("pass", c.pass)
-                        .Raw("metrics", c.metrics.str())
-                        .str());
+    items.push_back(Json{{"case", c.name},
+                         {"parameters", c.parameters},
+                         {"result", c.result},
+                         {"criterion", c.criterion},
+                         {"pass", c.pass},
+                         {"metrics", c.metrics}});
   }
-  const std::string json = "{\n  \"command\": " + JsonQuote(cmd) +
-                           ",\n  \"machine\": " + MachineJson(machine) +
-                           ",\n  \"load_average_end\": " + JsonQuote(load_end) +
-                           ",\n  \"passed\": " + std::to_string(passed) +
-                           ",\n  \"cases\": " + JsonArray(items, 2) + "\n}\n";
+  const std::string json = JsonText(Json{{"command", cmd},
+                                         {"machine", MachineJson(machine)},
+                                         {"load_average_end", load_end},
+                                         {"passed", passed},
+                                         {"cases", items}});
   const std::string json_path = args.json.empty() ? args.out + "/stability.json" : args.json;
   WriteTextFile(json_path, json);
   std::printf("wrote %s/stability.md, %s\n", args.out.c_str(), json_path.c_str());

@@ -12,8 +12,6 @@
 
 #include <fcntl.h>
 #include <sched.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -33,6 +31,9 @@
 #include <vector>
 
 #include "app/command.h"
+#include "base/json.h"
+#include "base/process.h"
+#include "base/report.h"
 #include "haptic_loop/pointer_source.h"
 #include "recordings/trace.h"
 #include "scene/scene_file.h"
@@ -48,41 +49,25 @@ namespace {
 
 using transport::ReceiveMode;
 
-// p50/p99/p99.9/max of `values` (sorted in place), in their unit.
+// p50/p99/p99.9/max of samples (nearest rank, report::Percentile), in their unit; NaN for none.
 struct Percentiles {
   double p50 = NAN, p99 = NAN, p999 = NAN, max = NAN;
   size_t count = 0;
 };
 
-Percentiles Summarise(std::vector<double>* values) {
-  Percentiles p;
-  p.count = values->size();
-  if (values->empty()) return p;
-  std::sort(values->begin(), values->end());
-  const auto at = [&](double q) {
-    return (
-        *values)[static_cast<size_t>(std::llround(q * static_cast<double>(values->size() - 1)))];
-  };
-  p.p50 = at(0.5);
-  p.p99 = at(0.99);
-  p.p999 = at(0.999);
-  p.max = values->back();
-  return p;
+Percentiles Summarise(const std::vector<double>& values) {
+  return Percentiles{report::Percentile(values, 50.0), report::Percentile(values, 99.0),
+                     report::Percentile(values, 99.9), report::Percentile(values, 100.0),
+                     values.size()};
 }
 
-std::string Json(const Percentiles& p) {
-  std::ostringstream out;
-  out << "{\"p50\": " << p.p50 << ", \"p99\": " << p.p99 << ", \"p999\": " << p.p999
-      << ", \"max\": " << p.max << ", \"count\": " << p.count << "}";
-  return out.str();
+Json ToJson(const Percentiles& p) {
+  return Json{{"p50", p.p50}, {"p99", p.p99}, {"p999", p.p999}, {"max", p.max}, {"count", p.count}};
 }
 
-std::string Json(const transport::HopSummary& h) {
-  std::ostringstream out;
-  out << "{\"p50\": " << h.p50_us << ", \"p99\": " << h.p99_us << ", \"p999\": " << h.p999_us
-      << ", \"max\": " << h.max_us << ", \"mean\": " << h.mean_us << ", \"count\": " << h.count
-      << "}";
-  return out.str();
+Json ToJson(const transport::HopSummary& h) {
+  return Json{{"p50", h.p50_us}, {"p99", h.p99_us},   {"p999", h.p999_us},
+              {"max", h.max_us}, {"mean", h.mean_us}, {"count", h.count}};
 }
 
 void Row(const char* name, const Percentiles& p) {
@@ -173,9 +158,9 @@ HopResult MeasureHops(const transport::DdsSettings& dds, ReceiveMode mode, doubl
     SleepUntil(next_ns);
   }
   haptic.join();
-  result.slot_read_us = Summarise(&read_us);
-  result.push_us = Summarise(&push_us);
-  result.sample_age_us = Summarise(&age_us);
+  result.slot_read_us = Summarise(read_us);
+  result.push_us = Summarise(push_us);
+  result.sample_age_us = Summarise(age_us);
   result.stats = server.Stats();
   return result;
 }
@@ -369,7 +354,7 @@ E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& 
   const std::string out = (std::filesystem::temp_directory_path() /
                            ("felt_bench_e2e_" + std::to_string(getpid()) + ".txt"))
                               .string();
-  std::vector<std::string> argv_s = {"felt",
+  std::vector<std::string> argv_s = {"/proc/self/exe",
                                      "bench",
                                      "transport",
                                      "--e2e-client",
@@ -389,31 +374,20 @@ E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& 
     argv_s.push_back(dds.config_file);
   }
   if (fifo) argv_s.push_back("--fifo");
-  std::vector<char*> argv;
-  for (std::string& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = 0;
-  if (posix_spawn(&pid, "/proc/self/exe", nullptr, nullptr, argv.data(), environ) != 0) {
-    throw std::runtime_error("bench transport: cannot start the e2e client process");
-  }
+  Process client_process = Process::Spawn(argv_s);
   // Record sample ages while the client measures (it warms up for 0.5 s after discovery).
   source.SetRecording(true);
-  int status = 0;
-  const int64_t deadline = NowNs() + static_cast<int64_t>((seconds + 60.0) * 1e9);
-  pid_t waited = 0;
-  while ((waited = waitpid(pid, &status, WNOHANG)) == 0 && NowNs() < deadline) {
-    SleepUntil(NowNs() + 10000000);
-  }
+  const bool finished =
+      client_process.Wait(std::chrono::milliseconds(static_cast<int64_t>((seconds + 60.0) * 1e3)));
   source.SetRecording(false);
   server.Stop();
-  if (waited == 0) {
-    kill(pid, SIGKILL);
-    waitpid(pid, &status, 0);
+  if (!finished) {
+    client_process.Terminate(std::chrono::milliseconds(0));
     throw std::runtime_error("bench transport: the e2e client did not finish in time");
   }
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    throw std::runtime_error("bench transport: the e2e client failed (status " +
-                             std::to_string(status) + ")");
+  if (client_process.exit_code() != 0) {
+    throw std::runtime_error("bench transport: the e2e client failed (" + client_process.Outcome() +
+                             ")");
   }
   E2eClientResult client = ReadE2eClientResult(out);
   std::filesystem::remove(out);
@@ -422,8 +396,8 @@ E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& 
   result.samples_sent = client.samples_sent;
   result.forces_received = client.forces_received;
   result.answered = client.answered;
-  result.e2e_us = Summarise(&client.e2e_us);
-  result.sample_age_us = Summarise(source.ages());
+  result.e2e_us = Summarise(client.e2e_us);
+  result.sample_age_us = Summarise(*source.ages());
   return result;
 }
 
@@ -482,7 +456,7 @@ int Run(const Options& options) {
     raw_options.echo_mode = modes[m];
     raw_options.topic_suffix = "/bench_raw_" + std::to_string(getpid()) + "_" + std::to_string(m);
     transport::RawRoundTripResult r = transport::RunRawRoundTrip(raw_options);
-    raw[m] = Summarise(&r.roundtrip_us);
+    raw[m] = Summarise(r.roundtrip_us);
     sent[m] = r.pings_sent;
     received[m] = r.pongs_received;
   }
@@ -535,28 +509,28 @@ int Run(const Options& options) {
   if (!options.json.empty()) {
     std::ofstream out(options.json);
     if (!out) throw std::runtime_error("--json " + options.json + ": cannot write the file");
-    out << "{\n  \"raw_roundtrip_us\": " << Json(raw[0])
-        << ",\n  \"raw_roundtrip_waitset_us\": " << Json(raw[1])
-        << ",\n  \"raw_pings_sent\": " << sent[0] << ",\n  \"raw_pongs_received\": " << received[0]
-        << ",\n  \"hops_us\": {\n    \"receive_to_slot\": " << Json(hops[0].stats.receive_hop)
-        << ",\n    \"receive_to_slot_waitset\": " << Json(hops[1].stats.receive_hop)
-        << ",\n    \"slot_read\": " << Json(hops[0].slot_read_us)
-        << ",\n    \"push_force\": " << Json(hops[0].push_us)
-        << ",\n    \"queue_to_dds_write\": " << Json(hops[0].stats.write_hop)
-        << "\n  },\n  \"transport_sample_age_us\": " << Json(hops[0].sample_age_us)
-        << ",\n  \"e2e_us\": " << (options.raw_only ? "null" : Json(e2e.e2e_us))
-        << ",\n  \"sample_age_us\": " << (options.raw_only ? "null" : Json(e2e.sample_age_us))
-        << ",\n  \"samples_sent\": "
-        << (options.raw_only ? "null" : std::to_string(e2e.samples_sent))
-        << ",\n  \"samples_answered\": "
-        << (options.raw_only ? "null" : std::to_string(e2e.answered))
-        << ",\n  \"forces_received\": "
-        << (options.raw_only ? "null" : std::to_string(e2e.forces_received))
-        << ",\n  \"server_realtime\": "
-        << (options.raw_only ? "null" : (e2e.realtime ? "true" : "false"))
-        << ",\n  \"seconds\": " << options.seconds
-        << ",\n  \"cpu_dma_latency_zero\": " << (options.dma_latency ? "true" : "false")
-        << ",\n  \"sched_fifo\": " << (options.fifo ? "true" : "false") << "\n}\n";
+    const Json absent;  // null: the end-to-end half did not run (--raw-only)
+    const bool e2e_ran = !options.raw_only;
+    out << JsonText(
+        Json{{"raw_roundtrip_us", ToJson(raw[0])},
+             {"raw_roundtrip_waitset_us", ToJson(raw[1])},
+             {"raw_pings_sent", sent[0]},
+             {"raw_pongs_received", received[0]},
+             {"hops_us", Json{{"receive_to_slot", ToJson(hops[0].stats.receive_hop)},
+                              {"receive_to_slot_waitset", ToJson(hops[1].stats.receive_hop)},
+                              {"slot_read", ToJson(hops[0].slot_read_us)},
+                              {"push_force", ToJson(hops[0].push_us)},
+                              {"queue_to_dds_write", ToJson(hops[0].stats.write_hop)}}},
+             {"transport_sample_age_us", ToJson(hops[0].sample_age_us)},
+             {"e2e_us", e2e_ran ? ToJson(e2e.e2e_us) : absent},
+             {"sample_age_us", e2e_ran ? ToJson(e2e.sample_age_us) : absent},
+             {"samples_sent", e2e_ran ? Json(e2e.samples_sent) : absent},
+             {"samples_answered", e2e_ran ? Json(e2e.answered) : absent},
+             {"forces_received", e2e_ran ? Json(e2e.forces_received) : absent},
+             {"server_realtime", e2e_ran ? Json(e2e.realtime) : absent},
+             {"seconds", options.seconds},
+             {"cpu_dma_latency_zero", options.dma_latency},
+             {"sched_fifo", options.fifo}});
   }
   return 0;
 }

@@ -11,11 +11,18 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "base/report.h"
 #include "haptic_loop/pointer_source.h"
 #include "server/server.h"
 
 namespace felt {
 namespace {
+
+// report::Percentile of CPU times (p in [0, 100]), 0 for none: a variant without ticks or frames
+// reports zero times.
+double TimesPercentile(const std::vector<double>& samples, double p) {
+  return samples.empty() ? 0.0 : report::Percentile(samples, p);
+}
 
 // A shorthand key and the scene keys it sets.
 struct Shorthand {
@@ -382,7 +389,7 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
     const int64_t begin = ThreadCpuNs();
     empty_us.push_back(static_cast<double>(ThreadCpuNs() - begin) * 1e-3);
   }
-  run.timer_overhead_us = NearestRankPercentile(std::move(empty_us), 50.0);
+  run.timer_overhead_us = TimesPercentile(empty_us, 50.0);
 
   // Virtual time (file comment): the rest state at t0, frames before the ticks they precede.
   const int64_t t0 = kLockstepEpochNs;
@@ -419,15 +426,6 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
   return run;
 }
 
-double NearestRankPercentile(std::vector<double> samples, double p) {
-  if (samples.empty()) return 0.0;
-  std::sort(samples.begin(), samples.end());
-  const double rank =
-      std::ceil(std::clamp(p, 0.0, 100.0) / 100.0 * static_cast<double>(samples.size()));
-  const size_t index = static_cast<size_t>(std::max(1.0, rank)) - 1;
-  return samples[std::min(index, samples.size() - 1)];
-}
-
 std::vector<VariantSummary> SummarizeRuns(const std::vector<LockstepRun>& runs) {
   std::vector<VariantSummary> out;
   if (runs.empty()) return out;
@@ -457,10 +455,10 @@ std::vector<VariantSummary> SummarizeRuns(const std::vector<LockstepRun>& runs) 
     s.overrides = r.overrides;
     s.ticks = r.ticks;
     s.frames = r.frames;
-    s.tick_us_median = NearestRankPercentile(r.tick_cpu_us, 50.0);
-    s.tick_us_p99 = NearestRankPercentile(r.tick_cpu_us, 99.0);
-    s.frame_ms_median = NearestRankPercentile(r.frame_cpu_ms, 50.0);
-    s.frame_ms_p99 = NearestRankPercentile(r.frame_cpu_ms, 99.0);
+    s.tick_us_median = TimesPercentile(r.tick_cpu_us, 50.0);
+    s.tick_us_p99 = TimesPercentile(r.tick_cpu_us, 99.0);
+    s.frame_ms_median = TimesPercentile(r.frame_cpu_ms, 50.0);
+    s.frame_ms_p99 = TimesPercentile(r.frame_cpu_ms, 99.0);
     s.timer_overhead_us = r.timer_overhead_us;
     // Errors against the reference, tick by tick and device by device.
     double sum2 = 0.0;

@@ -138,7 +138,4 @@ CompareResult CompareVariants(const SceneDocument& scene, const std::vector<Trac
                               const std::vector<LockstepVariant>& variants,
                               const LockstepOptions& options = {});
 
-/// Nearest-rank percentile `p` in [0, 100] of `samples` (0 for none).
-double NearestRankPercentile(std::vector<double> samples, double p);
-
 }  // namespace felt

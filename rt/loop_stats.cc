@@ -7,6 +7,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "base/json.h"
+
 namespace felt {
 
 // ---- bins ----
@@ -204,52 +206,40 @@ void LoopStats::Snapshot(LoopStatsSnapshot* out) const {
 
 // ---- JSON ----
 
-void WriteHistogramJson(JsonWriter& json, std::string_view key, const HistogramSnapshot& h,
-                        double ns_per_unit) {
-  json.BeginObject(key);
-  json.Number("p50", static_cast<double>(h.PercentileNs(0.50)) / ns_per_unit);
-  json.Number("p99", static_cast<double>(h.PercentileNs(0.99)) / ns_per_unit);
-  json.Number("p999", static_cast<double>(h.PercentileNs(0.999)) / ns_per_unit);
-  json.Number("max", static_cast<double>(h.max_ns) / ns_per_unit);
-  json.Number("mean", h.MeanNs() / ns_per_unit);
-  json.Unsigned("count", h.count);
-  json.EndObject();
+Json HistogramJson(const HistogramSnapshot& h, double ns_per_unit) {
+  return Json{{"p50", static_cast<double>(h.PercentileNs(0.50)) / ns_per_unit},
+              {"p99", static_cast<double>(h.PercentileNs(0.99)) / ns_per_unit},
+              {"p999", static_cast<double>(h.PercentileNs(0.999)) / ns_per_unit},
+              {"max", static_cast<double>(h.max_ns) / ns_per_unit},
+              {"mean", h.MeanNs() / ns_per_unit},
+              {"count", h.count}};
 }
 
-void WriteHapticJson(JsonWriter& json, std::string_view key, const LoopStatsSnapshot& haptic) {
-  json.BeginObject(key);
-  json.Unsigned("ticks", haptic.ticks);
-  json.Unsigned("overruns", haptic.overruns);
-  json.Unsigned("skipped_periods", haptic.skipped_periods);
-  json.Number("period_nominal_us", static_cast<double>(haptic.period_ns) / 1e3);
-  WriteHistogramJson(json, "period_us", haptic.period, 1e3);
-  WriteHistogramJson(json, "lateness_us", haptic.lateness, 1e3);
-  WriteHistogramJson(json, "compute_us", haptic.compute, 1e3);
-  WriteHistogramJson(json, "snapshot_age_us", haptic.snapshot_age, 1e3);
-  json.EndObject();
+Json HapticJson(const LoopStatsSnapshot& haptic) {
+  return Json{{"ticks", haptic.ticks},
+              {"overruns", haptic.overruns},
+              {"skipped_periods", haptic.skipped_periods},
+              {"period_nominal_us", static_cast<double>(haptic.period_ns) / 1e3},
+              {"period_us", HistogramJson(haptic.period, 1e3)},
+              {"lateness_us", HistogramJson(haptic.lateness, 1e3)},
+              {"compute_us", HistogramJson(haptic.compute, 1e3)},
+              {"snapshot_age_us", HistogramJson(haptic.snapshot_age, 1e3)}};
 }
 
-void WriteSimJson(JsonWriter& json, std::string_view key, const LoopStatsSnapshot& sim) {
-  json.BeginObject(key);
-  json.Unsigned("frames", sim.ticks);
-  json.Unsigned("overruns", sim.overruns);
-  json.Unsigned("skipped_periods", sim.skipped_periods);
-  json.Number("period_nominal_ms", static_cast<double>(sim.period_ns) / 1e6);
-  WriteHistogramJson(json, "period_ms", sim.period, 1e6);
-  WriteHistogramJson(json, "lateness_us", sim.lateness, 1e3);
-  WriteHistogramJson(json, "frame_ms", sim.compute, 1e6);
-  json.EndObject();
+Json SimJson(const LoopStatsSnapshot& sim) {
+  return Json{{"frames", sim.ticks},
+              {"overruns", sim.overruns},
+              {"skipped_periods", sim.skipped_periods},
+              {"period_nominal_ms", static_cast<double>(sim.period_ns) / 1e6},
+              {"period_ms", HistogramJson(sim.period, 1e6)},
+              {"lateness_us", HistogramJson(sim.lateness, 1e3)},
+              {"frame_ms", HistogramJson(sim.compute, 1e6)}};
 }
 
 std::string ServerStatsJson(const LoopStatsSnapshot& haptic, const LoopStatsSnapshot& sim,
                             bool realtime) {
-  JsonWriter json;
-  json.BeginObject();
-  json.Bool("realtime", realtime);
-  WriteHapticJson(json, "haptic", haptic);
-  WriteSimJson(json, "sim", sim);
-  json.EndObject();
-  return json.str();
+  return JsonText(
+      Json{{"realtime", realtime}, {"haptic", HapticJson(haptic)}, {"sim", SimJson(sim)}});
 }
 
 // ---- one-line summaries ----

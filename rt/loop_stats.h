@@ -12,9 +12,9 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 
-#include "base/json_writer.h"
 #include "rt/periodic_loop.h"
 
 namespace felt {
@@ -156,18 +156,17 @@ class LoopStats {
   Histogram snapshot_age_;
 };
 
-/// Writes `{"p50", "p99", "p999", "max", "mean", "count"}` for `h` as member `key`, values in ns
-/// divided by `ns_per_unit` (1e3 for us, 1e6 for ms). Not real-time safe.
-void WriteHistogramJson(JsonWriter& json, std::string_view key, const HistogramSnapshot& h,
-                        double ns_per_unit);
+/// `{"p50", "p99", "p999", "max", "mean", "count"}` of `h`, values in ns divided by `ns_per_unit`
+/// (1e3 for us, 1e6 for ms). Not real-time safe.
+nlohmann::ordered_json HistogramJson(const HistogramSnapshot& h, double ns_per_unit);
 
-/// Writes the haptic loop as member `key`: ticks, overruns, skipped_periods, period_us,
-/// lateness_us, compute_us, snapshot_age_us. Not real-time safe.
-void WriteHapticJson(JsonWriter& json, std::string_view key, const LoopStatsSnapshot& haptic);
+/// The haptic loop: ticks, overruns, skipped_periods, period_nominal_us, period_us, lateness_us,
+/// compute_us, snapshot_age_us (percentiles in us). Not real-time safe.
+nlohmann::ordered_json HapticJson(const LoopStatsSnapshot& haptic);
 
-/// Writes the sim loop as member `key`: frames, overruns, skipped_periods, period_ms,
-/// lateness_us, frame_ms (the work time of a frame). Not real-time safe.
-void WriteSimJson(JsonWriter& json, std::string_view key, const LoopStatsSnapshot& sim);
+/// The sim loop: frames, overruns, skipped_periods, period_nominal_ms, period_ms, lateness_us,
+/// frame_ms (the work time of a frame). Not real-time safe.
+nlohmann::ordered_json SimJson(const LoopStatsSnapshot& sim);
 
 /// The server's stats document (issue 5): {"realtime", "haptic": {... "lateness_us", "overruns",
 /// "ticks"}, "sim": {... "frame_ms", "frames"}}, percentiles under p50, p99, p999, max.

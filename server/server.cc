@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "base/json_writer.h"
+#include "base/json.h"
 #include "rt/periodic_loop.h"
 
 namespace felt {
@@ -190,62 +190,52 @@ DeviceReport ReportDevice(const DeviceSpec& spec, const DeviceCounters& c) {
 }
 
 std::string Server::ReportJson(const ServerReport& r) {
-  JsonWriter json;
-  json.BeginObject();
-  json.Bool("realtime", r.realtime);
-  json.Bool("sim_realtime", r.sim_realtime);
-  json.Bool("cpu_dma_latency_zero", r.cpu_dma_latency_zero);
-  json.String("haptic_realtime_steps", r.haptic_realtime_summary);
-  json.String("sim_realtime_steps", r.sim_realtime_summary);
-  WriteHapticJson(json, "haptic", r.haptic);
-  WriteSimJson(json, "sim", r.sim);
-  json.Unsigned("contacts", r.contacts);
-  json.Number("peak_force_N", r.peak_force_N);
-  json.Unsigned("devices_connected", r.devices_connected);
-  json.BeginObject("safety");
   uint64_t stale = 0, ramping = 0, clamped = 0;
+  Json devices = Json::object();
   for (const DeviceReport& d : r.devices) {
     stale += d.stale_ticks;
     ramping += d.ramping_ticks;
     clamped += d.clamped_ticks;
+    devices[d.id] = Json{{"connected", d.connected},
+                         {"connects", d.connects},
+                         {"ticks_with_input", d.ticks_with_input},
+                         {"forces_sent", d.forces_sent},
+                         {"contacts", d.contact_ticks},
+                         {"peak_force_N", d.peak_force_N},
+                         {"max_force_N", d.max_force_N},
+                         {"stale_input_ticks", d.stale_ticks},
+                         {"ramping_ticks", d.ramping_ticks},
+                         {"clamped_ticks", d.clamped_ticks},
+                         {"sim_stalled_ticks", d.stalled_ticks},
+                         {"nan_events", d.nan_events},
+                         {"passivity_energy_J", d.energy_J},
+                         {"passivity_dissipated_J", d.dissipated_J},
+                         {"reaction_impulse_N_s", d.reaction_impulse_N_s}};
   }
-  json.Unsigned("nan_events", r.nan_events);
-  json.Unsigned("stale_input_ticks", stale);
-  json.Unsigned("ramping_ticks", ramping);
-  json.Unsigned("clamped_ticks", clamped);
-  json.Unsigned("sim_stalled_ticks", r.sim_stalled_ticks);
-  json.Bool("sim_stalled", r.sim_stalled);
-  json.Number("passivity_energy_J", r.energy_J);
-  json.EndObject();
-  json.BeginObject("reactions");
-  json.Unsigned("batches", r.reaction_batches);
-  json.Unsigned("batches_applied", r.reaction_batches_applied);
-  json.Unsigned("queue_full_retries", r.reaction_queue_full);
-  json.Unsigned("cloth_nan_events", r.cloth_nan_events);
-  json.EndObject();
-  json.BeginObject("devices");
-  for (const DeviceReport& d : r.devices) {
-    json.BeginObject(d.id);
-    json.Bool("connected", d.connected);
-    json.Unsigned("connects", d.connects);
-    json.Unsigned("ticks_with_input", d.ticks_with_input);
-    json.Unsigned("forces_sent", d.forces_sent);
-    json.Unsigned("contacts", d.contact_ticks);
-    json.Number("peak_force_N", d.peak_force_N);
-    json.Number("max_force_N", d.max_force_N);
-    json.Unsigned("stale_input_ticks", d.stale_ticks);
-    json.Unsigned("ramping_ticks", d.ramping_ticks);
-    json.Unsigned("clamped_ticks", d.clamped_ticks);
-    json.Unsigned("sim_stalled_ticks", d.stalled_ticks);
-    json.Unsigned("nan_events", d.nan_events);
-    json.Number("passivity_energy_J", d.energy_J);
-    json.Number("passivity_dissipated_J", d.dissipated_J);
-    json.Number("reaction_impulse_N_s", d.reaction_impulse_N_s);
-    json.EndObject();
-  }
-  json.EndObject();
-  json.EndObject();
-  return json.str();
+  const Json safety{{"nan_events", r.nan_events},
+                    {"stale_input_ticks", stale},
+                    {"ramping_ticks", ramping},
+                    {"clamped_ticks", clamped},
+                    {"sim_stalled_ticks", r.sim_stalled_ticks},
+                    {"sim_stalled", r.sim_stalled},
+                    {"passivity_energy_J", r.energy_J}};
+  const Json reactions{{"batches", r.reaction_batches},
+                       {"batches_applied", r.reaction_batches_applied},
+                       {"queue_full_retries", r.reaction_queue_full},
+                       {"cloth_nan_events", r.cloth_nan_events}};
+  return JsonText(Json{{"realtime", r.realtime},
+                       {"sim_realtime", r.sim_realtime},
+                       {"cpu_dma_latency_zero", r.cpu_dma_latency_zero},
+                       {"haptic_realtime_steps", r.haptic_realtime_summary},
+                       {"sim_realtime_steps", r.sim_realtime_summary},
+                       {"haptic", HapticJson(r.haptic)},
+                       {"sim", SimJson(r.sim)},
+                       {"contacts", r.contacts},
+                       {"peak_force_N", r.peak_force_N},
+                       {"devices_connected", r.devices_connected},
+                       {"safety", safety},
+                       {"reactions", reactions},
+                       {"devices", devices}});
 }
 
 std::string Server::FormatCounters(const ServerReport& r) {

@@ -1,7 +1,6 @@
 #include "transport/raw_roundtrip.h"
 
 #include <poll.h>
-#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -13,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "base/process.h"
 #include "felt_types.h"
 #include "transport/client_transport.h"
 #include "transport/dds_config.h"
@@ -104,26 +104,22 @@ RawRoundTripResult RunRawRoundTrip(const RawRoundTripOptions& options) {
   // The echo process: its own domain instance, stopped when the pipe closes.
   int stop_pipe[2];
   if (pipe(stop_pipe) != 0) throw std::runtime_error("raw round trip: pipe() failed");
-  const pid_t child = fork();
-  if (child < 0) throw std::runtime_error("raw round trip: fork() failed");
-  if (child == 0) {
+  Process echo_process = Process::Fork([&] {
     close(stop_pipe[1]);
-    int code = 0;
     try {
       Echo echo(options, topics);
       echo.Run(stop_pipe[0]);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "raw round trip echo: %s\n", e.what());
-      code = 1;
+      return 1;
     }
-    _exit(code);
-  }
+    return 0;
+  });
   close(stop_pipe[0]);
   const auto stop_child = [&] {
     close(stop_pipe[1]);
-    int status = 0;
-    waitpid(child, &status, 0);
-    return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    echo_process.Wait();
+    return echo_process.exit_code() == 0;
   };
 
   RawRoundTripResult result;

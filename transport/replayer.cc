@@ -14,7 +14,8 @@
 #include <utility>
 #include <vector>
 
-#include "base/json_writer.h"
+#include "base/json.h"
+#include "base/report.h"
 #include "transport/client_transport.h"
 #include "transport/clock.h"
 #include "transport/recorder.h"
@@ -27,22 +28,17 @@ constexpr uint32_t kForceHistory = 4096;   // forces the reader holds before ove
 constexpr int64_t kStartLeadNs = 5000000;  // first deadline: 5 ms after Run begins
 constexpr int64_t kMaxSleepNs = 50000000;  // sleep at most 50 ms at a time (to see the stop flag)
 
-// Nearest-rank percentile of sorted values (ns), in us.
-double RankUs(const std::vector<int64_t>& sorted, double q) {
-  if (sorted.empty()) return 0.0;
-  const auto rank = static_cast<size_t>(std::ceil(q * static_cast<double>(sorted.size())));
-  return static_cast<double>(sorted[std::clamp<size_t>(rank, 1, sorted.size()) - 1]) / 1e3;
-}
-
-TimeSummary Summarise(std::vector<int64_t> values_ns) {
+TimeSummary Summarise(const std::vector<int64_t>& values_ns) {
   TimeSummary s;
   s.count = values_ns.size();
   if (values_ns.empty()) return s;
-  std::sort(values_ns.begin(), values_ns.end());
-  s.p50_us = RankUs(values_ns, 0.50);
-  s.p99_us = RankUs(values_ns, 0.99);
-  s.p999_us = RankUs(values_ns, 0.999);
-  s.max_us = static_cast<double>(values_ns.back()) / 1e3;
+  std::vector<double> us(values_ns.size());
+  std::transform(values_ns.begin(), values_ns.end(), us.begin(),
+                 [](int64_t ns) { return static_cast<double>(ns) / 1e3; });
+  s.p50_us = report::Percentile(us, 50.0);
+  s.p99_us = report::Percentile(us, 99.0);
+  s.p999_us = report::Percentile(us, 99.9);
+  s.max_us = *std::max_element(us.begin(), us.end());
   const long double sum = std::accumulate(values_ns.begin(), values_ns.end(), 0.0L);
   s.mean_us = static_cast<double>(sum / static_cast<long double>(values_ns.size()) / 1e3L);
   return s;
@@ -323,8 +319,8 @@ ReplayReport Replayer::Run(const std::atomic<bool>* stop, const std::function<vo
   r.forces_lost = stats.forces_seq_gaps;
   r.answered = impl.latencies_ns_.size();
   r.unanswered = r.published - r.answered;
-  r.latency = Summarise(std::move(impl.latencies_ns_));
-  r.lateness = Summarise(std::move(lateness_ns));
+  r.latency = Summarise(impl.latencies_ns_);
+  r.lateness = Summarise(lateness_ns);
   r.contact_forces = impl.contact_forces_;
   r.peak_force_N = impl.peak_force_N_;
 
@@ -340,43 +336,33 @@ ReplayReport Replayer::Run(const std::atomic<bool>* stop, const std::function<vo
 }
 
 std::string ReplayReportJson(const ReplayReport& r) {
-  JsonWriter json;
-  const auto times = [&json](std::string_view key, const TimeSummary& t) {
-    json.BeginObject(key);
-    json.Unsigned("count", t.count);
-    json.Number("p50", t.p50_us);
-    json.Number("p99", t.p99_us);
-    json.Number("p999", t.p999_us);
-    json.Number("max", t.max_us);
-    json.Number("mean", t.mean_us);
-    json.EndObject();
+  const auto times = [](const TimeSummary& t) {
+    return Json{{"count", t.count},  {"p50", t.p50_us}, {"p99", t.p99_us},
+                {"p999", t.p999_us}, {"max", t.max_us}, {"mean", t.mean_us}};
   };
-  json.BeginObject();
-  json.String("device_id", r.device_id);
-  json.Unsigned("trace_samples", r.trace_samples);
-  json.Number("trace_length_s", r.trace_length_s);
-  json.Number("rate", r.rate);
-  json.Unsigned("loops_started", r.loops_started);
-  json.Number("wall_s", r.wall_s);
-  json.Bool("stopped_early", r.stopped_early);
-  json.Unsigned("scheduled", r.scheduled);
-  json.Unsigned("published", r.published);
-  json.Unsigned("publish_failures", r.publish_failures);
-  json.Unsigned("late", r.late);
-  times("lateness_us", r.lateness);
-  json.Unsigned("forces_received", r.forces_received);
-  json.Unsigned("forces_lost", r.forces_lost);
-  json.Unsigned("answered", r.answered);
-  json.Unsigned("unanswered", r.unanswered);
-  times("latency_us", r.latency);
-  json.Unsigned("contact_forces", r.contact_forces);
-  json.Number("peak_force_N", r.peak_force_N);
-  json.Bool("server_counts", r.server_counts);
-  json.Integer("server_received", r.server_received);
-  json.Integer("server_rejected", r.server_rejected);
-  json.Integer("pointer_lost", r.pointer_lost);
-  json.EndObject();
-  return json.str();
+  return JsonText(Json{{"device_id", r.device_id},
+                       {"trace_samples", r.trace_samples},
+                       {"trace_length_s", r.trace_length_s},
+                       {"rate", r.rate},
+                       {"loops_started", r.loops_started},
+                       {"wall_s", r.wall_s},
+                       {"stopped_early", r.stopped_early},
+                       {"scheduled", r.scheduled},
+                       {"published", r.published},
+                       {"publish_failures", r.publish_failures},
+                       {"late", r.late},
+                       {"lateness_us", times(r.lateness)},
+                       {"forces_received", r.forces_received},
+                       {"forces_lost", r.forces_lost},
+                       {"answered", r.answered},
+                       {"unanswered", r.unanswered},
+                       {"latency_us", times(r.latency)},
+                       {"contact_forces", r.contact_forces},
+                       {"peak_force_N", r.peak_force_N},
+                       {"server_counts", r.server_counts},
+                       {"server_received", r.server_received},
+                       {"server_rejected", r.server_rejected},
+                       {"pointer_lost", r.pointer_lost}});
 }
 
 std::string FormatReplayReport(const ReplayReport& r) {

@@ -2,14 +2,15 @@
 // Runs the built `felt` binary as a child process, for the tests of its commands.
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+
+#include "base/json.h"
+#include "base/process.h"
 
 namespace felt::test {
 
@@ -41,19 +42,10 @@ struct Outcome {
   std::string output;  ///< stdout and stderr together
 };
 
-/// Runs `felt <args>` through the shell and collects its exit code and output.
+/// Runs `felt <args>` through the shell (`args` may quote) and collects its exit code and output.
 inline Outcome RunFelt(const std::string& args) {
-  Outcome outcome;
-  FILE* pipe = popen((kFelt + " " + args + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return outcome;
-  std::array<char, 4096> buffer{};
-  size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) {
-    outcome.output.append(buffer.data(), n);
-  }
-  const int status = pclose(pipe);
-  if (status != -1 && WIFEXITED(status)) outcome.exit_code = WEXITSTATUS(status);
-  return outcome;
+  const CapturedRun run = RunCaptured({"/bin/sh", "-c", "exec " + kFelt + " " + args});
+  return Outcome{run.exit_code, run.output};
 }
 
 }  // namespace felt::test

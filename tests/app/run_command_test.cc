@@ -99,7 +99,7 @@ TEST(RunCommand, GoodScenePrintsStatisticsAndJson) {
   const std::string written = ReadFile(json);
   EXPECT_NE(written.find("\"scene\": \"small\""), std::string::npos) << written;
   EXPECT_NE(written.find("\"frames\": 30,"), std::string::npos) << written;
-  EXPECT_NE(written.find("\"frame_ms\": {\"p50\": "), std::string::npos) << written;
+  EXPECT_TRUE(felt::ParseJson(written, json)["frame_ms"]["p50"].is_number()) << written;
   EXPECT_NE(written.find("\"nan_events\": 0,"), std::string::npos) << written;
   EXPECT_NE(written.find("\"realtime\": false"), std::string::npos) << written;
   std::filesystem::remove(path);

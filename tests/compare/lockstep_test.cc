@@ -144,16 +144,6 @@ TEST(LockstepVariants, BadValuesNameTheVariantKeyAndSceneField) {
       << friction;
 }
 
-TEST(LockstepMetrics, NearestRankPercentile) {
-  std::vector<double> hundred;
-  for (int i = 100; i >= 1; --i) hundred.push_back(i);
-  EXPECT_EQ(NearestRankPercentile(hundred, 50.0), 50.0);
-  EXPECT_EQ(NearestRankPercentile(hundred, 99.0), 99.0);
-  EXPECT_EQ(NearestRankPercentile(hundred, 100.0), 100.0);
-  EXPECT_EQ(NearestRankPercentile(hundred, 0.0), 1.0);
-  EXPECT_EQ(NearestRankPercentile({}, 50.0), 0.0);
-}
-
 TEST(LockstepMetrics, ErrorsAndJumpsMatchClosedForms) {
   // Two devices, four ticks. Reference: zero force, then 1 N along x from tick 2 on device 0.
   LockstepRun ref;

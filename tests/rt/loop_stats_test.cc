@@ -15,7 +15,6 @@
 #include <thread>
 #include <vector>
 
-#include "base/json_writer.h"
 #include "tests/alloc_counter.h"
 
 namespace felt {
@@ -257,25 +256,6 @@ TEST(StatsJsonTest, ServerJsonHasTheIssueKeys) {
   // Balanced braces, ends with a newline.
   EXPECT_EQ(std::count(json.begin(), json.end(), '{'), std::count(json.begin(), json.end(), '}'));
   EXPECT_EQ(json.back(), '\n');
-}
-
-TEST(StatsJsonTest, WriterEscapesAndRejectsMisuse) {
-  JsonWriter json;
-  json.BeginObject();
-  json.String("a\"b", "line\nnext\\\x01");
-  json.Number("nan", std::nan(""));
-  json.Integer("neg", -3);
-  json.BeginObject("empty");
-  json.EndObject();
-  json.EndObject();
-  EXPECT_EQ(json.str(),
-            "{\n  \"a\\\"b\": \"line\\nnext\\\\\\u0001\",\n  \"nan\": null,\n  \"neg\": -3,\n"
-            "  \"empty\": {}\n}\n");
-  JsonWriter bad;
-  EXPECT_THROW(bad.Bool("x", true), std::logic_error);  // no open object
-  EXPECT_THROW(bad.EndObject(), std::logic_error);
-  bad.BeginObject();
-  EXPECT_THROW(static_cast<void>(bad.str()), std::logic_error);  // not closed
 }
 
 TEST(StatsSummaryTest, MonitorLineFormat) {

@@ -9,7 +9,6 @@
 #include <string>
 #include <thread>
 
-#include "base/json_writer.h"
 #include "haptic_loop/pointer_source.h"
 #include "rt/periodic_loop.h"
 #include "server/server.h"

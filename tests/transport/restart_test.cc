@@ -5,8 +5,6 @@
 
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -15,11 +13,10 @@
 #include <string>
 #include <vector>
 
+#include "base/process.h"
 #include "tests/transport/transport_test_util.h"
 #include "transport/client_transport.h"
 #include "transport/server_transport.h"
-
-extern char** environ;
 
 namespace felt::transport {
 namespace {
@@ -67,23 +64,13 @@ TEST(TransportChildProcess, DISABLED_PublishUntilStopped) {
   EXPECT_EQ(client.Stats().dds_errors, 0u);
 }
 
-// Starts this binary as the child with `suffix`; returns its pid.
-pid_t SpawnChild(const std::string& suffix) {
-  std::string filter = std::string("--gtest_filter=") + kChildTest;
-  std::string disabled = "--gtest_also_run_disabled_tests";
-  std::string exe = "/proc/self/exe";
-  std::vector<char*> argv = {exe.data(), filter.data(), disabled.data(), nullptr};
-  std::vector<std::string> env_strings = {"FELT_CHILD_SUFFIX=" + suffix};
-  for (char** e = environ; *e != nullptr; ++e) {
-    if (std::string(*e).rfind("FELT_CHILD_SUFFIX=", 0) != 0) env_strings.emplace_back(*e);
-  }
-  std::vector<char*> envp;
-  for (std::string& s : env_strings) envp.push_back(s.data());
-  envp.push_back(nullptr);
-  pid_t pid = 0;
-  const int rc = posix_spawn(&pid, exe.c_str(), nullptr, nullptr, argv.data(), envp.data());
-  EXPECT_EQ(rc, 0);
-  return rc == 0 ? pid : -1;
+// Starts this binary as the child with `suffix`.
+Process SpawnChild(const std::string& suffix) {
+  SpawnOptions options;
+  options.env = {"FELT_CHILD_SUFFIX=" + suffix};
+  return Process::Spawn({"/proc/self/exe", std::string("--gtest_filter=") + kChildTest,
+                         "--gtest_also_run_disabled_tests"},
+                        options);
 }
 
 // Waits for a sample of device 0 received after `after_ns`.
@@ -102,16 +89,8 @@ TEST(RestartTest, ANewServerReceivesAClientThatKeptPublishing) {
   config.dds = TestDds();
   config.topics = TopicNames::WithAffixes("", suffix);
   config.devices = {TestDevice("hand")};
-  const pid_t child = SpawnChild(suffix);
-  ASSERT_GT(child, 0);
-  int child_status = -1;
-  bool child_done = false;
-  const auto reap = [&](bool block) {
-    if (!child_done && waitpid(child, &child_status, block ? 0 : WNOHANG) == child) {
-      child_done = true;
-    }
-    return child_done;
-  };
+  Process child = SpawnChild(suffix);
+  ASSERT_GT(child.pid(), 0);
 
   // Answers the newest sample of device 0 with a force, about once a millisecond, for `ms`.
   const auto answer_for = [](ServerTransport& server, int ms, uint64_t answers) {
@@ -155,11 +134,11 @@ TEST(RestartTest, ANewServerReceivesAClientThatKeptPublishing) {
   ASSERT_TRUE(WaitUntil(
       [&] {
         server->PushForce(stop);
-        return reap(false);
+        return child.Poll();
       },
       std::chrono::seconds(30)));
-  ASSERT_TRUE(WIFEXITED(child_status));
-  EXPECT_EQ(WEXITSTATUS(child_status), 0) << "the child's checks failed (see its output above)";
+  EXPECT_EQ(child.exit_code(), 0) << child.Outcome()
+                                  << ": the child's checks failed (see its output above)";
 }
 
 }  // namespace
