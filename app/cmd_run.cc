@@ -3,10 +3,8 @@
 // calls it until the server exists.
 //
 // Each frame steps the nominal 1 / frame_rate_hz, so a run's physics is deterministic; in real
-// time the loop sleeps to absolute deadlines (clock_nanosleep TIMER_ABSTIME on CLOCK_MONOTONIC),
-// counts overruns and skips missed periods instead of bunching frames up. --fast never sleeps.
-#include <time.h>
-
+// time the frames run in rt/loop_runner.h's RunLoop (absolute deadlines, overruns counted, missed
+// periods skipped instead of bunching frames up). --fast never sleeps.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cerrno>
@@ -26,6 +24,7 @@
 #include "app/command.h"
 #include "base/json.h"
 #include "base/report.h"
+#include "rt/loop_runner.h"
 #include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_scene.h"
@@ -35,7 +34,6 @@ namespace felt::app::cmd_run {
 namespace {
 
 constexpr double kMaxDuration_s = 86400.0;  // one day of frames: the per-frame samples stay small
-constexpr int64_t kNsPerS = 1'000'000'000;
 
 struct RunArgs {
   std::string scene;
@@ -61,21 +59,6 @@ struct RunStats {
   int64_t skipped_periods = 0;  // periods skipped after overruns
 };
 
-int64_t NowNs() {
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<int64_t>(now.tv_sec) * kNsPerS + now.tv_nsec;
-}
-
-// Sleeps until CLOCK_MONOTONIC reads `deadline_ns` (absolute, so lateness never accumulates).
-void SleepUntil(int64_t deadline_ns) {
-  timespec deadline{};
-  deadline.tv_sec = static_cast<time_t>(deadline_ns / kNsPerS);
-  deadline.tv_nsec = static_cast<long>(deadline_ns % kNsPerS);
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-  }
-}
-
 // The nearest-rank percentile of the frame times [ms] (p in [0, 100]); 0 when no frame ran, as
 // this command has always printed.
 double FrameMsPercentile(const RunStats& stats, double p) {
@@ -94,38 +77,42 @@ RunStats RunFrames(const ClothModel& model, int64_t frames, bool fast, ClothStat
   stats.energy_min_J = stats.energy_max_J = stats.energy_start_J;
   stats.max_stretch = stats.final_stretch = MaxStretch(model, *state);
 
-  const int64_t start_ns = NowNs();
-  int64_t deadline_ns = start_ns + period_ns;
-  for (int64_t frame = 0; frame < frames; ++frame) {
-    // Step one frame and time only the step.
-    const int64_t begin_ns = NowNs();
+  // One frame: step (timed alone), then the frame's statistics.
+  const auto frame = [&] {
+    const int64_t begin_ns = MonotonicNowNs();
     const FrameResult result = StepFrame(model, no_external, frame_dt_s, state);
-    const int64_t end_ns = NowNs();
-    stats.frame_ms.push_back(static_cast<double>(end_ns - begin_ns) * 1e-6);
+    stats.frame_ms.push_back(static_cast<double>(MonotonicNowNs() - begin_ns) * 1e-6);
     stats.substeps += result.substeps;
     stats.sim_time_s += result.dt_s;
-
-    // Frame statistics (outside the timed step).
     stats.final_stretch = MaxStretch(model, *state);
     stats.max_stretch = std::max(stats.max_stretch, stats.final_stretch);
     stats.energy_end_J = TotalEnergy(model, *state);
     stats.energy_min_J = std::min(stats.energy_min_J, stats.energy_end_J);
     stats.energy_max_J = std::max(stats.energy_max_J, stats.energy_end_J);
     ++stats.frames;
+  };
 
-    // Real time: sleep to the next absolute deadline; after an overrun skip the missed periods.
-    if (fast) continue;
-    const int64_t now_ns = NowNs();
-    if (now_ns > deadline_ns) {
-      ++stats.overruns;
-      const int64_t missed = (now_ns - deadline_ns) / period_ns + 1;
-      stats.skipped_periods += missed - 1;
-      deadline_ns += missed * period_ns;
-    }
-    if (frame + 1 < frames) SleepUntil(deadline_ns);
-    deadline_ns += period_ns;
+  const int64_t start_ns = MonotonicNowNs();
+  if (fast) {
+    while (stats.frames < frames) frame();
+  } else {
+    // Real time: the loop runner every loop thread uses (absolute deadlines, overruns counted,
+    // missed periods skipped), stopped after the last frame.
+    std::atomic<bool> done{false};
+    LoopRunOptions loop;
+    loop.period_ns = period_ns;
+    loop.stop = &done;
+    LoopStats loop_stats(period_ns);
+    RunLoop(loop, &loop_stats, [&](const TickInfo&) {
+      frame();
+      if (stats.frames >= frames) done.store(true, std::memory_order_relaxed);
+    });
+    LoopStatsSnapshot snapshot;
+    loop_stats.Snapshot(&snapshot);
+    stats.overruns = static_cast<int64_t>(snapshot.overruns);
+    stats.skipped_periods = static_cast<int64_t>(snapshot.skipped_periods);
   }
-  stats.wall_s = static_cast<double>(NowNs() - start_ns) * 1e-9;
+  stats.wall_s = static_cast<double>(MonotonicNowNs() - start_ns) * 1e-9;
   return stats;
 }
 

@@ -6,6 +6,7 @@
 
 #include <Eigen/SparseCore>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <utility>
 #include <vector>
@@ -337,34 +338,34 @@ void BuildImplicitPattern(const ClothModel& model, ClothState::Scratch* s) {
   }
 }
 
+namespace {
+
+// One substep of each integrator, indexed by IntegratorKind (the enum's order); false when an
+// implicit solve hit its iteration cap.
+using SubstepFn = bool (*)(const ClothModel&, double, ClothState*);
+template <void (*Step)(const ClothModel&, double, ClothState*)>
+bool Explicit(const ClothModel& model, double h, ClothState* st) {
+  Step(model, h, st);
+  return true;
+}
+constexpr std::array<SubstepFn, 8> kSubstepOf = {Explicit<LeapfrogVerlet>,
+                                                 Explicit<ExplicitEuler>,
+                                                 Explicit<SymplecticEuler>,
+                                                 Explicit<ExplicitMidpoint>,
+                                                 Explicit<Rk4>,
+                                                 Explicit<BasicVerlet>,
+                                                 Explicit<VelocityVerlet>,
+                                                 ImplicitEuler};
+static_assert(static_cast<size_t>(IntegratorKind::kLeapfrogVerlet) == 0 &&
+                  static_cast<size_t>(IntegratorKind::kImplicitEuler) == 7,
+              "kSubstepOf follows IntegratorKind's order");
+
+}  // namespace
+
 bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state) {
-  bool converged = true;
-  switch (model.integrator) {
-    case IntegratorKind::kLeapfrogVerlet:
-      LeapfrogVerlet(model, h_s, state);
-      break;
-    case IntegratorKind::kExplicitEuler:
-      ExplicitEuler(model, h_s, state);
-      break;
-    case IntegratorKind::kSymplecticEuler:
-      SymplecticEuler(model, h_s, state);
-      break;
-    case IntegratorKind::kExplicitMidpoint:
-      ExplicitMidpoint(model, h_s, state);
-      break;
-    case IntegratorKind::kRk4:
-      Rk4(model, h_s, state);
-      break;
-    case IntegratorKind::kBasicVerlet:
-      BasicVerlet(model, h_s, state);
-      break;
-    case IntegratorKind::kVelocityVerlet:
-      VelocityVerlet(model, h_s, state);
-      break;
-    case IntegratorKind::kImplicitEuler:
-      converged = ImplicitEuler(model, h_s, state);
-      break;
-  }
+  const auto kind = static_cast<size_t>(model.integrator);
+  FELT_CHECK(kind < kSubstepOf.size());
+  const bool converged = kSubstepOf[kind](model, h_s, state);
   state->scratch->history_valid = true;
   state->scratch->history_h_s = h_s;
   return converged;

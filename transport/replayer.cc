@@ -1,5 +1,6 @@
 #include "transport/replayer.h"
 
+#include <spdlog/fmt/fmt.h>
 #include <sys/prctl.h>
 #include <time.h>
 
@@ -365,46 +366,30 @@ std::string ReplayReportJson(const ReplayReport& r) {
                        {"pointer_lost", r.pointer_lost}});
 }
 
+namespace {
+
+// "p50 12 p99 40 p99.9 90 max 300": one line's percentiles, whole microseconds.
+std::string TimesText(const TimeSummary& t) {
+  return fmt::format("p50 {:.0f} p99 {:.0f} p99.9 {:.0f} max {:.0f}", t.p50_us, t.p99_us, t.p999_us,
+                     t.max_us);
+}
+
+}  // namespace
+
 std::string FormatReplayReport(const ReplayReport& r) {
-  char buffer[1024];
-  std::string out;
-  std::snprintf(buffer, sizeof(buffer),
-                "replay: device %s, %llu of %llu samples published (%llu pass(es), rate %g, "
-                "%.2f s)%s\n",
-                r.device_id.c_str(), static_cast<unsigned long long>(r.published),
-                static_cast<unsigned long long>(r.scheduled),
-                static_cast<unsigned long long>(r.loops_started), r.rate, r.wall_s,
-                r.stopped_early ? ", stopped early" : "");
-  out += buffer;
-  std::snprintf(buffer, sizeof(buffer),
-                "publish lateness us  p50 %.0f p99 %.0f p99.9 %.0f max %.0f; late %llu; "
-                "failed %llu\n",
-                r.lateness.p50_us, r.lateness.p99_us, r.lateness.p999_us, r.lateness.max_us,
-                static_cast<unsigned long long>(r.late),
-                static_cast<unsigned long long>(r.publish_failures));
-  out += buffer;
-  std::snprintf(buffer, sizeof(buffer),
-                "latency us           p50 %.0f p99 %.0f p99.9 %.0f max %.0f (%llu answered, "
-                "%llu unanswered)\n",
-                r.latency.p50_us, r.latency.p99_us, r.latency.p999_us, r.latency.max_us,
-                static_cast<unsigned long long>(r.answered),
-                static_cast<unsigned long long>(r.unanswered));
-  out += buffer;
-  std::snprintf(buffer, sizeof(buffer),
-                "forces               %llu received, %llu lost, %llu in contact, peak %.2f N\n",
-                static_cast<unsigned long long>(r.forces_received),
-                static_cast<unsigned long long>(r.forces_lost),
-                static_cast<unsigned long long>(r.contact_forces), r.peak_force_N);
-  out += buffer;
-  if (r.server_counts) {
-    std::snprintf(
-        buffer, sizeof(buffer), "server               %lld received, %lld rejected, %lld lost\n",
-        static_cast<long long>(r.server_received), static_cast<long long>(r.server_rejected),
-        static_cast<long long>(r.pointer_lost));
-  } else {
-    std::snprintf(buffer, sizeof(buffer), "server               no felt/status: lost unknown\n");
-  }
-  out += buffer;
+  std::string out = fmt::format(
+      "replay: device {}, {} of {} samples published ({} pass(es), rate {:g}, {:.2f} s){}\n",
+      r.device_id, r.published, r.scheduled, r.loops_started, r.rate, r.wall_s,
+      r.stopped_early ? ", stopped early" : "");
+  out += fmt::format("publish lateness us  {}; late {}; failed {}\n", TimesText(r.lateness), r.late,
+                     r.publish_failures);
+  out += fmt::format("latency us           {} ({} answered, {} unanswered)\n", TimesText(r.latency),
+                     r.answered, r.unanswered);
+  out += fmt::format("forces               {} received, {} lost, {} in contact, peak {:.2f} N\n",
+                     r.forces_received, r.forces_lost, r.contact_forces, r.peak_force_N);
+  out += r.server_counts ? fmt::format("server               {} received, {} rejected, {} lost\n",
+                                       r.server_received, r.server_rejected, r.pointer_lost)
+                         : std::string("server               no felt/status: lost unknown\n");
   return out;
 }
 

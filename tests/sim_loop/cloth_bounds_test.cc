@@ -141,8 +141,8 @@ void ExpectBoundedEnergy(const SimSpec& spec, int frames, double slack_J, const 
     StepFrame(model, {}, 1.0 / 60.0, &state);
     e_max = std::max(e_max, TotalEnergy(model, state));
   }
-  const std::string name = std::string(ToName(spec.integration.integrator)) + " " + what +
-                           " (" + std::to_string(model.substeps) + " substeps)";
+  const std::string name = std::string(ToName(spec.integration.integrator)) + " " + what + " (" +
+                           std::to_string(model.substeps) + " substeps)";
   EXPECT_EQ(state.counters.nan_events, 0u) << name;
   EXPECT_LT(e_max, e0 + slack_J) << name;
   EXPECT_LT(MaxStretch(model, state), spec.provot.enabled ? 1.11 : 100.0) << name;

@@ -52,26 +52,9 @@ bool SameBits(const std::vector<T>& a, const std::vector<T>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
 }
 
-// A curtain `grid` wide and grid + 2 high (rows and columns differ), every free particle moved by
-// up to `amplitude` spacings per axis and stretched down by `stretch`, with random velocities and
-// external forces.
-ClothState ScrambledState(const ClothModel& model, double amplitude, double stretch,
-                          uint32_t seed) {
-  ClothState state = MakeClothState(model);
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double a = amplitude * model.spacing_m;
-  const double top = state.x[0].y();
-  for (size_t p = 0; p < state.x.size(); ++p) {
-    state.scratch->external_N[p] = 1e-3 * Vec3(u(rng), u(rng), u(rng));
-    if (model.inv_mass_per_kg[p] == 0.0) continue;
-    state.x[p] += a * Vec3(u(rng), u(rng), u(rng));
-    state.x[p].y() = top + stretch * (state.x[p].y() - top);
-    state.v[p] = Vec3(u(rng), u(rng), u(rng));
-  }
-  return state;
-}
+using cloth_test::ScrambledState;
 
+// A curtain `grid` wide and grid + 2 high (rows and columns differ), with drag.
 SimSpec CurtainSpec(int32_t grid) {
   SimSpec spec = Curtain(grid);
   spec.cloth.height = grid + 2;
@@ -129,20 +112,13 @@ std::vector<Vec3> ProvotAt(SimdLevel level, const ClothModel& model, double stre
 
 TEST(SimdKernelsTest, ProvotSweepsGiveThePortableBitsAtEveryLevel) {
   for (int32_t grid : kGrids) {
-    for (bool multiresolution : {false, true}) {
-      for (int32_t iterations : {1, 4}) {
-        SimSpec spec = CurtainSpec(grid);
-        spec.provot.multiresolution = multiresolution;
-        spec.provot.long_range_attachments = multiresolution;
-        spec.provot.iterations = iterations;
-        const ClothModel model = BuildClothModel(spec);
-        const uint32_t seed = 7u + static_cast<uint32_t>(grid);
-        const std::vector<Vec3> portable = ProvotAt(SimdLevel::kPortable, model, 1.0, seed);
-        for (SimdLevel level : VectorLevels()) {
-          EXPECT_TRUE(BitwiseEqual(ProvotAt(level, model, 1.0, seed), portable))
-              << grid << " multiresolution " << multiresolution << " sweeps " << iterations << " "
-              << SimdLevelName(level);
-        }
+    for (const cloth_test::ProvotCase& c : cloth_test::kProvotCases) {
+      const ClothModel model = BuildClothModel(cloth_test::WithProvotCase(CurtainSpec(grid), c));
+      const uint32_t seed = 7u + static_cast<uint32_t>(grid);
+      const std::vector<Vec3> portable = ProvotAt(SimdLevel::kPortable, model, 1.0, seed);
+      for (SimdLevel level : VectorLevels()) {
+        EXPECT_TRUE(BitwiseEqual(ProvotAt(level, model, 1.0, seed), portable))
+            << cloth_test::ProvotCaseName(grid, c) << " " << SimdLevelName(level);
       }
     }
   }
