@@ -1,0 +1,98 @@
+// The 1 kHz tick on its own (haptic_loop/haptic_tick.h): a HapticLoop against a SimLoop's two
+// handoffs, no Server and no threads. A device that has not spoken gets nothing; a press is felt
+// and its reaction reaches the sim loop through the queue (impulse counted on both sides); a
+// non-finite sample is rejected and counted and the device gets zero force.
+#include "haptic_loop/haptic_tick.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "rt/loop_stats.h"
+#include "sim_loop/sim_frame.h"
+#include "tests/server/server_test_util.h"
+
+namespace felt {
+namespace {
+
+using testing_server::PressPosition;
+using testing_server::SmallCurtain;
+
+constexpr int64_t kT0Ns = 1'000'000'000;
+constexpr int64_t kTickNs = 1'000'000;
+
+// A sim loop and a haptic loop wired as the server wires them, on a test clock.
+struct Loops {
+  explicit Loops(const ServerSpec& spec)
+      : sim(spec.sim, spec.proxy.structure),
+        source(static_cast<uint32_t>(spec.devices.size())),
+        sink(static_cast<uint32_t>(spec.devices.size())),
+        stats(kTickNs),
+        haptic(spec.proxy, spec.devices, spec.haptic, sim.snapshots().read_slot().snapshot,
+               &sim.snapshots(), &sim.reactions(), &source, &sink, &stats) {
+    sim.PublishInitialSnapshot(kT0Ns);
+  }
+
+  // One tick at ms `k` (a sim frame first every 16 ms), device 0 at `p_D` when `feed`.
+  void Tick(int k, bool feed, const Vec3& p_D) {
+    const int64_t now = kT0Ns + int64_t{k} * kTickNs;
+    if (k % 16 == 0) sim.Frame(1.0 / 60.0, now);
+    if (feed) {
+      PointerInput in;
+      in.seq = static_cast<uint64_t>(k) + 1;
+      in.receive_time_ns = now;
+      in.p_D_m = p_D;
+      source.Set(0, in);
+    }
+    haptic.Tick(now, 1e-3);
+  }
+
+  SimLoop sim;
+  LatestPointerSource source;
+  CapturingForceSink sink;
+  LoopStats stats;
+  HapticLoop haptic;
+};
+
+TEST(HapticTick, ASilentDeviceGetsNothing) {
+  Loops loops(SmallCurtain());
+  for (int k = 0; k < 50; ++k) loops.Tick(k, false, Vec3::Zero());
+  EXPECT_EQ(loops.haptic.counters().ticks.load(), 50u);
+  EXPECT_EQ(loops.sink.pushed(0), 0u);
+  EXPECT_EQ(loops.haptic.device_counters(0).ticks_with_input.load(), 0u);
+}
+
+TEST(HapticTick, APressIsFeltAndItsReactionReachesTheSim) {
+  ServerSpec spec = SmallCurtain();
+  spec.haptic.safety.ramp_in_s = 0.05;
+  Loops loops(spec);
+  for (int k = 0; k < 600; ++k) loops.Tick(k, true, PressPosition(k));
+  const DeviceCounters& c = loops.haptic.device_counters(0);
+  EXPECT_EQ(loops.sink.pushed(0), 600u);
+  EXPECT_GT(c.contact_ticks.load(), 0u);
+  EXPECT_GT(loops.sink.peak_force_N(0), 0.1);
+  // Reactions: batches staged per new snapshot, pushed, applied by the sim's frames; the impulse
+  // the haptic side queued is what the sim applied (up to the batch still in flight).
+  const uint64_t pushed = loops.haptic.counters().reaction_batches.load();
+  EXPECT_GT(pushed, 0u);
+  EXPECT_GE(loops.sim.counters().reaction_batches_applied.load() + 1, pushed);
+  EXPECT_GT(c.reaction_impulse_N_s.load(), 0.0);
+  EXPECT_GT(loops.sim.counters().applied_impulse_N_s.load(), 0.0);
+  EXPECT_EQ(loops.haptic.counters().sim_stalled_ticks.load(), 0u);
+}
+
+TEST(HapticTick, ANonFiniteSampleIsCountedAndGivesZeroForce) {
+  Loops loops(SmallCurtain());
+  for (int k = 0; k < 300; ++k) loops.Tick(k, true, PressPosition(k));
+  const Vec3 bad(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
+  loops.Tick(300, true, bad);
+  ForceOutput out;
+  ASSERT_TRUE(loops.sink.Newest(0, &out));
+  EXPECT_TRUE(out.force_D_N.allFinite());
+  EXPECT_EQ(out.force_D_N, Vec3::Zero());
+  EXPECT_EQ(loops.haptic.device_counters(0).nan_events.load(), 1u);
+}
+
+}  // namespace
+}  // namespace felt
