@@ -92,9 +92,8 @@ std::string CompareJson(const CompareArgs& args, const report::MachineInfo& mach
            {"scene", args.scene},
            {"reference", result.summaries.front().name},
            {"devices", result.runs.front().devices},
-           {"tick_dt_s", result.runs.front().tick_dt_s},
-           {"machine", report::MachineJson(machine)},
-           {"load_average_end", load_end}};
+           {"tick_dt_s", result.runs.front().tick_dt_s}};
+  report::AppendMachineJson(machine, load_end, &top);
   top["variants"] = variants;
   return JsonText(top);
 }

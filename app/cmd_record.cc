@@ -5,9 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
-#include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -15,17 +13,12 @@
 #include <string>
 
 #include "app/command.h"
+#include "app/command_util.h"
 #include "transport/clock.h"
 #include "transport/recorder.h"
 
 namespace felt::app::cmd_record {
 namespace {
-
-// Set by the signal handler; lock-free, so async-signal-safe.
-std::atomic<bool> g_record_stop{false};
-static_assert(std::atomic<bool>::is_always_lock_free);
-
-extern "C" void OnRecordStopSignal(int /*signal*/) { g_record_stop.store(true); }
 
 struct RecordArgs {
   std::string out;
@@ -40,10 +33,7 @@ struct RecordArgs {
 
 int Record(const RecordArgs& args) {
   // Set-up: the options, then the DDS readers.
-  if (args.duration_s && !(*args.duration_s > 0.0 && *args.duration_s <= 86400.0)) {
-    throw std::invalid_argument("--duration must be in (0, 86400] s, got " +
-                                fmt::format("{}", *args.duration_s));
-  }
+  CheckDurationOption(args.duration_s);
   transport::RecorderConfig config;
   config.dds.domain_id = args.domain;
   config.dds.config_file = args.dds_config;
@@ -55,11 +45,7 @@ int Record(const RecordArgs& args) {
   config.rate_hz = args.rate_hz;
   transport::Recorder recorder(config);
 
-  struct sigaction action {};
-  action.sa_handler = OnRecordStopSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  InstallStopHandlers();
   std::printf("felt record: listening on DDS domain %u for %s%s%s\n", args.domain,
               args.device.empty() ? "the first device heard" : ("device " + args.device).c_str(),
               args.duration_s ? fmt::format(", {:g} s", *args.duration_s).c_str()
@@ -69,7 +55,7 @@ int Record(const RecordArgs& args) {
 
   // Record until the duration (counted from the first sample) or a signal.
   int64_t end_ns = INT64_MAX;
-  while (!g_record_stop.load() && transport::MonotonicNowNs() < end_ns) {
+  while (!StopRequested().load() && transport::MonotonicNowNs() < end_ns) {
     recorder.Poll(std::chrono::milliseconds(50));
     if (args.duration_s && end_ns == INT64_MAX && recorder.Stats().pointers_written > 0) {
       end_ns = transport::MonotonicNowNs() + static_cast<int64_t>(*args.duration_s * 1e9);
@@ -80,7 +66,7 @@ int Record(const RecordArgs& args) {
   // Summary.
   const transport::RecorderStats s = recorder.Stats();
   std::printf("felt record: stopped %s\n",
-              g_record_stop.load() ? "by signal" : "after the duration");
+              StopRequested().load() ? "by signal" : "after the duration");
   std::printf(
       "device %s: %llu samples written to %s (%llu received, %llu missing by seq, %llu out "
       "of order, %llu with time not increasing; %llu of other devices)\n",
@@ -117,9 +103,7 @@ CommandRun Setup(CLI::App& cmd) {
                  "the felt-forces v1 file for the forces (default: OUT.forces.csv)");
   cmd.add_flag("--no-forces", args->no_forces, "do not record the forces");
   cmd.add_option("--device", args->device, "record this device id (default: the first heard)");
-  cmd.add_option("--domain", args->domain, "DDS domain id (default 0)")->check(CLI::Range(0, 230));
-  cmd.add_option("--dds-config", args->dds_config,
-                 "Cyclone DDS configuration file (default: CYCLONEDDS_URI, else loopback)");
+  AddDdsOptions(cmd, &args->domain, &args->dds_config);
   cmd.add_option("--rate-hz", args->rate_hz, "nominal rate written into the trace header")
       ->check(CLI::PositiveNumber);
   return [args]() -> int { return Record(*args); };

@@ -6,28 +6,20 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
-#include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "app/command.h"
+#include "app/command_util.h"
 #include "recordings/trace.h"
 #include "transport/replayer.h"
 
 namespace felt::app::cmd_replay {
 namespace {
-
-// Set by the signal handler; lock-free, so async-signal-safe.
-std::atomic<bool> g_replay_stop{false};
-static_assert(std::atomic<bool>::is_always_lock_free);
-
-extern "C" void OnReplayStopSignal(int /*signal*/) { g_replay_stop.store(true); }
 
 struct ReplayArgs {
   std::string trace;
@@ -48,10 +40,7 @@ int Replay(const ReplayArgs& args) {
   if (!(args.rate > 0.0 && args.rate <= 100.0)) {
     throw std::invalid_argument(fmt::format("--rate must be in (0, 100], got {}", args.rate));
   }
-  if (args.duration_s && !(*args.duration_s > 0.0 && *args.duration_s <= 86400.0)) {
-    throw std::invalid_argument(
-        fmt::format("--duration must be in (0, 86400] s, got {}", *args.duration_s));
-  }
+  CheckDurationOption(args.duration_s);
   Trace trace = ReadTrace(args.trace);
   transport::ReplayConfig config;
   config.dds.domain_id = args.domain;
@@ -67,18 +56,14 @@ int Replay(const ReplayArgs& args) {
   const size_t samples = trace.samples.size();
   transport::Replayer replayer(std::move(trace), config);
 
-  struct sigaction action {};
-  action.sa_handler = OnReplayStopSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  InstallStopHandlers();
 
   // Discovery: a server must be there before the first sample goes out.
   std::printf("felt replay: %s (%zu samples) as device %s on DDS domain %u, waiting for a server\n",
               args.trace.c_str(), samples, args.device.c_str(), args.domain);
   std::fflush(stdout);
-  if (!replayer.WaitForServer(&g_replay_stop)) {
-    if (g_replay_stop.load()) {
+  if (!replayer.WaitForServer(&StopRequested())) {
+    if (StopRequested().load()) {
       std::printf("felt replay: stopped by signal before a server was found\n");
       return 1;
     }
@@ -90,15 +75,13 @@ int Replay(const ReplayArgs& args) {
   }
 
   // The replay; the "publishing" line tells a watcher (felt soak) that the samples start now.
-  const transport::ReplayReport report = replayer.Run(&g_replay_stop, [] {
+  const transport::ReplayReport report = replayer.Run(&StopRequested(), [] {
     std::printf("felt replay: publishing\n");
     std::fflush(stdout);
   });
   std::printf("%s", transport::FormatReplayReport(report).c_str());
   if (!args.json.empty()) {
-    std::ofstream out(args.json);
-    out << transport::ReplayReportJson(report);
-    if (!out) throw std::runtime_error("cannot write --json file '" + args.json + "'");
+    WriteOptionFile("--json", args.json, transport::ReplayReportJson(report));
   }
   std::fflush(stdout);
   return 0;
@@ -123,9 +106,7 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--discovery-timeout", args->discovery_timeout_s,
                  "seconds to wait for a server (default 15)")
       ->check(CLI::PositiveNumber);
-  cmd.add_option("--domain", args->domain, "DDS domain id (default 0)")->check(CLI::Range(0, 230));
-  cmd.add_option("--dds-config", args->dds_config,
-                 "Cyclone DDS configuration file (default: CYCLONEDDS_URI, else loopback)");
+  AddDdsOptions(cmd, &args->domain, &args->dds_config);
   return [args]() -> int { return Replay(*args); };
 }
 

@@ -7,11 +7,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
-#include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -20,6 +17,7 @@
 #include <vector>
 
 #include "app/command.h"
+#include "app/command_util.h"
 #include "haptic_loop/pointer_source.h"
 #include "recordings/trace.h"
 #include "rt/periodic_loop.h"
@@ -32,21 +30,6 @@
 
 namespace felt::app::cmd_serve {
 namespace {
-
-// Set by the signal handler; lock-free, so async-signal-safe.
-std::atomic<bool> g_stop_requested{false};
-static_assert(std::atomic<bool>::is_always_lock_free);
-
-extern "C" void OnStopSignal(int /*signal*/) { g_stop_requested.store(true); }
-
-void InstallStopHandlers() {
-  struct sigaction action {};
-  action.sa_handler = OnStopSignal;
-  sigemptyset(&action.sa_mask);
-  action.sa_flags = 0;  // no SA_RESTART: let sleeps return early
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-}
 
 struct ServeArgs {
   std::string scene;
@@ -153,10 +136,10 @@ int Serve(const ServeArgs& args) {
   // Wait for the end: the duration or a signal.
   const int64_t end_ns =
       duration_s ? MonotonicNowNs() + static_cast<int64_t>(*duration_s * 1e9) : INT64_MAX;
-  while (!g_stop_requested.load() && MonotonicNowNs() < end_ns) {
+  while (!StopRequested().load() && MonotonicNowNs() < end_ns) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  const bool by_signal = g_stop_requested.load();
+  const bool by_signal = StopRequested().load();
   server.Stop();
 
   // Final statistics: the realtime outcome, the whole run's lines and the JSON.
@@ -174,9 +157,7 @@ int Serve(const ServeArgs& args) {
               report->haptic_realtime_summary.c_str(), report->sim_realtime_summary.c_str());
   const std::string json = Server::ReportJson(*report);
   if (!args.stats_json.empty()) {
-    std::ofstream out(args.stats_json);
-    out << json << "\n";
-    if (!out) throw std::runtime_error("cannot write --stats-json file '" + args.stats_json + "'");
+    WriteOptionFile("--stats-json", args.stats_json, json + "\n");
   }
   std::fflush(stdout);
   dds.reset();

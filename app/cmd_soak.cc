@@ -15,7 +15,6 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -34,6 +33,7 @@
 #include <vector>
 
 #include "app/command.h"
+#include "app/command_util.h"
 #include "base/json.h"
 #include "base/process.h"
 #include "base/report.h"
@@ -44,12 +44,6 @@
 
 namespace felt::app::cmd_soak {
 namespace {
-
-// Set by the signal handler; lock-free, so async-signal-safe.
-std::atomic<bool> g_soak_stop{false};
-static_assert(std::atomic<bool>::is_always_lock_free);
-
-extern "C" void OnSoakStopSignal(int /*signal*/) { g_soak_stop.store(true); }
 
 constexpr int kExitThreshold = 3;              // a threshold was crossed
 constexpr int kExitInterrupted = 130;          // SIGINT/SIGTERM (128 + SIGINT, the shell's habit)
@@ -238,11 +232,7 @@ int Soak(const SoakArgs& args) {
   const std::string exe(exe_buffer, static_cast<size_t>(exe_length));
 
   // Signals: SIGINT/SIGTERM stop both children; no SA_RESTART, so poll() returns at once.
-  struct sigaction action {};
-  action.sa_handler = OnSoakStopSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  InstallStopHandlers();
 
   const std::string load_start = report::LoadAverage();
   std::printf("felt soak: %.1f s of %s into %s over DDS domain %u (device %s), load %s\n",
@@ -322,7 +312,7 @@ int Soak(const SoakArgs& args) {
     // A signal, or the overall limit: stop both.
     // A signal stops the replay first; its end then stops the server as usual (so the memory at
     // the end and the server's counts are still taken).
-    if (g_soak_stop.load() && !interrupted) {
+    if (StopRequested().load() && !interrupted) {
       interrupted = true;
       replay.RequestStop();
     }
@@ -497,20 +487,12 @@ int Soak(const SoakArgs& args) {
   }
 
   // Files.
-  if (!args.json.empty()) {
-    std::ofstream out(args.json);
-    out << JsonText(json);
-    if (!out) throw std::runtime_error("cannot write --json file '" + args.json + "'");
-  }
+  if (!args.json.empty()) WriteOptionFile("--json", args.json, JsonText(json));
   std::string md_path = args.md;
   if (md_path.empty() && !args.json.empty()) {
     md_path = std::filesystem::path(args.json).replace_extension(".md").string();
   }
-  if (!md_path.empty()) {
-    std::ofstream out(md_path);
-    out << md;
-    if (!out) throw std::runtime_error("cannot write --md file '" + md_path + "'");
-  }
+  if (!md_path.empty()) WriteOptionFile("--md", md_path, md);
 
   // The short summary.
   std::printf(

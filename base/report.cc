@@ -124,6 +124,11 @@ Json MachineJson(const MachineInfo& machine) {
               {"vector_kernels", machine.vector_kernels}};
 }
 
+void AppendMachineJson(const MachineInfo& machine, std::string_view load_at_end, Json* report) {
+  (*report)["machine"] = MachineJson(machine);
+  (*report)["load_average_end"] = std::string(load_at_end);
+}
+
 std::string MarkdownTable(const std::vector<std::string>& header, const std::vector<bool>& right,
                           const std::vector<std::vector<std::string>>& rows) {
   std::string out = "|";

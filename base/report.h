@@ -62,6 +62,11 @@ std::string Fixed(double value, int decimals = 3);
 /// niceness, affinity, vector_kernels).
 Json MachineJson(const MachineInfo& machine);
 
+/// Appends what every report's JSON says about where it ran to the object `report`: "machine"
+/// (MachineJson of `machine`, read at the start) and "load_average_end" (`load_at_end`, the
+/// LoadAverage() text at the end), in that order after the members it already has.
+void AppendMachineJson(const MachineInfo& machine, std::string_view load_at_end, Json* report);
+
 /// A Markdown table: a header row, the alignment row (numbers right-aligned: `right` per column),
 /// then the rows. Cells must not contain '|'.
 std::string MarkdownTable(const std::vector<std::string>& header, const std::vector<bool>& right,

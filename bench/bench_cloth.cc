@@ -239,11 +239,11 @@ int Run(const Args& args) {
     }
     items.push_back(rec);
   }
-  const std::string json = JsonText(Json{{"command", cmd},
-                                         {"machine", MachineJson(machine)},
-                                         {"load_average_end", load_end},
-                                         {"settle_frames", args.settle_frames},
-                                         {"grids", items}});
+  Json top{{"command", cmd}};
+  AppendMachineJson(machine, load_end, &top);
+  top["settle_frames"] = args.settle_frames;
+  top["grids"] = items;
+  const std::string json = JsonText(top);
   const std::string json_path = args.json.empty() ? args.out + "/cloth.json" : args.json;
   WriteTextFile(json_path, json);
   std::printf("wrote %s/cloth.md, %s/cloth.csv, %s\n", args.out.c_str(), args.out.c_str(),

@@ -60,7 +60,7 @@ struct Args {
   int grid = 64;
 };
 
-// One mode's metrics over one run.
+// One mode's metrics over one run, or summed over several runs (Add).
 struct ModeStats {
   double err2_sum = 0.0;
   int64_t ticks = 0;
@@ -71,6 +71,20 @@ struct ModeStats {
   std::vector<double> tick_us;
   uint64_t overflow_ticks = 0;
   uint64_t catches = 0;
+
+  /// Adds `other`'s run: squared force errors [N^2], ticks and counts add up, the largest jump
+  /// [N] and penetration [m] stay the larger, tick times [us] are appended.
+  void Add(const ModeStats& other) {
+    err2_sum += other.err2_sum;
+    ticks += other.ticks;
+    max_jump_N = std::max(max_jump_N, other.max_jump_N);
+    pop_through += other.pop_through;
+    max_penetration_m = std::max(max_penetration_m, other.max_penetration_m);
+    deep_ticks += other.deep_ticks;
+    tick_us.insert(tick_us.end(), other.tick_us.begin(), other.tick_us.end());
+    overflow_ticks += other.overflow_ticks;
+    catches += other.catches;
+  }
 
   double rms() const { return ticks > 0 ? std::sqrt(err2_sum / ticks) : 0.0; }
   double median_us() const { return tick_us.empty() ? 0.0 : report::Median(tick_us); }
@@ -325,17 +339,6 @@ std::vector<TraceSample> StillPointer(const Vec3& p_D, double seconds) {
   return s;
 }
 
-struct Aggregate {
-  double err2 = 0.0;
-  int64_t ticks = 0;
-  double max_jump = 0.0;
-  int64_t pops = 0;
-  double max_penetration_m = 0.0;
-  int64_t deep_ticks = 0;
-  std::vector<double> us;
-  double max_us = 0.0;
-};
-
 int Run(const Args& args) {
   std::vector<RunResult> runs;
   // The bundled traces on the real cloth, coupled with the reference.
@@ -351,23 +354,14 @@ int Run(const Args& args) {
                         "swing", args));
 
   // Per-mode aggregates: all runs, and the swinging-cloth runs alone.
-  Aggregate all[4];
-  Aggregate swing[4];
+  ModeStats all[4];
+  ModeStats swing[4];
   for (const RunResult& r : runs) {
     for (int m = 0; m < 4; ++m) {
-      for (Aggregate* a : {&all[m], r.source == "swing" ? &swing[m] : nullptr}) {
-        if (a == nullptr) continue;
-        a->err2 += r.modes[m].err2_sum;
-        a->ticks += r.modes[m].ticks;
-        a->max_jump = std::max(a->max_jump, r.modes[m].max_jump_N);
-        a->pops += r.modes[m].pop_through;
-        a->max_penetration_m = std::max(a->max_penetration_m, r.modes[m].max_penetration_m);
-        a->deep_ticks += r.modes[m].deep_ticks;
-        a->us.insert(a->us.end(), r.modes[m].tick_us.begin(), r.modes[m].tick_us.end());
-      }
+      all[m].Add(r.modes[m]);
+      if (r.source == "swing") swing[m].Add(r.modes[m]);
     }
   }
-  auto median = [](const std::vector<double>& v) { return v.empty() ? 0.0 : report::Median(v); };
 
   // Markdown and CSV tables.
   std::string md = fmt::format(
@@ -400,45 +394,31 @@ int Run(const Args& args) {
       "| mode | force_rms_error_N | max_force_jump_N | pop_through | max_penetration_um | "
       "deep_ticks | tick_us_median | tick_us_max |\n|---|---|---|---|---|---|---|---|\n";
   // One mode's figures: forces [N], penetration [um], tick times [us].
-  const auto mode_json = [](SnapshotMode mode, double rms_N, double max_jump_N, auto pops,
-                            double max_penetration_m, auto deep_ticks, double median_us,
-                            double max_us) {
+  const auto mode_json = [](SnapshotMode mode, const ModeStats& s) {
     return Json{{"mode", SnapshotModeName(mode)},
-                {"force_rms_error_N", RoundedJson(rms_N, 6)},
-                {"max_force_jump_N", RoundedJson(max_jump_N, 6)},
-                {"pop_through", pops},
-                {"max_penetration_um", RoundedJson(1e6 * max_penetration_m, 6)},
-                {"deep_ticks", deep_ticks},
-                {"tick_us_median", RoundedJson(median_us, 3)},
-                {"tick_us_max", RoundedJson(max_us, 3)}};
+                {"force_rms_error_N", RoundedJson(s.rms(), 6)},
+                {"max_force_jump_N", RoundedJson(s.max_jump_N, 6)},
+                {"pop_through", s.pop_through},
+                {"max_penetration_um", RoundedJson(1e6 * s.max_penetration_m, 6)},
+                {"deep_ticks", s.deep_ticks},
+                {"tick_us_median", RoundedJson(s.median_us(), 3)},
+                {"tick_us_max", RoundedJson(s.max_us(), 3)}};
   };
   Json modes = Json::array(), swing_modes = Json::array(), run_items = Json::array();
   for (int m = 0; m < 4; ++m) {
-    auto obj = [&](const Aggregate& a) {
-      const double max_us = a.us.empty() ? 0.0 : *std::max_element(a.us.begin(), a.us.end());
-      return mode_json(kModes[m], a.ticks > 0 ? std::sqrt(a.err2 / a.ticks) : 0.0, a.max_jump,
-                       a.pops, a.max_penetration_m, a.deep_ticks, median(a.us), max_us);
-    };
-    modes.push_back(obj(all[m]));
-    swing_modes.push_back(obj(swing[m]));
-    const double max_us_all =
-        all[m].us.empty() ? 0.0 : *std::max_element(all[m].us.begin(), all[m].us.end());
+    modes.push_back(mode_json(kModes[m], all[m]));
+    swing_modes.push_back(mode_json(kModes[m], swing[m]));
     md += fmt::format(
         "| {} | {:.4f} / {:.4f} | {:.4f} / {:.4f} | {} / {} | {:.3f} / {:.3f} | {} / {} | {:.2f} | "
         "{:.1f} |\n",
-        SnapshotModeName(kModes[m]), all[m].ticks ? std::sqrt(all[m].err2 / all[m].ticks) : 0.0,
-        swing[m].ticks ? std::sqrt(swing[m].err2 / swing[m].ticks) : 0.0, all[m].max_jump,
-        swing[m].max_jump, all[m].pops, swing[m].pops, 1e6 * all[m].max_penetration_m,
-        1e6 * swing[m].max_penetration_m, all[m].deep_ticks, swing[m].deep_ticks, median(all[m].us),
-        max_us_all);
+        SnapshotModeName(kModes[m]), all[m].rms(), swing[m].rms(), all[m].max_jump_N,
+        swing[m].max_jump_N, all[m].pop_through, swing[m].pop_through,
+        1e6 * all[m].max_penetration_m, 1e6 * swing[m].max_penetration_m, all[m].deep_ticks,
+        swing[m].deep_ticks, all[m].median_us(), all[m].max_us());
   }
   for (const RunResult& r : runs) {
     Json run_modes = Json::array();
-    for (int m = 0; m < 4; ++m) {
-      const ModeStats& s = r.modes[m];
-      run_modes.push_back(mode_json(kModes[m], s.rms(), s.max_jump_N, s.pop_through,
-                                    s.max_penetration_m, s.deep_ticks, s.median_us(), s.max_us()));
-    }
+    for (int m = 0; m < 4; ++m) run_modes.push_back(mode_json(kModes[m], r.modes[m]));
     run_items.push_back(
         Json{{"trace", r.trace},
              {"cloth", r.source},

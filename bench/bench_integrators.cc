@@ -632,15 +632,14 @@ bool WriteReports(const Args& args, const Settings& s, const std::string& cmd,
                              {"error_estimate_m", ref.error_estimate_m},
                              {"cpu_s", ref.cpu_s}});
   }
-  const std::string json = JsonText(Json{{"command", cmd},
-                                         {"complete", progress.empty()},
-                                         {"machine", MachineJson(machine)},
-                                         {"load_average_end", load_end},
-                                         {"timed_frames", s.timed_frames},
-                                         {"error_time_s", s.error_frames / 60.0},
-                                         {"references", ref_items},
-                                         {"rows", row_items},
-                                         {"stable_steps", step_items}});
+  Json top{{"command", cmd}, {"complete", progress.empty()}};
+  AppendMachineJson(machine, load_end, &top);
+  top["timed_frames"] = s.timed_frames;
+  top["error_time_s"] = s.error_frames / 60.0;
+  top["references"] = ref_items;
+  top["rows"] = row_items;
+  top["stable_steps"] = step_items;
+  const std::string json = JsonText(top);
   const std::string json_path = args.json.empty() ? args.out + "/integrators.json" : args.json;
   WriteTextFile(json_path, json);
   const std::string dat = args.out + "/integrators_plot.dat";

@@ -12,7 +12,6 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -20,6 +19,7 @@
 #include <vector>
 
 #include "app/command.h"
+#include "app/command_util.h"
 #include "base/json.h"
 #include "haptic_loop/pointer_source.h"
 #include "recordings/trace.h"
@@ -327,9 +327,8 @@ app::CommandRun Setup(CLI::App& cmd) {
       PrintSideBySide(results.back(), server);
     }
     if (!args->json_path.empty()) {
-      std::ofstream out(args->json_path);
-      out << BenchJson(results, seconds, dma_text, server.report.get());
-      if (!out) throw std::runtime_error("cannot write --json file '" + args->json_path + "'");
+      app::WriteOptionFile("--json", args->json_path,
+                           BenchJson(results, seconds, dma_text, server.report.get()));
     }
     return 0;
   };

@@ -480,11 +480,11 @@ int Run(const Args& args) {
                          {"pass", c.pass},
                          {"metrics", c.metrics}});
   }
-  const std::string json = JsonText(Json{{"command", cmd},
-                                         {"machine", MachineJson(machine)},
-                                         {"load_average_end", load_end},
-                                         {"passed", passed},
-                                         {"cases", items}});
+  Json top{{"command", cmd}};
+  AppendMachineJson(machine, load_end, &top);
+  top["passed"] = passed;
+  top["cases"] = items;
+  const std::string json = JsonText(top);
   const std::string json_path = args.json.empty() ? args.out + "/stability.json" : args.json;
   WriteTextFile(json_path, json);
   std::printf("wrote %s/stability.md, %s\n", args.out.c_str(), json_path.c_str());

@@ -15,13 +15,8 @@
 
 #include "tests/app/felt_process.h"
 
+namespace felt::test {
 namespace {
-
-using felt::test::kFelt;
-using felt::test::kSource;
-using felt::test::Outcome;
-using felt::test::ReadFile;
-using felt::test::RunFelt;
 
 // A fresh folder of this test's own under the test temp directory.
 std::string FreshDir(const std::string& name) {
@@ -29,6 +24,25 @@ std::string FreshDir(const std::string& name) {
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir.string();
+}
+
+// What one `felt bench NAME` run into a fresh folder left.
+struct BenchRun {
+  std::string dir;   // the --out folder
+  Outcome outcome;   // exit code and output
+  std::string json;  // the text of its --json file, DIR/NAME.json ("" if not written)
+};
+
+/// Runs `felt bench NAME OPTIONS --out DIR --json DIR/NAME.json --scene <the curtain>` into a
+/// fresh folder felt_bench_NAME (no unit) and reads back its JSON file.
+BenchRun RunBench(const std::string& name, const std::string& options) {
+  BenchRun run;
+  run.dir = FreshDir("felt_bench_" + name);
+  const std::string json = run.dir + "/" + name + ".json";
+  run.outcome = RunFelt("bench " + name + " " + options + " --out " + run.dir + " --json " + json +
+                        " --scene " + kSource + "/scenes/curtain.toml");
+  run.json = ReadFile(json);
+  return run;
 }
 
 // Expects every `"key":` in `json`.
@@ -39,13 +53,11 @@ void ExpectKeys(const std::string& json, const std::vector<std::string>& keys) {
 }
 
 TEST(BenchSmoke, IntegratorsQuickWritesItsFiles) {
-  const std::string dir = FreshDir("felt_bench_integrators");
-  const std::string json = dir + "/integrators.json";
-  const Outcome outcome =
-      RunFelt("bench integrators --quick --out " + dir + " --json " + json + " --scene " + kSource +
-              "/scenes/curtain.toml --gnuplot-script " + kSource + "/bench/plot_integrators.gp");
-  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
-  const std::string text = ReadFile(json);
+  const BenchRun run =
+      RunBench("integrators", "--quick --gnuplot-script " + kSource + "/bench/plot_integrators.gp");
+  ASSERT_EQ(run.outcome.exit_code, 0) << run.outcome.output;
+  const std::string& dir = run.dir;
+  const std::string& text = run.json;
   ExpectKeys(text, {"command", "machine", "rows", "stable_steps", "references", "grid", "provot",
                     "integrator", "substeps", "frame_ms_median", "rms_error_m", "energy_drift",
                     "max_stretch", "stable", "h_max_s", "stable_dt_s", "ratio_to_stable_dt"});
@@ -66,12 +78,11 @@ TEST(BenchSmoke, IntegratorsQuickWritesItsFiles) {
 }
 
 TEST(BenchSmoke, StabilityQuickWritesItsFiles) {
-  const std::string dir = FreshDir("felt_bench_stability");
-  const std::string json = dir + "/stability.json";
-  const Outcome outcome = RunFelt("bench stability --quick --out " + dir + " --json " + json +
-                                  " --scene " + kSource + "/scenes/curtain.toml");
-  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
-  const std::string text = ReadFile(json);
+  const BenchRun run = RunBench("stability", "--quick");
+  ASSERT_EQ(run.outcome.exit_code, 0) << run.outcome.output;
+  const std::string& dir = run.dir;
+  const std::string& text = run.json;
+  const Outcome& outcome = run.outcome;
   ExpectKeys(text, {"command", "machine", "cases", "case", "parameters", "result", "criterion",
                     "pass", "metrics"});
   for (const char* name :
@@ -88,12 +99,10 @@ TEST(BenchSmoke, StabilityQuickWritesItsFiles) {
 }
 
 TEST(BenchSmoke, ClothOneGridWritesItsFiles) {
-  const std::string dir = FreshDir("felt_bench_cloth");
-  const std::string json = dir + "/cloth.json";
-  const Outcome outcome = RunFelt("bench cloth --grid 10 --out " + dir + " --json " + json +
-                                  " --scene " + kSource + "/scenes/curtain.toml");
-  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
-  const std::string text = ReadFile(json);
+  const BenchRun run = RunBench("cloth", "--grid 10");
+  ASSERT_EQ(run.outcome.exit_code, 0) << run.outcome.output;
+  const std::string& dir = run.dir;
+  const std::string& text = run.json;
   ExpectKeys(text, {"command", "machine", "grids", "grid", "frame_ms_median", "frame_ms_p99",
                     "max_stretch", "substeps", "particles", "springs"});
   EXPECT_NE(text.find("\"grid\": 10,"), std::string::npos) << text;
@@ -121,3 +130,4 @@ TEST(BenchSmoke, LoopsOneSecondWritesTheIssueKeys) {
 }
 
 }  // namespace
+}  // namespace felt::test

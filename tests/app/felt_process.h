@@ -48,4 +48,13 @@ inline Outcome RunFelt(const std::string& args) {
   return Outcome{run.exit_code, run.output};
 }
 
+/// Runs `felt <args>` and expects a refused input: exit code 2 and exactly the one line
+/// "felt: error: <message>\n" (no unit).
+inline void ExpectFeltError(const std::string& args, const std::string& message) {
+  SCOPED_TRACE("felt " + args);
+  const Outcome outcome = RunFelt(args);
+  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
+  EXPECT_EQ(outcome.output, "felt: error: " + message + "\n");
+}
+
 }  // namespace felt::test

@@ -10,13 +10,8 @@
 
 #include "tests/app/felt_process.h"
 
+namespace felt::test {
 namespace {
-
-using felt::test::kFelt;
-using felt::test::kPokeHoldTrace;
-using felt::test::Outcome;
-using felt::test::RunFelt;
-using felt::test::TempPath;
 
 class ReplayCommand : public testing::Test {
  protected:
@@ -26,11 +21,8 @@ class ReplayCommand : public testing::Test {
 };
 
 TEST_F(ReplayCommand, MissingTraceExitsTwo) {
-  const Outcome outcome = RunFelt("replay /nonexistent/felt_no.trace");
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output,
-            "felt: error: /nonexistent/felt_no.trace: cannot open for reading: No such file or "
-            "directory\n");
+  ExpectFeltError("replay /nonexistent/felt_no.trace",
+                  "/nonexistent/felt_no.trace: cannot open for reading: No such file or directory");
 }
 
 TEST_F(ReplayCommand, MalformedTraceExitsTwoWithFileAndLine) {
@@ -46,12 +38,9 @@ TEST_F(ReplayCommand, MalformedTraceExitsTwoWithFileAndLine) {
 }
 
 TEST_F(ReplayCommand, BadRateAndDurationExitTwo) {
-  Outcome outcome = RunFelt("replay " + kPokeHoldTrace + " --rate 0");
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output, "felt: error: --rate must be in (0, 100], got 0\n");
-  outcome = RunFelt("replay " + kPokeHoldTrace + " --duration -2");
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output, "felt: error: --duration must be in (0, 86400] s, got -2\n");
+  ExpectFeltError("replay " + kPokeHoldTrace + " --rate 0", "--rate must be in (0, 100], got 0");
+  ExpectFeltError("replay " + kPokeHoldTrace + " --duration -2",
+                  "--duration must be in (0, 86400] s, got -2");
 }
 
 TEST_F(ReplayCommand, NoServerGivesUpAfterTheDiscoveryTimeout) {
@@ -67,9 +56,9 @@ TEST_F(ReplayCommand, NoServerGivesUpAfterTheDiscoveryTimeout) {
 }
 
 TEST_F(ReplayCommand, RecordBadDurationExitsTwo) {
-  const Outcome outcome = RunFelt("record --out " + TempPath("record_bad.trace") + " --duration 0");
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output, "felt: error: --duration must be in (0, 86400] s, got 0\n");
+  ExpectFeltError("record --out " + TempPath("record_bad.trace") + " --duration 0",
+                  "--duration must be in (0, 86400] s, got 0");
 }
 
 }  // namespace
+}  // namespace felt::test

@@ -13,13 +13,10 @@
 
 #include "tests/app/felt_process.h"
 
+namespace felt::test {
 namespace {
 
-using felt::test::kFelt;
-using felt::test::Outcome;
-using felt::test::ReadFile;
-using felt::test::RunFelt;
-const std::string kScenes = felt::test::kSource + "/scenes";
+const std::string kScenes = kSource + "/scenes";
 
 // Writes `text` to a file of this test's own in the test temp directory; returns its path.
 std::string WriteTemp(const std::string& name, const std::string& text) {
@@ -47,38 +44,31 @@ name = "top"
 TEST(RunCommand, BadSceneExitsTwoWithFileLineFieldAndStartsNothing) {
   const std::string path =
       WriteTemp("felt_run_test_bad.toml", "[scene]\nname = \"bad\"\n[cloth]\nwidth = 1\n");
-  const Outcome outcome = RunFelt("run --scene " + path + " --fast");
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output,
-            "felt: error: " + path + ":4:1: cloth.width: must be in [2, 4096], got 1\n");
+  ExpectFeltError("run --scene " + path + " --fast",
+                  path + ":4:1: cloth.width: must be in [2, 4096], got 1");
   std::filesystem::remove(path);
 }
 
 TEST(RunCommand, UnknownKeyExitsTwo) {
   const std::string path =
       WriteTemp("felt_run_test_typo.toml", "[cloth]\n[cloth.structural]\nstifness_N_per_m = 5\n");
-  const Outcome outcome = RunFelt("run --scene " + path);
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output, "felt: error: " + path +
-                                ":3:1: cloth.structural.stifness_N_per_m: unknown key "
-                                "'stifness_N_per_m' in [cloth.structural] (did you mean "
-                                "'stiffness_N_per_m'?)\n");
+  ExpectFeltError("run --scene " + path, path +
+                                             ":3:1: cloth.structural.stifness_N_per_m: unknown key "
+                                             "'stifness_N_per_m' in [cloth.structural] (did you "
+                                             "mean 'stiffness_N_per_m'?)");
   std::filesystem::remove(path);
 }
 
 TEST(RunCommand, MissingSceneFileExitsTwo) {
-  const Outcome outcome = RunFelt("run --scene /nonexistent/felt_no_scene.toml");
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output,
-            "felt: error: /nonexistent/felt_no_scene.toml: cannot read scene file: No such file "
-            "or directory\n");
+  ExpectFeltError("run --scene /nonexistent/felt_no_scene.toml",
+                  "/nonexistent/felt_no_scene.toml: cannot read scene file: No such file or "
+                  "directory");
 }
 
 TEST(RunCommand, BadDurationExitsTwo) {
   const std::string path = WriteTemp("felt_run_test_duration.toml", kSmallScene);
-  const Outcome outcome = RunFelt("run --scene " + path + " --duration -1 --fast");
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output, "felt: error: --duration must be in (0, 86400] s, got -1\n");
+  ExpectFeltError("run --scene " + path + " --duration -1 --fast",
+                  "--duration must be in (0, 86400] s, got -1");
   std::filesystem::remove(path);
 }
 
@@ -130,3 +120,4 @@ TEST(RunCommand, DefaultCurtainRuns) {
 }
 
 }  // namespace
+}  // namespace felt::test

@@ -17,15 +17,10 @@
 
 #include "tests/app/felt_process.h"
 
+namespace felt::test {
 namespace {
 
-using felt::test::kFelt;
-using felt::test::Outcome;
-using felt::test::ReadFile;
-using felt::test::RunFelt;
-using felt::test::TempPath;
-const std::string kScene = felt::test::kSource + "/scenes/curtain.toml";
-using felt::test::kPokeHoldTrace;
+const std::string kScene = kSource + "/scenes/curtain.toml";
 
 // A DDS domain for this test process: 160..199, away from 0 and the transport tests' 42.
 std::string Domain() { return std::to_string(160 + getpid() % 40); }
@@ -172,19 +167,15 @@ TEST_F(SoakCommand, SigtermStopsBothChildrenAndLeavesNoOrphan) {
 
 TEST_F(SoakCommand, BadInputExitsTwoNamingWhatWasWrong) {
   // A missing trace.
-  Outcome outcome =
-      RunFelt("soak --minutes 0.1 --scene " + kScene + " --trace /nonexistent/felt_no.trace");
-  EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
-  EXPECT_EQ(outcome.output,
-            "felt: error: /nonexistent/felt_no.trace: cannot open for reading: No such file or "
-            "directory\n");
+  ExpectFeltError("soak --minutes 0.1 --scene " + kScene + " --trace /nonexistent/felt_no.trace",
+                  "/nonexistent/felt_no.trace: cannot open for reading: No such file or directory");
 
   // A malformed trace: the file and the line.
   const std::string bad = TempPath("soak_bad.trace");
   std::ofstream(bad) << "# felt-trace v1\n# units: m, s, m/s\n# rate_hz: 1000\n# device: d\n"
                         "# source: test\n# frame: device\nt_s,x,y,z,vx,vy,vz,buttons\n"
                         "0,0,0,0,0,0,0,0\n0.001,0,zero,0,0,0,0,0\n";
-  outcome = RunFelt("soak --minutes 0.1 --scene " + kScene + " --trace " + bad);
+  Outcome outcome = RunFelt("soak --minutes 0.1 --scene " + kScene + " --trace " + bad);
   EXPECT_EQ(outcome.exit_code, 2) << outcome.output;
   EXPECT_EQ(outcome.output.rfind("felt: error: " + bad + ":9: ", 0), 0u) << outcome.output;
   std::filesystem::remove(bad);
@@ -202,3 +193,4 @@ TEST_F(SoakCommand, BadInputExitsTwoNamingWhatWasWrong) {
 }
 
 }  // namespace
+}  // namespace felt::test
