@@ -3,24 +3,6 @@
 #include <cmath>
 
 namespace felt {
-namespace {
-
-/// The name part of a BVH repair strategy, e.g. "-bottomup".
-const char* RepairSuffix(BvhRepair repair) {
-  switch (repair) {
-    case BvhRepair::kBottomUp:
-      return "-bottomup";
-    case BvhRepair::kTopDown:
-      return "-topdown";
-    case BvhRepair::kRebuild:
-      return "-rebuild";
-    case BvhRepair::kBottomUpQueue:
-      return "-queue";
-  }
-  return "";
-}
-
-}  // namespace
 
 CollisionStructure MakeCollisionStructure(const CollisionStructureSpec& spec,
                                           std::shared_ptr<const std::vector<Triangle>> triangles,
@@ -49,7 +31,20 @@ std::string CollisionStructureName(const CollisionStructureSpec& spec) {
   std::string name = "bvh-";
   name += o.volume == BoundingVolume::kSphere ? "sphere-" : "aabb-";
   name += std::to_string(o.arity);
-  name += RepairSuffix(o.repair);
+  switch (o.repair) {
+    case BvhRepair::kBottomUp:
+      name += "-bottomup";
+      break;
+    case BvhRepair::kTopDown:
+      name += "-topdown";
+      break;
+    case BvhRepair::kRebuild:
+      name += "-rebuild";
+      break;
+    case BvhRepair::kBottomUpQueue:
+      name += "-queue";
+      break;
+  }
   if (o.inflation_m > 0.0) {
     name += "-d" + std::to_string(static_cast<int>(std::lround(o.inflation_m * 1e3))) + "mm";
   }
