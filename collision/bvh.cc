@@ -736,8 +736,7 @@ struct BvhImpl {
       if (!Ops::Near(bv[node], acc->p, reach)) continue;
       if (t.is_leaf(node)) {
         const int32_t tri = h.order_[t.begin[node]];
-        const Triangle& tr = tris[tri];
-        acc->Test(tri, x[tr[0]], x[tr[1]], x[tr[2]]);
+        acc->Test(tri, tris[tri], x);
         continue;
       }
       for (int32_t k = t.num_children[node] - 1; k >= 0; --k) {
@@ -867,10 +866,7 @@ WithinResult Bvh::TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double
 SweepHit Bvh::SweepSphere(std::span<const Vec3> x, const Vec3& p0, const Vec3& p1, double r) const {
   SweepAccumulator acc{p0, p1, r, {}};
   const std::vector<Triangle>& tris = *triangles_;
-  const auto test = [&](int32_t tri) {
-    const Triangle& t = tris[tri];
-    acc.Test(tri, x[t[0]], x[t[1]], x[t[2]]);
-  };
+  const auto test = [&](int32_t tri) { acc.Test(tri, tris[tri], x); };
   if (options_.volume == BoundingVolume::kAabb) {
     BvhImpl<AabbOps>::Segment(*this, p0, p1, r, acc, test);
   } else {
@@ -882,21 +878,15 @@ SweepHit Bvh::SweepSphere(std::span<const Vec3> x, const Vec3& p0, const Vec3& p
 SweepHit Bvh::SweepSphereMoving(std::span<const Vec3> x_old, std::span<const Vec3> x_new,
                                 const Vec3& c0, const Vec3& c1, double r,
                                 const MovingContactOptions& options) const {
-  MovingAccumulator acc{c0, c1, r, options, {}};
-  const std::vector<Triangle>& tris = *triangles_;
-  const auto test = [&](int32_t tri) {
-    const Triangle& t = tris[tri];
-    acc.Test(tri, x_old[t[0]], x_old[t[1]], x_old[t[2]], x_new[t[0]], x_new[t[1]], x_new[t[2]]);
-  };
-  if (!covers_motion_) {
-    // The volumes do not bound the motion: test every triangle (correct, O(n)).
-    for (size_t i = 0; i < tris.size(); ++i) test(static_cast<int32_t>(i));
-  } else if (options_.volume == BoundingVolume::kAabb) {
-    BvhImpl<AabbOps>::Segment(*this, c0, c1, r, acc, test);
-  } else {
-    BvhImpl<SphereOps>::Segment(*this, c0, c1, r, acc, test);
-  }
-  return acc.keep.best;
+  // Without covers_motion_ the volumes do not bound the motion: every triangle (correct, O(n)).
+  return SweepMovingOver(*triangles_, x_old, x_new, c0, c1, r, options, covers_motion_,
+                         [&](const auto& test, const MovingAccumulator& acc) {
+                           if (options_.volume == BoundingVolume::kAabb) {
+                             BvhImpl<AabbOps>::Segment(*this, c0, c1, r, acc, test);
+                           } else {
+                             BvhImpl<SphereOps>::Segment(*this, c0, c1, r, acc, test);
+                           }
+                         });
 }
 
 }  // namespace felt

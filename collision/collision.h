@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <limits>
 #include <span>
+#include <vector>
 
 #include "collision/geometry.h"
 #include "collision/mesh.h"
@@ -62,12 +63,24 @@ inline double CullSlack(const Vec3& p0, const Vec3& p1, double r) {
   return 1e-9 * (1.0 + r + p0.cwiseAbs().maxCoeff() + p1.cwiseAbs().maxCoeff());
 }
 
+/// Calls test(i) for every triangle index i in [0, count): the whole of NaiveCollision's queries
+/// and every other structure's fallback when culling would cost more. Real-time safe.
+template <class Test>
+inline void TestEveryTriangle(size_t count, Test&& test) {
+  for (size_t i = 0; i < count; ++i) test(static_cast<int32_t>(i));
+}
+
 /// Query 1's per-triangle step: tests one triangle and records it when within r. Real-time safe.
 struct WithinAccumulator {
   Vec3 p;                       ///< query point, m
   double r = 0.0;               ///< reach, m
   std::span<PointContact> out;  ///< caller's buffer
   WithinResult result;
+
+  /// Tests triangle `tri`, whose corners are x[t[0..2]] (x: positions, m).
+  void Test(int32_t tri, const Triangle& t, std::span<const Vec3> x) {
+    Test(tri, x[t[0]], x[t[1]], x[t[2]]);
+  }
 
   void Test(int32_t tri, const Vec3& a, const Vec3& b, const Vec3& c) {
     const TrianglePoint cp = ClosestPointOnTriangle(p, a, b, c);
@@ -89,6 +102,11 @@ struct SweepAccumulator {
 
   /// The toi beyond which no triangle can improve the result (for pruning).
   double bound() const { return best.hit ? best.toi : std::numeric_limits<double>::infinity(); }
+
+  /// Tests triangle `tri`, whose corners are x[t[0..2]] (x: positions, m).
+  void Test(int32_t tri, const Triangle& t, std::span<const Vec3> x) {
+    Test(tri, x[t[0]], x[t[1]], x[t[2]]);
+  }
 
   void Test(int32_t tri, const Vec3& a, const Vec3& b, const Vec3& c) {
     const SweepContact sc = SweepSphereTriangle(p0, p1, r, a, b, c);
@@ -113,10 +131,33 @@ struct MovingAccumulator {
 
   double bound() const { return keep.bound(); }
 
+  /// Tests triangle `tri`, whose corners move from x_old[t[0..2]] to x_new[t[0..2]] (m).
+  void Test(int32_t tri, const Triangle& t, std::span<const Vec3> x_old,
+            std::span<const Vec3> x_new) {
+    Test(tri, x_old[t[0]], x_old[t[1]], x_old[t[2]], x_new[t[0]], x_new[t[1]], x_new[t[2]]);
+  }
+
   void Test(int32_t tri, const Vec3& a0, const Vec3& b0, const Vec3& c0v, const Vec3& a1,
             const Vec3& b1, const Vec3& c1v) {
     keep.Keep(tri, MovingTriangleSphereContact(c0, c1, r, a0, b0, c0v, a1, b1, c1v, options));
   }
 };
+
+/// Query 3 on any structure: runs a MovingAccumulator (sphere c0 -> c1 of radius r, m; corners
+/// x_old -> x_new, m) over the triangles that cull(test, acc) passes to test when `culls` (the
+/// structure bounds the motion), else over every triangle. Real-time safe.
+template <class Cull>
+SweepHit SweepMovingOver(const std::vector<Triangle>& tris, std::span<const Vec3> x_old,
+                         std::span<const Vec3> x_new, const Vec3& c0, const Vec3& c1, double r,
+                         const MovingContactOptions& options, bool culls, Cull&& cull) {
+  MovingAccumulator acc{c0, c1, r, options, {}};
+  const auto test = [&](int32_t tri) { acc.Test(tri, tris[tri], x_old, x_new); };
+  if (culls) {
+    cull(test, acc);
+  } else {
+    TestEveryTriangle(tris.size(), test);
+  }
+  return acc.keep.best;
+}
 
 }  // namespace felt

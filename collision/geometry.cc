@@ -60,6 +60,16 @@ double RayCylinderEntry(const Vec3& p0, const Vec3& d, const Vec3& e0, const Vec
   return t;
 }
 
+/// The triangle point `point` (world, m) with its barycentric weights of (a, b, c), and its
+/// squared distance |p - point|^2 (m^2) to the query point p (world, m).
+TrianglePoint TriangleAt(const Vec3& p, const Vec3& point, const Vec3& barycentric) {
+  TrianglePoint out;
+  out.point = point;
+  out.barycentric = barycentric;
+  out.distance_sq = (p - point).squaredNorm();
+  return out;
+}
+
 }  // namespace
 
 SegmentPoint ClosestPointOnSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
@@ -108,67 +118,40 @@ TrianglePoint ClosestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b
   const double d1 = ab.dot(ap);
   const double d2 = ac.dot(ap);
   // Vertex region of a.
-  if (d1 <= 0.0 && d2 <= 0.0) {
-    out.point = a;
-    out.barycentric = Vec3(1, 0, 0);
-    out.distance_sq = ap.squaredNorm();
-    return out;
-  }
+  if (d1 <= 0.0 && d2 <= 0.0) return TriangleAt(p, a, Vec3(1, 0, 0));
   const Vec3 bp = p - b;
   const double d3 = ab.dot(bp);
   const double d4 = ac.dot(bp);
   // Vertex region of b.
-  if (d3 >= 0.0 && d4 <= d3) {
-    out.point = b;
-    out.barycentric = Vec3(0, 1, 0);
-    out.distance_sq = bp.squaredNorm();
-    return out;
-  }
+  if (d3 >= 0.0 && d4 <= d3) return TriangleAt(p, b, Vec3(0, 1, 0));
   // Edge region of ab.
   const double vc = d1 * d4 - d3 * d2;
   if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
     const double v = d1 / (d1 - d3);
-    out.point = a + v * ab;
-    out.barycentric = Vec3(1.0 - v, v, 0.0);
-    out.distance_sq = (p - out.point).squaredNorm();
-    return out;
+    return TriangleAt(p, a + v * ab, Vec3(1.0 - v, v, 0.0));
   }
   const Vec3 cp = p - c;
   const double d5 = ab.dot(cp);
   const double d6 = ac.dot(cp);
   // Vertex region of c.
-  if (d6 >= 0.0 && d5 <= d6) {
-    out.point = c;
-    out.barycentric = Vec3(0, 0, 1);
-    out.distance_sq = cp.squaredNorm();
-    return out;
-  }
+  if (d6 >= 0.0 && d5 <= d6) return TriangleAt(p, c, Vec3(0, 0, 1));
   // Edge region of ac.
   const double vb = d5 * d2 - d1 * d6;
   if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
     const double w = d2 / (d2 - d6);
-    out.point = a + w * ac;
-    out.barycentric = Vec3(1.0 - w, 0.0, w);
-    out.distance_sq = (p - out.point).squaredNorm();
-    return out;
+    return TriangleAt(p, a + w * ac, Vec3(1.0 - w, 0.0, w));
   }
   // Edge region of bc.
   const double va = d3 * d6 - d5 * d4;
   if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
     const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    out.point = b + w * (c - b);
-    out.barycentric = Vec3(0.0, 1.0 - w, w);
-    out.distance_sq = (p - out.point).squaredNorm();
-    return out;
+    return TriangleAt(p, b + w * (c - b), Vec3(0.0, 1.0 - w, w));
   }
   // Face region: barycentrics from the signed sub-areas.
   const double denom = 1.0 / (va + vb + vc);
   const double v = vb * denom;
   const double w = vc * denom;
-  out.point = a + v * ab + w * ac;
-  out.barycentric = Vec3(1.0 - v - w, v, w);
-  out.distance_sq = (p - out.point).squaredNorm();
-  return out;
+  return TriangleAt(p, a + v * ab + w * ac, Vec3(1.0 - v - w, v, w));
 }
 
 SweepContact SweepSphereTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3& a,

@@ -22,9 +22,7 @@ WithinResult NaiveCollision::TrianglesWithin(std::span<const Vec3> x, const Vec3
                                              std::span<PointContact> out) const {
   WithinAccumulator acc{p, r, out, {}};
   const std::vector<Triangle>& tris = *triangles_;
-  for (size_t i = 0; i < tris.size(); ++i) {
-    acc.Test(static_cast<int32_t>(i), x[tris[i][0]], x[tris[i][1]], x[tris[i][2]]);
-  }
+  TestEveryTriangle(tris.size(), [&](int32_t tri) { acc.Test(tri, tris[tri], x); });
   return acc.result;
 }
 
@@ -32,23 +30,15 @@ SweepHit NaiveCollision::SweepSphere(std::span<const Vec3> x, const Vec3& p0, co
                                      double r) const {
   SweepAccumulator acc{p0, p1, r, {}};
   const std::vector<Triangle>& tris = *triangles_;
-  for (size_t i = 0; i < tris.size(); ++i) {
-    acc.Test(static_cast<int32_t>(i), x[tris[i][0]], x[tris[i][1]], x[tris[i][2]]);
-  }
+  TestEveryTriangle(tris.size(), [&](int32_t tri) { acc.Test(tri, tris[tri], x); });
   return acc.best;
 }
 
 SweepHit NaiveCollision::SweepSphereMoving(std::span<const Vec3> x_old, std::span<const Vec3> x_new,
                                            const Vec3& c0, const Vec3& c1, double r,
                                            const MovingContactOptions& options) const {
-  MovingAccumulator acc{c0, c1, r, options, {}};
-  const std::vector<Triangle>& tris = *triangles_;
-  for (size_t i = 0; i < tris.size(); ++i) {
-    const Triangle& t = tris[i];
-    acc.Test(static_cast<int32_t>(i), x_old[t[0]], x_old[t[1]], x_old[t[2]], x_new[t[0]],
-             x_new[t[1]], x_new[t[2]]);
-  }
-  return acc.keep.best;
+  return SweepMovingOver(*triangles_, x_old, x_new, c0, c1, r, options, /*culls=*/false,
+                         [](const auto&, const MovingAccumulator&) {});
 }
 
 }  // namespace felt

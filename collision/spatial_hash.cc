@@ -159,24 +159,8 @@ RepairStats SpatialHash::Rehash(std::span<const Vec3> x0, std::span<const Vec3> 
   return stats;
 }
 
-WithinResult SpatialHash::TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
-                                          std::span<PointContact> out) const {
-  WithinAccumulator acc{p, r, out, {}};
-  const std::vector<Triangle>& tris = *triangles_;
-  const auto test = [&](int32_t tri) {
-    const Triangle& t = tris[tri];
-    acc.Test(tri, x[t[0]], x[t[1]], x[t[2]]);
-  };
-  const double reach = r + CullSlack(p, p, r);
-  const CellRange q = CellsOf(p.array() - reach, p.array() + reach);
-  const int64_t cells =
-      int64_t{q.hi[0] - q.lo[0] + 1} * (q.hi[1] - q.lo[1] + 1) * (q.hi[2] - q.lo[2] + 1);
-  if (cells > std::max<int64_t>(64, static_cast<int64_t>(tris.size()))) {
-    // A query box wider than the cloth's worth of cells: testing everything is cheaper.
-    for (size_t i = 0; i < tris.size(); ++i) test(static_cast<int32_t>(i));
-    return acc.result;
-  }
-  for (int32_t k = 0; k < num_oversized_; ++k) test(oversized_[k]);
+template <class Test>
+void SpatialHash::VisitCells(const CellRange& q, Test&& test) const {
   for (int32_t iz = q.lo[2]; iz <= q.hi[2]; ++iz) {
     for (int32_t iy = q.lo[1]; iy <= q.hi[1]; ++iy) {
       for (int32_t ix = q.lo[0]; ix <= q.hi[0]; ++ix) {
@@ -199,6 +183,24 @@ WithinResult SpatialHash::TrianglesWithin(std::span<const Vec3> x, const Vec3& p
       }
     }
   }
+}
+
+WithinResult SpatialHash::TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
+                                          std::span<PointContact> out) const {
+  WithinAccumulator acc{p, r, out, {}};
+  const std::vector<Triangle>& tris = *triangles_;
+  const auto test = [&](int32_t tri) { acc.Test(tri, tris[tri], x); };
+  const double reach = r + CullSlack(p, p, r);
+  const CellRange q = CellsOf(p.array() - reach, p.array() + reach);
+  const int64_t cells =
+      int64_t{q.hi[0] - q.lo[0] + 1} * (q.hi[1] - q.lo[1] + 1) * (q.hi[2] - q.lo[2] + 1);
+  if (cells > std::max<int64_t>(64, static_cast<int64_t>(tris.size()))) {
+    // A query box wider than the cloth's worth of cells: testing everything is cheaper.
+    TestEveryTriangle(tris.size(), test);
+    return acc.result;
+  }
+  for (int32_t k = 0; k < num_oversized_; ++k) test(oversized_[k]);
+  VisitCells(q, test);
   return acc.result;
 }
 
@@ -236,7 +238,7 @@ void SpatialHash::WalkSegment(const Vec3& p0, const Vec3& p1, double r, Test&& t
   if (pieces * span_cells * span_cells * span_cells >
       std::max<int64_t>(64, static_cast<int64_t>(tris.size()))) {
     // Too many cells to visit: testing every triangle is cheaper (and exact).
-    for (size_t i = 0; i < tris.size(); ++i) test(static_cast<int32_t>(i));
+    TestEveryTriangle(tris.size(), test);
     return;
   }
   for (int64_t k = 0; k < pieces; ++k) {
@@ -246,27 +248,7 @@ void SpatialHash::WalkSegment(const Vec3& p0, const Vec3& p1, double r, Test&& t
     if (ts > bound()) return;
     const Vec3 a = p0 + ts * d;
     const Vec3 b = p0 + te * d;
-    const CellRange q = CellsOf(a.cwiseMin(b).array() - reach, a.cwiseMax(b).array() + reach);
-    for (int32_t iz = q.lo[2]; iz <= q.hi[2]; ++iz) {
-      for (int32_t iy = q.lo[1]; iy <= q.hi[1]; ++iy) {
-        for (int32_t ix = q.lo[0]; ix <= q.hi[0]; ++ix) {
-          const int32_t bkt = Bucket(ix, iy, iz);
-          for (int32_t e = bucket_start_[bkt]; e < bucket_start_[bkt + 1]; ++e) {
-            const int32_t tri = entries_[e];
-            const CellRange& c = range_[tri];
-            if (ix < c.lo[0] || ix > c.hi[0] || iy < c.lo[1] || iy > c.hi[1] || iz < c.lo[2] ||
-                iz > c.hi[2]) {
-              continue;
-            }
-            if (ix != std::max(c.lo[0], q.lo[0]) || iy != std::max(c.lo[1], q.lo[1]) ||
-                iz != std::max(c.lo[2], q.lo[2])) {
-              continue;
-            }
-            test(tri);
-          }
-        }
-      }
-    }
+    VisitCells(CellsOf(a.cwiseMin(b).array() - reach, a.cwiseMax(b).array() + reach), test);
   }
 }
 
@@ -275,30 +257,17 @@ SweepHit SpatialHash::SweepSphere(std::span<const Vec3> x, const Vec3& p0, const
   SweepAccumulator acc{p0, p1, r, {}};
   const std::vector<Triangle>& tris = *triangles_;
   WalkSegment(
-      p0, p1, r,
-      [&](int32_t tri) {
-        const Triangle& t = tris[tri];
-        acc.Test(tri, x[t[0]], x[t[1]], x[t[2]]);
-      },
-      [&] { return acc.bound(); });
+      p0, p1, r, [&](int32_t tri) { acc.Test(tri, tris[tri], x); }, [&] { return acc.bound(); });
   return acc.best;
 }
 
 SweepHit SpatialHash::SweepSphereMoving(std::span<const Vec3> x_old, std::span<const Vec3> x_new,
                                         const Vec3& c0, const Vec3& c1, double r,
                                         const MovingContactOptions& options) const {
-  MovingAccumulator acc{c0, c1, r, options, {}};
-  const std::vector<Triangle>& tris = *triangles_;
-  const auto test = [&](int32_t tri) {
-    const Triangle& t = tris[tri];
-    acc.Test(tri, x_old[t[0]], x_old[t[1]], x_old[t[2]], x_new[t[0]], x_new[t[1]], x_new[t[2]]);
-  };
-  if (!covers_motion_) {
-    for (size_t i = 0; i < tris.size(); ++i) test(static_cast<int32_t>(i));
-    return acc.keep.best;
-  }
-  WalkSegment(c0, c1, r, test, [&] { return acc.bound(); });
-  return acc.keep.best;
+  return SweepMovingOver(*triangles_, x_old, x_new, c0, c1, r, options, covers_motion_,
+                         [&](const auto& test, const MovingAccumulator& acc) {
+                           WalkSegment(c0, c1, r, test, [&] { return acc.bound(); });
+                         });
 }
 
 }  // namespace felt

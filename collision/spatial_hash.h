@@ -77,6 +77,10 @@ class SpatialHash {
   RepairStats Rehash(std::span<const Vec3> x0, std::span<const Vec3> x1);
   CellRange CellsOf(const Vec3& lo, const Vec3& hi) const;
   int32_t Bucket(int32_t ix, int32_t iy, int32_t iz) const;
+  /// Calls test(triangle) once for each hashed triangle whose cell range overlaps the cells q,
+  /// in the first cell of q the two share (hash collisions skipped). Real-time safe.
+  template <class Test>
+  void VisitCells(const CellRange& q, Test&& test) const;
   template <class Test, class Bound>
   void WalkSegment(const Vec3& p0, const Vec3& p1, double r, Test&& test, Bound&& bound) const;
 

@@ -4,6 +4,25 @@
 #include <utility>
 
 namespace felt {
+namespace {
+
+/// `count` default slots, one device each; each on its own heap block, since a slot holds atomics
+/// and a triple buffer, which never move.
+template <class Slot>
+std::vector<std::unique_ptr<Slot>> MakeSlots(uint32_t count) {
+  std::vector<std::unique_ptr<Slot>> slots;
+  for (uint32_t d = 0; d < count; ++d) slots.push_back(std::make_unique<Slot>());
+  return slots;
+}
+
+/// Writes `value` into the writer's slot of `buffer` and publishes it. Real-time safe.
+template <class T>
+void PublishValue(TripleBuffer<T>& buffer, const T& value) {
+  buffer.write_slot() = value;
+  buffer.Publish();
+}
+
+}  // namespace
 
 TracePointerSource::TracePointerSource(std::vector<std::vector<TraceSample>> traces) {
   cursors_.resize(traces.size());
@@ -41,14 +60,13 @@ bool TracePointerSource::finished() const {
 }
 
 LatestPointerSource::LatestPointerSource(uint32_t device_count) {
-  for (uint32_t d = 0; d < device_count; ++d) slots_.push_back(std::make_unique<Slot>());
+  slots_ = MakeSlots<Slot>(device_count);
 }
 
 void LatestPointerSource::Set(uint32_t device_index, const PointerInput& sample) {
   if (device_index >= slots_.size()) return;
   Slot& slot = *slots_[device_index];
-  slot.buffer.write_slot() = sample;
-  slot.buffer.Publish();
+  PublishValue(slot.buffer, sample);
   slot.any.store(true, std::memory_order_release);
 }
 
@@ -62,14 +80,13 @@ bool LatestPointerSource::Latest(uint32_t device_index, int64_t /*now_ns*/, Poin
 }
 
 CapturingForceSink::CapturingForceSink(uint32_t device_count) {
-  for (uint32_t d = 0; d < device_count; ++d) slots_.push_back(std::make_unique<Slot>());
+  slots_ = MakeSlots<Slot>(device_count);
 }
 
 void CapturingForceSink::Push(uint32_t device_index, const ForceOutput& force) {
   if (device_index >= slots_.size()) return;
   Slot& slot = *slots_[device_index];
-  slot.buffer.write_slot() = force;
-  slot.buffer.Publish();
+  PublishValue(slot.buffer, force);
   const double norm = force.force_D_N.norm();
   if (norm > slot.peak_N.load(std::memory_order_relaxed)) {
     slot.peak_N.store(norm, std::memory_order_relaxed);

@@ -100,15 +100,23 @@ int FindColumn(const std::vector<std::string>& names, std::string_view name) {
   return -1;
 }
 
-ParsedSource ReadCsv(const std::string& path, const ImportOptions& options) {
+/// Opens `path` (a text source) and reads its first line, the header, into *header. Throws
+/// TraceError naming the file when it cannot be opened (line 0) or is empty (line 1, "empty file:
+/// expected " + `expected`).
+std::ifstream OpenWithHeader(const std::string& path, const char* expected, std::string* header) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw TraceError(path, 0, "cannot open for reading: " + std::string(strerror(errno)));
-  std::string line;
-  int64_t line_no = 0;
+  if (!std::getline(in, *header)) {
+    throw TraceError(path, 1, std::string("empty file: expected ") + expected);
+  }
+  return in;
+}
 
+ParsedSource ReadCsv(const std::string& path, const ImportOptions& options) {
+  std::string line;
   // Header row: column names.
-  if (!std::getline(in, line)) throw TraceError(path, 1, "empty file: expected a header row");
-  ++line_no;
+  std::ifstream in = OpenWithHeader(path, "a header row", &line);
+  int64_t line_no = 1;
   std::vector<std::string> names;
   for (std::string_view name : Split(line, ',')) names.emplace_back(name);
   for (size_t i = 0; i < names.size(); ++i) {
@@ -230,14 +238,10 @@ const std::map<std::string, int, std::less<>>& DeviceLogArity() {
 }
 
 ParsedSource ReadDeviceLog(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw TraceError(path, 0, "cannot open for reading: " + std::string(strerror(errno)));
   std::string line;
-  int64_t line_no = 0;
-
   // The first line names the logged fields.
-  if (!std::getline(in, line)) throw TraceError(path, 1, "empty file: expected a DeviceLog header");
-  ++line_no;
+  std::ifstream in = OpenWithHeader(path, "a DeviceLog header", &line);
+  int64_t line_no = 1;
   const std::vector<std::string_view> tokens = SplitWhitespace(line);
   if (tokens.empty()) throw TraceError(path, 1, "DeviceLog header: no field names");
   std::vector<std::string> column_names;  // one per number, e.g. RAW_POSITION.x

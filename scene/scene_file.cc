@@ -263,6 +263,12 @@ std::string SceneTable::FieldPath(std::string_view key) const {
 
 const toml::node* SceneTable::Node(std::string_view key) const { return table_->get(key); }
 
+const toml::node* SceneTable::NodeOrDefault(std::string_view key, bool has_default) const {
+  const toml::node* node = Node(key);
+  if (node == nullptr && !has_default) Fail(key, "missing required key '" + std::string(key) + "'");
+  return node;
+}
+
 bool SceneTable::Has(std::string_view key) const { return table_->contains(key); }
 
 void SceneTable::Fail(std::string_view key, std::string_view rule) const {
@@ -320,11 +326,8 @@ void SceneTable::ExpectKeys(std::initializer_list<std::string_view> known) const
 
 double SceneTable::Number(std::string_view key, std::optional<double> default_value,
                           NumberLimits limits) const {
-  const toml::node* node = Node(key);
-  if (node == nullptr) {
-    if (!default_value) Fail(key, "missing required key '" + std::string(key) + "'");
-    return *default_value;
-  }
+  const toml::node* node = NodeOrDefault(key, default_value.has_value());
+  if (node == nullptr) return *default_value;
   double value = 0.0;
   if (const auto* integer = node->as_integer()) {
     value = static_cast<double>(integer->get());
@@ -341,11 +344,8 @@ double SceneTable::Number(std::string_view key, std::optional<double> default_va
 
 int32_t SceneTable::Integer(std::string_view key, std::optional<int32_t> default_value,
                             NumberLimits limits) const {
-  const toml::node* node = Node(key);
-  if (node == nullptr) {
-    if (!default_value) Fail(key, "missing required key '" + std::string(key) + "'");
-    return *default_value;
-  }
+  const toml::node* node = NodeOrDefault(key, default_value.has_value());
+  if (node == nullptr) return *default_value;
   const auto* integer = node->as_integer();
   if (integer == nullptr) Fail(key, "must be an integer, got " + DescribeSceneValue(*node));
   const int64_t value = integer->get();
@@ -359,11 +359,8 @@ int32_t SceneTable::Integer(std::string_view key, std::optional<int32_t> default
 }
 
 bool SceneTable::Bool(std::string_view key, std::optional<bool> default_value) const {
-  const toml::node* node = Node(key);
-  if (node == nullptr) {
-    if (!default_value) Fail(key, "missing required key '" + std::string(key) + "'");
-    return *default_value;
-  }
+  const toml::node* node = NodeOrDefault(key, default_value.has_value());
+  if (node == nullptr) return *default_value;
   const auto* boolean = node->as_boolean();
   if (boolean == nullptr) Fail(key, "must be true or false, got " + DescribeSceneValue(*node));
   return boolean->get();
@@ -371,11 +368,8 @@ bool SceneTable::Bool(std::string_view key, std::optional<bool> default_value) c
 
 std::string SceneTable::String(std::string_view key, std::optional<std::string> default_value,
                                bool non_empty) const {
-  const toml::node* node = Node(key);
-  if (node == nullptr) {
-    if (!default_value) Fail(key, "missing required key '" + std::string(key) + "'");
-    return *std::move(default_value);
-  }
+  const toml::node* node = NodeOrDefault(key, default_value.has_value());
+  if (node == nullptr) return *std::move(default_value);
   const auto* string = node->as_string();
   if (string == nullptr) Fail(key, "must be a string, got " + DescribeSceneValue(*node));
   if (non_empty && string->get().empty()) Fail(key, "must not be empty");
@@ -383,11 +377,8 @@ std::string SceneTable::String(std::string_view key, std::optional<std::string> 
 }
 
 Vec3 SceneTable::Vector(std::string_view key, std::optional<Vec3> default_value) const {
-  const toml::node* node = Node(key);
-  if (node == nullptr) {
-    if (!default_value) Fail(key, "missing required key '" + std::string(key) + "'");
-    return *default_value;
-  }
+  const toml::node* node = NodeOrDefault(key, default_value.has_value());
+  if (node == nullptr) return *default_value;
   const auto* array = node->as_array();
   if (array == nullptr || array->size() != 3) {
     Fail(key, "must be an array of 3 numbers [x, y, z], got " + DescribeSceneValue(*node));

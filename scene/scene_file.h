@@ -211,6 +211,10 @@ class SceneTable {
   const toml::table& table() const { return *table_; }
 
  private:
+  /// The node at `key`, or nullptr when it is absent and the caller has a default to return;
+  /// Fail("missing required key '<key>'") when it is absent without one.
+  const toml::node* NodeOrDefault(std::string_view key, bool has_default) const;
+
   SceneTable(const SceneDocument* doc, const toml::table* table, std::string path)
       : doc_(doc), table_(table), path_(std::move(path)) {}
 

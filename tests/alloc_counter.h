@@ -64,6 +64,18 @@ inline thread_local uint64_t thread_allocations = 0;
 inline constexpr bool kCountsMalloc = FELT_ALLOC_COUNTER_COUNTS_MALLOC != 0;
 /// Defined only by FELT_DEFINE_ALLOC_COUNTER(): links the guard to the counting operator new.
 bool Installed() noexcept;
+
+/// Runs `allocate` (one of the counted allocations below) for a nothrow operator new: the block
+/// it returns, or nullptr where it throws (std::bad_alloc).
+template <class Allocate>
+void* NoThrow(Allocate allocate) noexcept {
+  try {
+    return allocate();
+  } catch (...) {
+    return nullptr;
+  }
+}
+
 }  // namespace alloc_counter_detail
 
 /// Allocation calls made by the calling thread since it started: operator new in every form
@@ -120,18 +132,12 @@ class AllocationGuard {
   void* operator new(std::size_t size) { return felt::alloc_counter_detail::Allocate(size); }      \
   void* operator new[](std::size_t size) { return felt::alloc_counter_detail::Allocate(size); }    \
   void* operator new(std::size_t size, const std::nothrow_t&) noexcept {                           \
-    try {                                                                                          \
-      return felt::alloc_counter_detail::Allocate(size);                                           \
-    } catch (...) {                                                                                \
-      return nullptr;                                                                              \
-    }                                                                                              \
+    return felt::alloc_counter_detail::NoThrow(                                                    \
+        [=] { return felt::alloc_counter_detail::Allocate(size); });                               \
   }                                                                                                \
   void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {                         \
-    try {                                                                                          \
-      return felt::alloc_counter_detail::Allocate(size);                                           \
-    } catch (...) {                                                                                \
-      return nullptr;                                                                              \
-    }                                                                                              \
+    return felt::alloc_counter_detail::NoThrow(                                                    \
+        [=] { return felt::alloc_counter_detail::Allocate(size); });                               \
   }                                                                                                \
   void* operator new(std::size_t size, std::align_val_t align) {                                   \
     return felt::alloc_counter_detail::AllocateAligned(size, align);                               \
@@ -140,18 +146,12 @@ class AllocationGuard {
     return felt::alloc_counter_detail::AllocateAligned(size, align);                               \
   }                                                                                                \
   void* operator new(std::size_t size, std::align_val_t align, const std::nothrow_t&) noexcept {   \
-    try {                                                                                          \
-      return felt::alloc_counter_detail::AllocateAligned(size, align);                             \
-    } catch (...) {                                                                                \
-      return nullptr;                                                                              \
-    }                                                                                              \
+    return felt::alloc_counter_detail::NoThrow(                                                    \
+        [=] { return felt::alloc_counter_detail::AllocateAligned(size, align); });                 \
   }                                                                                                \
   void* operator new[](std::size_t size, std::align_val_t align, const std::nothrow_t&) noexcept { \
-    try {                                                                                          \
-      return felt::alloc_counter_detail::AllocateAligned(size, align);                             \
-    } catch (...) {                                                                                \
-      return nullptr;                                                                              \
-    }                                                                                              \
+    return felt::alloc_counter_detail::NoThrow(                                                    \
+        [=] { return felt::alloc_counter_detail::AllocateAligned(size, align); });                 \
   }                                                                                                \
   void operator delete(void* p) noexcept { std::free(p); }                                         \
   void operator delete[](void* p) noexcept { std::free(p); }                                       \

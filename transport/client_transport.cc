@@ -297,22 +297,16 @@ ClientStats ClientTransport::Stats() const {
 }
 
 uint32_t ClientTransport::MatchedPointerReaders() const {
-  dds_publication_matched_status_t status{};
-  if (dds_get_publication_matched_status(impl_->pointer_writer_.get(), &status) < 0) return 0;
-  return status.current_count;
+  return MatchedReaders(impl_->pointer_writer_);
 }
 
 uint32_t ClientTransport::MatchedForceWriters() const {
-  dds_subscription_matched_status_t status{};
-  if (dds_get_subscription_matched_status(impl_->force_reader_.get(), &status) < 0) return 0;
-  return status.current_count;
+  return MatchedWriters(impl_->force_reader_);
 }
 
 uint32_t ClientTransport::MatchedStatusWriters() const {
   if (!impl_->config_.subscribe_status) return 0;
-  dds_subscription_matched_status_t status{};
-  if (dds_get_subscription_matched_status(impl_->status_reader_.get(), &status) < 0) return 0;
-  return status.current_count;
+  return MatchedWriters(impl_->status_reader_);
 }
 
 bool WaitUntil(const std::function<bool()>& done, std::chrono::nanoseconds timeout,

@@ -142,6 +142,18 @@ Entity CreateWriter(const Participant& participant, const Entity& topic, const d
                          "dds_create_writer for " + what));
 }
 
+uint32_t MatchedReaders(const Entity& writer) {
+  dds_publication_matched_status_t status{};
+  if (dds_get_publication_matched_status(writer.get(), &status) < 0) return 0;
+  return status.current_count;
+}
+
+uint32_t MatchedWriters(const Entity& reader) {
+  dds_subscription_matched_status_t status{};
+  if (dds_get_subscription_matched_status(reader.get(), &status) < 0) return 0;
+  return status.current_count;
+}
+
 void CopyId(const std::string& id, char (&out)[65], const std::string& what) {
   if (id.empty() || id.size() > kMaxIdLength || id.find('\0') != std::string::npos) {
     throw std::invalid_argument(what + " \"" + id + "\": must be 1 to " +

@@ -113,6 +113,14 @@ Entity CreateReader(const Participant& participant, const Entity& topic, const d
 Entity CreateWriter(const Participant& participant, const Entity& topic, const dds_qos_t* qos,
                     const std::string& what);
 
+/// The number of readers matched to `writer` now (its publication-matched status); 0 when Cyclone
+/// reports an error. Does not allocate.
+uint32_t MatchedReaders(const Entity& writer);
+
+/// The number of writers matched to `reader` now (its subscription-matched status); 0 when
+/// Cyclone reports an error. Does not allocate.
+uint32_t MatchedWriters(const Entity& reader);
+
 /// Copies `id` into a fixed IDL string field of kMaxIdLength + 1 bytes. Throws
 /// std::invalid_argument naming `what` when `id` is empty, longer than 64 characters or holds NUL.
 void CopyId(const std::string& id, char (&out)[65], const std::string& what);

@@ -52,7 +52,39 @@ class StreamTap::Impl {
   std::array<void*, kTapBatch> pointer_ptrs_{}, force_ptrs_{};
   std::array<dds_sample_info_t, kTapBatch> infos_{};
   std::atomic<uint64_t> errors_{0};
+
+  /// Takes everything `reader` holds, kTapBatch samples at a time into `samples` (through
+  /// `ptrs`), calling `handler` (when set) with each valid sample's device id and
+  /// view_of(sample, 0, receive time: CLOCK_MONOTONIC after the take, ns). Returns the number of
+  /// valid samples; a failed dds_take is counted in errors_ and ends the taking.
+  template <class Message, class ViewOf, class Handler>
+  size_t TakeAll(const Entity& reader, const std::array<Message, kTapBatch>& samples,
+                 std::array<void*, kTapBatch>& ptrs, ViewOf view_of, const Handler& handler);
 };
+
+template <class Message, class ViewOf, class Handler>
+size_t StreamTap::Impl::TakeAll(const Entity& reader, const std::array<Message, kTapBatch>& samples,
+                                std::array<void*, kTapBatch>& ptrs, ViewOf view_of,
+                                const Handler& handler) {
+  size_t taken = 0;
+  while (true) {
+    const dds_return_t n = dds_take(reader.get(), ptrs.data(), infos_.data(), kTapBatch, kTapBatch);
+    if (n < 0) {
+      errors_.fetch_add(1, std::memory_order_relaxed);
+      break;
+    }
+    const int64_t now_ns = MonotonicNowNs();
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!infos_[i].valid_data) continue;
+      const Message& m = samples[i];
+      const auto v = view_of(m, 0, now_ns);
+      ++taken;
+      if (handler) handler(IdOf(m.device_id), v);
+    }
+    if (n < kTapBatch) break;
+  }
+  return taken;
+}
 
 StreamTap::Impl::Impl(StreamTapConfig config)
     : config_(std::move(config)), participant_(AcquireDomain(config_.dds)) {
@@ -101,57 +133,26 @@ size_t StreamTap::Poll(std::chrono::nanoseconds timeout, const TapPointerHandler
     return 0;
   }
   size_t taken = 0;
-  // Pointer samples, in batches until the reader is empty.
-  while (impl.config_.pointers) {
-    const dds_return_t n = dds_take(impl.pointer_reader_.get(), impl.pointer_ptrs_.data(),
-                                    impl.infos_.data(), kTapBatch, kTapBatch);
-    if (n < 0) {
-      impl.errors_.fetch_add(1, std::memory_order_relaxed);
-      break;
-    }
-    const int64_t now_ns = MonotonicNowNs();
-    for (dds_return_t i = 0; i < n; ++i) {
-      if (!impl.infos_[i].valid_data) continue;
-      const felt_msgs_PointerSample& m = impl.pointers_[i];
-      const PointerSampleView v = PointerViewOf(m, 0, now_ns);
-      ++taken;
-      if (on_pointer) on_pointer(IdOf(m.device_id), v);
-    }
-    if (n < kTapBatch) break;
+  // Pointer samples, in batches until the reader is empty; then forces, likewise.
+  if (impl.config_.pointers) {
+    taken += impl.TakeAll(impl.pointer_reader_, impl.pointers_, impl.pointer_ptrs_, PointerViewOf,
+                          on_pointer);
   }
-  // Forces, likewise.
-  while (impl.config_.forces) {
-    const dds_return_t n = dds_take(impl.force_reader_.get(), impl.force_ptrs_.data(),
-                                    impl.infos_.data(), kTapBatch, kTapBatch);
-    if (n < 0) {
-      impl.errors_.fetch_add(1, std::memory_order_relaxed);
-      break;
-    }
-    const int64_t now_ns = MonotonicNowNs();
-    for (dds_return_t i = 0; i < n; ++i) {
-      if (!impl.infos_[i].valid_data) continue;
-      const felt_msgs_ForceCommand& m = impl.forces_[i];
-      const ForceCommandView v = ForceViewOf(m, 0, now_ns);
-      ++taken;
-      if (on_force) on_force(IdOf(m.device_id), v);
-    }
-    if (n < kTapBatch) break;
+  if (impl.config_.forces) {
+    taken +=
+        impl.TakeAll(impl.force_reader_, impl.forces_, impl.force_ptrs_, ForceViewOf, on_force);
   }
   return taken;
 }
 
 uint32_t StreamTap::MatchedPointerWriters() const {
   if (!impl_->config_.pointers) return 0;
-  dds_subscription_matched_status_t status{};
-  if (dds_get_subscription_matched_status(impl_->pointer_reader_.get(), &status) < 0) return 0;
-  return status.current_count;
+  return MatchedWriters(impl_->pointer_reader_);
 }
 
 uint32_t StreamTap::MatchedForceWriters() const {
   if (!impl_->config_.forces) return 0;
-  dds_subscription_matched_status_t status{};
-  if (dds_get_subscription_matched_status(impl_->force_reader_.get(), &status) < 0) return 0;
-  return status.current_count;
+  return MatchedWriters(impl_->force_reader_);
 }
 
 uint64_t StreamTap::dds_errors() const { return impl_->errors_.load(std::memory_order_relaxed); }

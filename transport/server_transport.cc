@@ -450,15 +450,11 @@ TransportStats ServerTransport::Stats() const {
 }
 
 uint32_t ServerTransport::MatchedPointerWriters() const {
-  dds_subscription_matched_status_t status{};
-  if (dds_get_subscription_matched_status(impl_->pointer_reader_.get(), &status) < 0) return 0;
-  return status.current_count;
+  return MatchedWriters(impl_->pointer_reader_);
 }
 
 uint32_t ServerTransport::MatchedForceReaders() const {
-  dds_publication_matched_status_t status{};
-  if (dds_get_publication_matched_status(impl_->force_writer_.get(), &status) < 0) return 0;
-  return status.current_count;
+  return MatchedReaders(impl_->force_writer_);
 }
 
 }  // namespace felt::transport

@@ -16,15 +16,12 @@
 #include <vector>
 
 #include "tests/alloc_counter.h"
+#include "tests/stress_scale.h"
 
 namespace felt {
 namespace {
 
-#if defined(__SANITIZE_THREAD__)
-constexpr uint64_t kConcurrentTicks = 100'000;
-#else
-constexpr uint64_t kConcurrentTicks = 1'000'000;
-#endif
+constexpr uint64_t kConcurrentTicks = test::StressIterations(1'000'000);
 
 TEST(HistogramBinsTest, BinsAreContiguousAndHoldTheirValues) {
   // Contiguous: each bin starts where the previous one ends; widths 1 then doubling per octave.

@@ -9,14 +9,12 @@
 #include <string>
 #include <thread>
 
+#include "tests/stress_scale.h"
+
 namespace felt {
 namespace {
 
-#if defined(__SANITIZE_THREAD__)
-constexpr uint64_t kItems = 300'000;  // TSan is ~10x slower: keep the test under 10 s
-#else
-constexpr uint64_t kItems = 3'000'000;
-#endif
+constexpr uint64_t kItems = test::StressIterations(3'000'000);
 
 TEST(SpscQueueTest, FifoFullAndEmpty) {
   SpscQueue<int> queue(3);

@@ -8,14 +8,12 @@
 #include <cstdint>
 #include <thread>
 
+#include "tests/stress_scale.h"
+
 namespace felt {
 namespace {
 
-#if defined(__SANITIZE_THREAD__)
-constexpr uint64_t kPublishes = 200'000;  // TSan is ~10x slower: keep the test under 10 s
-#else
-constexpr uint64_t kPublishes = 2'000'000;
-#endif
+constexpr uint64_t kPublishes = test::StressIterations(2'000'000);
 
 // A slot large enough to span cache lines: a torn read shows as a payload that disagrees with seq.
 struct Slot {

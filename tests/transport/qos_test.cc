@@ -28,6 +28,15 @@ using testing::UniqueTopics;
 struct PointerTopic {
   Participant participant{AcquireDomain(TestDds())};
   Entity topic = CreateTopic(participant, &felt_msgs_PointerSample_desc, UniqueTopics().pointer);
+
+  // A reader of the topic with `qos`, named `what` in errors.
+  Entity Reader(const Qos& qos, const char* what = "reader") const {
+    return CreateReader(participant, topic, qos.get(), nullptr, what);
+  }
+  // A writer of the topic with `qos`.
+  Entity Writer(const Qos& qos) const {
+    return CreateWriter(participant, topic, qos.get(), "writer");
+  }
 };
 
 // Reads (without taking) and returns the seq of every sample the reader holds.
@@ -45,6 +54,18 @@ std::vector<uint64_t> Peek(const Entity& reader) {
   return seqs;
 }
 
+// Peeks at `reader` until done(seqs) holds or kWait passes: true if it held, the last peek in
+// *seqs.
+template <class Done>
+bool PeekUntil(const Entity& reader, Done done, std::vector<uint64_t>* seqs) {
+  return WaitUntil(
+      [&] {
+        *seqs = Peek(reader);
+        return done(*seqs);
+      },
+      kWait);
+}
+
 // Writes samples 1..count of device "d" as fast as possible, before the reader looks.
 void WriteBurst(const Entity& writer, uint64_t count) {
   felt_msgs_PointerSample sample{};
@@ -58,17 +79,13 @@ void WriteBurst(const Entity& writer, uint64_t count) {
 TEST(QosTest, KeepLastOneGivesASlowReaderOnlyTheNewestSample) {
   PointerTopic t;
   const Qos qos = StreamQos();
-  Entity reader = CreateReader(t.participant, t.topic, qos.get(), nullptr, "reader");
-  Entity writer = CreateWriter(t.participant, t.topic, qos.get(), "writer");
+  const Entity reader = t.Reader(qos);
+  const Entity writer = t.Writer(qos);
   WriteBurst(writer, 10);
   // The reader never took anything while the burst went by: it holds the newest only.
   std::vector<uint64_t> seqs;
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        seqs = Peek(reader);
-        return !seqs.empty() && seqs.back() == 10;
-      },
-      kWait));
+  ASSERT_TRUE(PeekUntil(
+      reader, [](const std::vector<uint64_t>& s) { return !s.empty() && s.back() == 10; }, &seqs));
   EXPECT_EQ(seqs, std::vector<uint64_t>{10});
 }
 
@@ -79,16 +96,12 @@ TEST(QosTest, KeepAllControlHandsTheSameSlowReaderEverySample) {
   Qos qos = StreamQos();
   dds_qset_history(qos.get(), DDS_HISTORY_KEEP_ALL, 0);
   dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
-  Entity reader = CreateReader(t.participant, t.topic, qos.get(), nullptr, "reader");
-  Entity writer = CreateWriter(t.participant, t.topic, qos.get(), "writer");
+  const Entity reader = t.Reader(qos);
+  const Entity writer = t.Writer(qos);
   WriteBurst(writer, 10);
   std::vector<uint64_t> seqs;
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        seqs = Peek(reader);
-        return seqs.size() == 10;
-      },
-      kWait));
+  ASSERT_TRUE(PeekUntil(
+      reader, [](const std::vector<uint64_t>& s) { return s.size() == 10; }, &seqs));
   EXPECT_EQ(seqs.front(), 1u);
   EXPECT_EQ(seqs.back(), 10u);
 }
@@ -96,8 +109,8 @@ TEST(QosTest, KeepAllControlHandsTheSameSlowReaderEverySample) {
 TEST(QosTest, TheStreamDeadlineIsDetectedWhenAWriterGoesSilent) {
   PointerTopic t;
   const Qos qos = StreamQos();
-  Entity reader = CreateReader(t.participant, t.topic, qos.get(), nullptr, "reader");
-  Entity writer = CreateWriter(t.participant, t.topic, qos.get(), "writer");
+  const Entity reader = t.Reader(qos);
+  const Entity writer = t.Writer(qos);
   WriteBurst(writer, 1);
   // One sample, then silence: more than kStreamDeadline later the reader reports a miss.
   ASSERT_TRUE(WaitUntil(
@@ -112,12 +125,12 @@ TEST(QosTest, TheStreamDeadlineIsDetectedWhenAWriterGoesSilent) {
 TEST(QosTest, AVolatileStreamGivesALateReaderNothingOld) {
   PointerTopic t;
   const Qos qos = StreamQos();
-  Entity writer = CreateWriter(t.participant, t.topic, qos.get(), "writer");
-  Entity early = CreateReader(t.participant, t.topic, qos.get(), nullptr, "early reader");
+  const Entity writer = t.Writer(qos);
+  const Entity early = t.Reader(qos, "early reader");
   WriteBurst(writer, 3);
   ASSERT_TRUE(WaitUntil([&] { return !Peek(early).empty(); }, kWait));
   // A reader created after the samples were written must not act on an old position.
-  Entity late = CreateReader(t.participant, t.topic, qos.get(), nullptr, "late reader");
+  const Entity late = t.Reader(qos, "late reader");
   ASSERT_TRUE(WaitUntil(
       [&] {
         dds_subscription_matched_status_t status{};
