@@ -563,17 +563,23 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_flag("--keep-files", args->keep_files, "keep the children's JSON files (path printed)");
   cmd.add_flag("--report-only", args->report_only,
                "exit 0 when a threshold is crossed (still reported)");
-  cmd.add_option("--max-dropped", args->max_dropped, "threshold: dropped samples (default 0)")
-      ->check(CLI::NonNegativeNumber);
-  cmd.add_option("--max-rss-growth-kb", args->max_rss_growth_kb,
-                 "threshold: server RSS growth, kB (default 1024)")
-      ->check(CLI::NonNegativeNumber);
-  cmd.add_option("--max-lateness-p99-us", args->max_lateness_p99_us,
-                 "threshold: haptic lateness p99, us (default 100)")
-      ->check(CLI::NonNegativeNumber);
-  cmd.add_option("--max-lateness-p999-us", args->max_lateness_p999_us,
-                 "threshold: haptic lateness p99.9, us (default 500)")
-      ->check(CLI::NonNegativeNumber);
+  // The thresholds: each a non-negative limit with its default in the help.
+  const struct {
+    const char* flag;
+    double* limit;
+    const char* help;
+  } thresholds[] = {
+      {"--max-dropped", &args->max_dropped, "threshold: dropped samples (default 0)"},
+      {"--max-rss-growth-kb", &args->max_rss_growth_kb,
+       "threshold: server RSS growth, kB (default 1024)"},
+      {"--max-lateness-p99-us", &args->max_lateness_p99_us,
+       "threshold: haptic lateness p99, us (default 100)"},
+      {"--max-lateness-p999-us", &args->max_lateness_p999_us,
+       "threshold: haptic lateness p99.9, us (default 500)"},
+  };
+  for (const auto& t : thresholds) {
+    cmd.add_option(t.flag, *t.limit, t.help)->check(CLI::NonNegativeNumber);
+  }
   cmd.add_option("--discovery-timeout", args->discovery_timeout_s,
                  "seconds the replay waits for the server (default 20)")
       ->check(CLI::PositiveNumber);

@@ -1,5 +1,6 @@
 #include "collision/collision_structure.h"
 
+#include <array>
 #include <cmath>
 
 namespace felt {
@@ -31,20 +32,11 @@ std::string CollisionStructureName(const CollisionStructureSpec& spec) {
   std::string name = "bvh-";
   name += o.volume == BoundingVolume::kSphere ? "sphere-" : "aabb-";
   name += std::to_string(o.arity);
-  switch (o.repair) {
-    case BvhRepair::kBottomUp:
-      name += "-bottomup";
-      break;
-    case BvhRepair::kTopDown:
-      name += "-topdown";
-      break;
-    case BvhRepair::kRebuild:
-      name += "-rebuild";
-      break;
-    case BvhRepair::kBottomUpQueue:
-      name += "-queue";
-      break;
-  }
+  // Each repair's suffix, indexed by BvhRepair (the enum's order).
+  constexpr std::array<const char*, 4> kRepairSuffix = {"-bottomup", "-topdown", "-rebuild",
+                                                        "-queue"};
+  static_assert(static_cast<size_t>(BvhRepair::kBottomUpQueue) == 3, "kRepairSuffix's order");
+  name += kRepairSuffix[static_cast<size_t>(o.repair)];
   if (o.inflation_m > 0.0) {
     name += "-d" + std::to_string(static_cast<int>(std::lround(o.inflation_m * 1e3))) + "mm";
   }

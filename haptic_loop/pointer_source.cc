@@ -3,6 +3,8 @@
 #include <cmath>
 #include <utility>
 
+#include "rt/counters.h"
+
 namespace felt {
 namespace {
 
@@ -13,6 +15,12 @@ std::vector<std::unique_ptr<Slot>> MakeSlots(uint32_t count) {
   std::vector<std::unique_ptr<Slot>> slots;
   for (uint32_t d = 0; d < count; ++d) slots.push_back(std::make_unique<Slot>());
   return slots;
+}
+
+/// The slot of device `index`, or nullptr when out of range. Real-time safe.
+template <class Slot>
+Slot* SlotAt(const std::vector<std::unique_ptr<Slot>>& slots, uint32_t index) {
+  return index < slots.size() ? slots[index].get() : nullptr;
 }
 
 /// Writes `value` into the writer's slot of `buffer` and publishes it. Real-time safe.
@@ -64,10 +72,10 @@ LatestPointerSource::LatestPointerSource(uint32_t device_count) {
 }
 
 void LatestPointerSource::Set(uint32_t device_index, const PointerInput& sample) {
-  if (device_index >= slots_.size()) return;
-  Slot& slot = *slots_[device_index];
-  PublishValue(slot.buffer, sample);
-  slot.any.store(true, std::memory_order_release);
+  if (Slot* slot = SlotAt(slots_, device_index)) {
+    PublishValue(slot->buffer, sample);
+    slot->any.store(true, std::memory_order_release);
+  }
 }
 
 bool LatestPointerSource::Latest(uint32_t device_index, int64_t /*now_ns*/, PointerInput* out) {
@@ -84,14 +92,12 @@ CapturingForceSink::CapturingForceSink(uint32_t device_count) {
 }
 
 void CapturingForceSink::Push(uint32_t device_index, const ForceOutput& force) {
-  if (device_index >= slots_.size()) return;
-  Slot& slot = *slots_[device_index];
-  PublishValue(slot.buffer, force);
-  const double norm = force.force_D_N.norm();
-  if (norm > slot.peak_N.load(std::memory_order_relaxed)) {
-    slot.peak_N.store(norm, std::memory_order_relaxed);
-  }
-  slot.pushed.store(slot.pushed.load(std::memory_order_relaxed) + 1, std::memory_order_release);
+  Slot* slot = SlotAt(slots_, device_index);
+  if (slot == nullptr) return;
+  PublishValue(slot->buffer, force);
+  RaiseTo(slot->peak_N, force.force_D_N.norm());
+  // Released after the force: a reader that sees the count sees the force.
+  slot->pushed.store(slot->pushed.load(std::memory_order_relaxed) + 1, std::memory_order_release);
 }
 
 uint64_t CapturingForceSink::pushed(uint32_t device_index) const {

@@ -215,25 +215,35 @@ Json HistogramJson(const HistogramSnapshot& h, double ns_per_unit) {
               {"count", h.count}};
 }
 
+namespace {
+
+// The counts every loop reports: its ticks under `ticks_key`, overruns, skipped periods, and the
+// nominal period under `period_key` in units of `ns_per_unit` ns.
+Json LoopCountsJson(const LoopStatsSnapshot& s, const char* ticks_key, const char* period_key,
+                    double ns_per_unit) {
+  return Json{{ticks_key, s.ticks},
+              {"overruns", s.overruns},
+              {"skipped_periods", s.skipped_periods},
+              {period_key, static_cast<double>(s.period_ns) / ns_per_unit}};
+}
+
+}  // namespace
+
 Json HapticJson(const LoopStatsSnapshot& haptic) {
-  return Json{{"ticks", haptic.ticks},
-              {"overruns", haptic.overruns},
-              {"skipped_periods", haptic.skipped_periods},
-              {"period_nominal_us", static_cast<double>(haptic.period_ns) / 1e3},
-              {"period_us", HistogramJson(haptic.period, 1e3)},
-              {"lateness_us", HistogramJson(haptic.lateness, 1e3)},
-              {"compute_us", HistogramJson(haptic.compute, 1e3)},
-              {"snapshot_age_us", HistogramJson(haptic.snapshot_age, 1e3)}};
+  Json json = LoopCountsJson(haptic, "ticks", "period_nominal_us", 1e3);
+  json["period_us"] = HistogramJson(haptic.period, 1e3);
+  json["lateness_us"] = HistogramJson(haptic.lateness, 1e3);
+  json["compute_us"] = HistogramJson(haptic.compute, 1e3);
+  json["snapshot_age_us"] = HistogramJson(haptic.snapshot_age, 1e3);
+  return json;
 }
 
 Json SimJson(const LoopStatsSnapshot& sim) {
-  return Json{{"frames", sim.ticks},
-              {"overruns", sim.overruns},
-              {"skipped_periods", sim.skipped_periods},
-              {"period_nominal_ms", static_cast<double>(sim.period_ns) / 1e6},
-              {"period_ms", HistogramJson(sim.period, 1e6)},
-              {"lateness_us", HistogramJson(sim.lateness, 1e3)},
-              {"frame_ms", HistogramJson(sim.compute, 1e6)}};
+  Json json = LoopCountsJson(sim, "frames", "period_nominal_ms", 1e6);
+  json["period_ms"] = HistogramJson(sim.period, 1e6);
+  json["lateness_us"] = HistogramJson(sim.lateness, 1e3);
+  json["frame_ms"] = HistogramJson(sim.compute, 1e6);
+  return json;
 }
 
 std::string ServerStatsJson(const LoopStatsSnapshot& haptic, const LoopStatsSnapshot& sim,

@@ -18,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "base/non_copyable.h"
 #include "haptic_loop/haptic_tick.h"
 #include "haptic_loop/pointer_source.h"
 #include "rt/loop_runner.h"
@@ -87,7 +88,7 @@ struct ServerOptions {
 
 /// The server: owns the cloth, the proxies and the three threads. Construction is set-up
 /// (allocates, validates); Start() launches the threads; Stop() (or destruction) joins them.
-class Server {
+class Server : NonCopyable {
  public:
   /// Builds the cloth, the snapshots and one proxy + safety state per device. `source` and
   /// `sink` must outlive the server and have room for spec.devices.size() devices. Throws
@@ -96,8 +97,6 @@ class Server {
   Server(ServerSpec spec, PointerSource* source, ForceSink* sink, ServerOptions options = {});
   /// Stops and joins the threads.
   ~Server();
-  Server(const Server&) = delete;
-  Server& operator=(const Server&) = delete;
 
   /// Starts the sim, haptic and monitor threads. Call once.
   void Start();

@@ -19,7 +19,8 @@ namespace {
 constexpr int kForceBatch = 16;  // forces per dds_take
 constexpr int kStatusBatch = 8;  // status instances (servers) read at once
 
-void Bump(std::atomic<uint64_t>& counter) { counter.fetch_add(1, std::memory_order_relaxed); }
+// Counters the client bumps may have more than one writer thread: a real read-modify-write.
+void AtomicBump(std::atomic<uint64_t>& counter) { counter.fetch_add(1, std::memory_order_relaxed); }
 
 }  // namespace
 
@@ -120,30 +121,21 @@ void ClientTransport::Impl::NoteSeq(Device& d, uint64_t seq) {
 
 void ClientTransport::Impl::PollForces() {
   // Take every force available; keep the newest per device and count gaps in its seq.
-  for (;;) {
-    const dds_return_t n = dds_take(force_reader_.get(), force_ptrs_.data(), force_infos_.data(),
-                                    kForceBatch, kForceBatch);
-    if (n < 0) {
-      Bump(errors_);
-      return;
-    }
-    const int64_t now_ns = MonotonicNowNs();
-    for (dds_return_t i = 0; i < n; ++i) {
-      if (!force_infos_[i].valid_data) continue;
-      const felt_msgs_ForceCommand& m = force_buffer_[i];
-      const size_t index = FindDevice(m.device_id);
-      if (index == devices_.size()) {
-        Bump(other_);
-        continue;
-      }
-      Device& d = devices_[index];
-      NoteSeq(d, m.seq);
-      d.latest = ForceViewOf(m, static_cast<uint32_t>(index), now_ns);
-      d.fresh = true;
-      Bump(received_);
-    }
-    if (n < kForceBatch) return;
-  }
+  const bool ok =
+      TakeEverySample(force_reader_, force_ptrs_, force_infos_, [&](size_t i, int64_t now_ns) {
+        const felt_msgs_ForceCommand& m = force_buffer_[i];
+        const size_t index = FindDevice(m.device_id);
+        if (index == devices_.size()) {
+          AtomicBump(other_);
+          return;
+        }
+        Device& d = devices_[index];
+        NoteSeq(d, m.seq);
+        d.latest = ForceViewOf(m, static_cast<uint32_t>(index), now_ns);
+        d.fresh = true;
+        AtomicBump(received_);
+      });
+  if (!ok) AtomicBump(errors_);
 }
 
 ClientTransport::ClientTransport(ClientTransportConfig config)
@@ -157,10 +149,10 @@ bool ClientTransport::PublishPointer(const PointerSampleView& sample) {
   felt_msgs_PointerSample& m = impl.pointer_message_;
   FillPointerMessage(sample, impl.devices_[sample.device_index].id, &m);
   if (dds_write(impl.pointer_writer_.get(), &m) < 0) {
-    Bump(impl.errors_);
+    AtomicBump(impl.errors_);
     return false;
   }
-  Bump(impl.published_);
+  AtomicBump(impl.published_);
   return true;
 }
 
@@ -187,7 +179,7 @@ bool ClientTransport::WaitForce(uint32_t device_index, std::chrono::nanoseconds 
         dds_waitset_wait(impl_->waitset_.get(), nullptr, 0,
                          std::chrono::duration_cast<std::chrono::nanoseconds>(left).count());
     if (n < 0) {
-      Bump(impl_->errors_);
+      AtomicBump(impl_->errors_);
       return false;
     }
   }
@@ -202,7 +194,7 @@ size_t ClientTransport::TakeForces(ForceCommandView* out, size_t capacity) {
     const dds_return_t n = dds_take(impl.force_reader_.get(), impl.force_ptrs_.data(),
                                     impl.force_infos_.data(), batch, batch);
     if (n < 0) {
-      Bump(impl.errors_);
+      AtomicBump(impl.errors_);
       break;
     }
     const int64_t now_ns = MonotonicNowNs();
@@ -211,12 +203,12 @@ size_t ClientTransport::TakeForces(ForceCommandView* out, size_t capacity) {
       const felt_msgs_ForceCommand& m = impl.force_buffer_[i];
       const size_t index = impl.FindDevice(m.device_id);
       if (index == impl.devices_.size()) {
-        Bump(impl.other_);
+        AtomicBump(impl.other_);
         continue;
       }
       impl.NoteSeq(impl.devices_[index], m.seq);
       out[count++] = ForceViewOf(m, static_cast<uint32_t>(index), now_ns);
-      Bump(impl.received_);
+      AtomicBump(impl.received_);
     }
     if (n < static_cast<dds_return_t>(batch)) break;
   }
@@ -227,7 +219,7 @@ bool ClientTransport::WaitForForces(std::chrono::nanoseconds timeout) {
   // Relative timeout: dds_waitset_wait_until would want a wall-clock deadline.
   const dds_return_t n = dds_waitset_wait(impl_->waitset_.get(), nullptr, 0, timeout.count());
   if (n < 0) {
-    Bump(impl_->errors_);
+    AtomicBump(impl_->errors_);
     return false;
   }
   return n > 0;
@@ -244,7 +236,7 @@ bool ClientTransport::LatestStatus(ServerStatusView* out) {
   const dds_return_t n =
       dds_read(impl.status_reader_.get(), ptrs.data(), infos.data(), kStatusBatch, kStatusBatch);
   if (n < 0) {
-    Bump(impl.errors_);
+    AtomicBump(impl.errors_);
     return false;
   }
   const felt_msgs_ServerStatus* newest = nullptr;

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "base/non_copyable.h"
 #include "transport/clock.h"
 #include "transport/settings.h"
 #include "transport/views.h"
@@ -43,15 +44,13 @@ struct ClientStats {
 /// after it do not allocate (LatestStatus excepted: it fills a std::string).
 /// Threads: PublishPointer from one thread; TakeForce/WaitForce from one thread (may be another);
 /// LatestStatus, Stats and the Matched* queries from any thread.
-class ClientTransport {
+class ClientTransport : NonCopyable {
  public:
   /// Joins the domain and creates the pointer writer, force reader and (optionally) status reader.
   /// Throws std::invalid_argument naming the field for an empty, too long (> 64) or repeated
   /// device id, or no device; std::runtime_error when Cyclone refuses a step.
   explicit ClientTransport(ClientTransportConfig config);
   ~ClientTransport();
-  ClientTransport(const ClientTransport&) = delete;
-  ClientTransport& operator=(const ClientTransport&) = delete;
 
   /// Publishes `sample` on felt/pointer for device `sample.device_index` (receive_time_ns is
   /// ignored). False when the index is out of range or dds_write fails (counted).

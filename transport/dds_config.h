@@ -5,6 +5,9 @@
 
 #include <dds/dds.h>
 
+#include <array>
+#include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -112,6 +115,26 @@ Entity CreateReader(const Participant& participant, const Entity& topic, const d
 /// Creates a writer on `topic` with `qos`. Throws std::runtime_error naming `what` on an error.
 Entity CreateWriter(const Participant& participant, const Entity& topic, const dds_qos_t* qos,
                     const std::string& what);
+
+/// Takes every sample `reader` holds, in batches of N into the preallocated `ptrs` / `infos` (the
+/// fixed-size types: Cyclone copies into the caller's buffers and allocates nothing), calling
+/// `on_valid(i, now_ns)` for each sample i of a batch that holds data (an invalid one is an
+/// instance state change, not a sample); now_ns is MonotonicNowNs() when the batch was taken.
+/// Returns false when dds_take failed (the taking stops there). Real-time safe when on_valid is.
+template <size_t N, class OnValid>
+bool TakeEverySample(const Entity& reader, std::array<void*, N>& ptrs,
+                     std::array<dds_sample_info_t, N>& infos, OnValid&& on_valid) {
+  constexpr auto kBatch = static_cast<dds_return_t>(N);
+  for (;;) {
+    const dds_return_t n = dds_take(reader.get(), ptrs.data(), infos.data(), N, N);
+    if (n < 0) return false;
+    const int64_t now_ns = MonotonicNowNs();
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (infos[static_cast<size_t>(i)].valid_data) on_valid(static_cast<size_t>(i), now_ns);
+    }
+    if (n < kBatch) return true;
+  }
+}
 
 /// The number of readers matched to `writer` now (its publication-matched status); 0 when Cyclone
 /// reports an error. Does not allocate.

@@ -67,22 +67,13 @@ size_t StreamTap::Impl::TakeAll(const Entity& reader, const std::array<Message, 
                                 std::array<void*, kTapBatch>& ptrs, ViewOf view_of,
                                 const Handler& handler) {
   size_t taken = 0;
-  while (true) {
-    const dds_return_t n = dds_take(reader.get(), ptrs.data(), infos_.data(), kTapBatch, kTapBatch);
-    if (n < 0) {
-      errors_.fetch_add(1, std::memory_order_relaxed);
-      break;
-    }
-    const int64_t now_ns = MonotonicNowNs();
-    for (dds_return_t i = 0; i < n; ++i) {
-      if (!infos_[i].valid_data) continue;
-      const Message& m = samples[i];
-      const auto v = view_of(m, 0, now_ns);
-      ++taken;
-      if (handler) handler(IdOf(m.device_id), v);
-    }
-    if (n < kTapBatch) break;
-  }
+  const bool ok = TakeEverySample(reader, ptrs, infos_, [&](size_t i, int64_t now_ns) {
+    const Message& m = samples[i];
+    const auto v = view_of(m, 0, now_ns);
+    ++taken;
+    if (handler) handler(IdOf(m.device_id), v);
+  });
+  if (!ok) errors_.fetch_add(1, std::memory_order_relaxed);
   return taken;
 }
 

@@ -14,6 +14,7 @@
 #include <string>
 #include <string_view>
 
+#include "base/non_copyable.h"
 #include "recordings/trace.h"
 #include "transport/settings.h"
 #include "transport/views.h"
@@ -39,14 +40,12 @@ using TapForceHandler = std::function<void(std::string_view device_id, const For
 /// A passive reader of felt/pointer and felt/force with a deep history, so that every sample
 /// that reaches it is seen (best-effort, volatile, the streams' deadline: it matches the server
 /// and any driver). One thread calls Poll; the Matched* queries are for any thread.
-class StreamTap {
+class StreamTap : NonCopyable {
  public:
   /// Joins the domain and creates the readers. Throws std::invalid_argument when neither topic is
   /// chosen or history_depth is 0; std::runtime_error when Cyclone refuses a step.
   explicit StreamTap(StreamTapConfig config);
   ~StreamTap();
-  StreamTap(const StreamTap&) = delete;
-  StreamTap& operator=(const StreamTap&) = delete;
 
   /// Waits up to `timeout` for data, then takes everything available, calling `on_pointer` and
   /// `on_force` (either may be empty) once per sample, oldest first per device. Returns the number
@@ -139,14 +138,12 @@ struct RecorderStats {
 /// device_time_ns with the trace's own times, so recording it gives back the same t_s). Forces
 /// received before the first pointer sample are not written (there is no time origin yet).
 /// Files are created at the first sample of the recorded device. One thread uses an instance.
-class Recorder {
+class Recorder : NonCopyable {
  public:
   /// Joins the domain (see StreamTap). Throws std::invalid_argument for an empty out_path or a
   /// bad rate_hz; std::runtime_error when Cyclone refuses a step.
   explicit Recorder(RecorderConfig config);
   ~Recorder();
-  Recorder(const Recorder&) = delete;
-  Recorder& operator=(const Recorder&) = delete;
 
   /// Waits up to `timeout` for samples and writes what arrived. Throws std::runtime_error when a
   /// file cannot be created or written.

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "felt_types.h"
+#include "rt/counters.h"
 #include "rt/loop_stats.h"
 #include "rt/spsc_queue.h"
 #include "rt/triple_buffer.h"
@@ -39,11 +40,6 @@ HopSummary SummarizeHops(const Histogram& hops) {
   s.p999_us = static_cast<double>(snapshot.PercentileNs(0.999)) / 1e3;
   s.max_us = static_cast<double>(snapshot.max_ns) / 1e3;
   return s;
-}
-
-// Relaxed counter bump for a counter with one writer at a time.
-void BumpSingleWriter(std::atomic<uint64_t>& counter) {
-  counter.store(counter.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
 }
 
 uint64_t Load(const std::atomic<uint64_t>& counter) {
@@ -238,7 +234,7 @@ void ServerTransport::Impl::WaitsetLoop() {
     // Block until a sample or the stop guard; the result only says how many triggered.
     const dds_return_t n = dds_waitset_wait(waitset_.get(), nullptr, 0, DDS_INFINITY);
     if (n < 0) {
-      BumpSingleWriter(dds_errors_receive_);
+      Bump(dds_errors_receive_);
       continue;
     }
     if (stop_receive_.load()) break;
@@ -249,25 +245,12 @@ void ServerTransport::Impl::WaitsetLoop() {
 void ServerTransport::Impl::DrainPointers() {
   std::lock_guard<std::mutex> lock(receive_mutex_);
   const int64_t start_ns = MonotonicNowNs();
-  // Take everything available in batches into the preallocated buffer (fixed-size type: Cyclone
-  // copies into it and allocates nothing for us), validating each sample.
-  for (;;) {
-    const dds_return_t n = dds_take(pointer_reader_.get(), take_ptrs_.data(), take_infos_.data(),
-                                    kTakeBatch, kTakeBatch);
-    if (n < 0) {
-      BumpSingleWriter(dds_errors_receive_);
-      break;
-    }
-    if (n == 0) break;
-    const int64_t now_ns = MonotonicNowNs();
-    for (dds_return_t i = 0; i < n; ++i) {
-      // Invalid data = an instance state change (writer gone), not a sample.
-      if (take_infos_[i].valid_data) {
+  // Take everything available, validating each sample (TakeEverySample: preallocated buffers).
+  const bool ok =
+      TakeEverySample(pointer_reader_, take_ptrs_, take_infos_, [&](size_t i, int64_t now_ns) {
         Accept(take_buffer_[i], take_infos_[i].publication_handle, now_ns);
-      }
-    }
-    if (n < kTakeBatch) break;
-  }
+      });
+  if (!ok) Bump(dds_errors_receive_);
   receive_hop_.Record(MonotonicNowNs() - start_ns);
 }
 
@@ -279,7 +262,7 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
          std::strncmp(devices_[index].id, sample.device_id, sizeof(devices_[index].id)) != 0) {
     ++index;
   }
-  if (index == devices_.size()) return BumpSingleWriter(unknown_);
+  if (index == devices_.size()) return Bump(unknown_);
   Device& device = devices_[index];
 
   // Flood: a token bucket of max_rate_hz with burst_samples depth; every sample costs a token.
@@ -287,25 +270,25 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
       static_cast<double>(now_ns - device.last_refill_ns) * 1e-9 * device.limits.max_rate_hz;
   device.tokens = std::min(device.limits.burst_samples, device.tokens + refill);
   device.last_refill_ns = now_ns;
-  if (device.tokens < 1.0) return BumpSingleWriter(flood_);
+  if (device.tokens < 1.0) return Bump(flood_);
   device.tokens -= 1.0;
 
   // Non-finite position or velocity.
   if (!AllFinite(sample.position_m) || !AllFinite(sample.velocity_m_per_s)) {
-    return BumpSingleWriter(nonfinite_);
+    return Bump(nonfinite_);
   }
 
   // Outside the device's workspace box (device frame).
   for (int k = 0; k < 3; ++k) {
     if (sample.position_m[k] < device.limits.workspace_min_m_D[k] ||
         sample.position_m[k] > device.limits.workspace_max_m_D[k]) {
-      return BumpSingleWriter(workspace_);
+      return Bump(workspace_);
     }
   }
 
   // Sequence: strictly increasing per writer; a new writer (a restarted driver) starts afresh.
   if (device.has_last && writer == device.last_writer && sample.seq <= device.last_seq) {
-    return BumpSingleWriter(seq_);
+    return Bump(seq_);
   }
   device.has_last = true;
   device.last_seq = sample.seq;
@@ -315,7 +298,7 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
   TripleBuffer<PointerSampleView>& slot = slots_[index];
   slot.write_slot() = PointerViewOf(sample, static_cast<uint32_t>(index), now_ns);
   slot.Publish();
-  BumpSingleWriter(accepted_);
+  Bump(accepted_);
 }
 
 void ServerTransport::Impl::WriterLoop() {
@@ -329,9 +312,9 @@ void ServerTransport::Impl::WriterLoop() {
       const int64_t start_ns = MonotonicNowNs();
       FillForceMessage(force, devices_[force.device_index].id, &message);
       if (dds_write(force_writer_.get(), &message) < 0) {
-        BumpSingleWriter(dds_errors_write_);
+        Bump(dds_errors_write_);
       } else {
-        BumpSingleWriter(published_);
+        Bump(published_);
       }
       write_hop_.Record(MonotonicNowNs() - start_ns);
     }
@@ -367,16 +350,16 @@ bool ServerTransport::LatestPointer(uint32_t device_index, PointerSampleView* ou
 bool ServerTransport::PushForce(const ForceCommandView& force) {
   Impl& impl = *impl_;
   if (force.device_index >= impl.devices_.size()) {
-    BumpSingleWriter(impl.bad_device_);
+    Bump(impl.bad_device_);
     return false;
   }
   ForceCommandView queued = force;
   queued.seq = impl.devices_[force.device_index].next_force_seq++;
   if (!impl.forces_.TryPush(queued)) {
-    BumpSingleWriter(impl.queue_full_);
+    Bump(impl.queue_full_);
     return false;
   }
-  BumpSingleWriter(impl.pushed_);
+  Bump(impl.pushed_);
   impl.force_epoch_.fetch_add(1, std::memory_order_release);
   impl.force_epoch_.notify_one();  // a futex wake only when the writer thread sleeps
   return true;

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "base/non_copyable.h"
 #include "transport/clock.h"
 #include "transport/settings.h"
 #include "transport/views.h"
@@ -75,7 +76,7 @@ struct TransportStats {
 /// afterwards LatestPointer and PushForce neither allocate, lock, wait nor call DDS.
 /// Threads: LatestPointer and PushForce from ONE haptic thread; PublishStatus, Stats and the
 /// Matched* queries from any other thread.
-class ServerTransport {
+class ServerTransport : NonCopyable {
  public:
   /// Joins the domain and starts the receive path and the writer thread.
   /// Throws std::invalid_argument naming the field when the config is invalid (no device, an id
@@ -84,8 +85,6 @@ class ServerTransport {
   explicit ServerTransport(ServerTransportConfig config);
   /// Stops the receive path, publishes every force still queued, then leaves the domain.
   ~ServerTransport();
-  ServerTransport(const ServerTransport&) = delete;
-  ServerTransport& operator=(const ServerTransport&) = delete;
 
   /// Number of devices (device_index is 0..device_count()-1).
   size_t device_count() const;

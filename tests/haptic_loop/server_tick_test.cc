@@ -38,6 +38,16 @@ ServerSpec QuickRamp(std::vector<DeviceSpec> devices = {}) {
   return spec;
 }
 
+// A one-device server on the test clock: its source, sink, server and driver.
+struct OneDevice {
+  explicit OneDevice(ServerSpec spec)
+      : server(std::move(spec), &source, &sink, Quiet()), driver(&server, &source) {}
+  LatestPointerSource source{1};
+  CapturingForceSink sink{1};
+  Server server;
+  Driver driver;
+};
+
 // The newest force sent to `device`.
 ForceOutput Newest(CapturingForceSink& sink, uint32_t device = 0) {
   ForceOutput out;
@@ -123,10 +133,8 @@ TEST(ServerTick, TwoDevicesPressTheClothAtTwoPlaces) {
 }
 
 TEST(ServerTick, StaleInputRampsToZeroWhileZeroForcesKeepFlowing) {
-  LatestPointerSource source(1);
-  CapturingForceSink sink(1);
-  Server server(QuickRamp(), &source, &sink, Quiet());
-  Driver driver(&server, &source);
+  OneDevice one(QuickRamp());
+  auto& [source, sink, server, driver] = one;
   ASSERT_TRUE(PressUntilForce(&driver, &sink, 1, 0.2));
 
   // The samples stop now: fresh for the 50 ms limit, then ramped out over 50 ms.
@@ -151,10 +159,8 @@ TEST(ServerTick, StaleInputRampsToZeroWhileZeroForcesKeepFlowing) {
 }
 
 TEST(ServerTick, NanInputGivesZeroForceAndIsCounted) {
-  LatestPointerSource source(1);
-  CapturingForceSink sink(1);
-  Server server(QuickRamp(), &source, &sink, Quiet());
-  Driver driver(&server, &source);
+  OneDevice one(QuickRamp());
+  auto& [source, sink, server, driver] = one;
   ASSERT_TRUE(PressUntilForce(&driver, &sink, 1, 0.2));
 
   driver.Tick(1, [](uint32_t, double, PointerInput* in) {
@@ -170,12 +176,10 @@ TEST(ServerTick, NanInputGivesZeroForceAndIsCounted) {
 }
 
 TEST(ServerTick, ReconnectionRampsTheForceIn) {
-  LatestPointerSource source(1);
-  CapturingForceSink sink(1);
   ServerSpec spec = SmallCurtain();
   spec.haptic.safety.ramp_in_s = 0.5;
-  Server server(spec, &source, &sink, Quiet());
-  Driver driver(&server, &source);
+  OneDevice one(spec);
+  auto& [source, sink, server, driver] = one;
   // Connected and ramped in: no ramping flag after 0.5 s.
   for (int i = 0; i < 600; ++i) driver.Tick(1, PressFeed());
   EXPECT_FALSE(Newest(sink).flags & kSafetyRamping);
@@ -201,10 +205,8 @@ TEST(ServerTick, ReconnectionRampsTheForceIn) {
 }
 
 TEST(ServerTick, StalledSimIsFlaggedAndTheTickRunsOnTheLastSnapshot) {
-  LatestPointerSource source(1);
-  CapturingForceSink sink(1);
-  Server server(SmallCurtain(), &source, &sink, Quiet());
-  Driver driver(&server, &source);
+  OneDevice one(SmallCurtain());
+  auto& [source, sink, server, driver] = one;
   for (int i = 0; i < 600; ++i) driver.Tick(1, PressFeed());
   ASSERT_FALSE(Newest(sink).flags & kSafetySimStalled);
   // No SimFrame for 300 ms: ticks go on against the last snapshot, flagged after 100 ms.

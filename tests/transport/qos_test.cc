@@ -19,10 +19,7 @@
 namespace felt::transport {
 namespace {
 
-using testing::kWait;
-using testing::TestDds;
-using testing::TestDevice;
-using testing::UniqueTopics;
+using namespace ::felt::transport::testing;  // tests/transport/transport_test_util.h
 
 // A participant with a pointer topic of its own.
 struct PointerTopic {
@@ -37,6 +34,12 @@ struct PointerTopic {
   Entity Writer(const Qos& qos) const {
     return CreateWriter(participant, topic, qos.get(), "writer");
   }
+  // A reader made first, then a writer, both with `qos`.
+  struct Pair {
+    Entity reader;
+    Entity writer;
+  };
+  Pair ReaderThenWriter(const Qos& qos) const { return Pair{Reader(qos), Writer(qos)}; }
 };
 
 // Reads (without taking) and returns the seq of every sample the reader holds.
@@ -66,6 +69,19 @@ bool PeekUntil(const Entity& reader, Done done, std::vector<uint64_t>* seqs) {
       kWait);
 }
 
+// Waits until `done(status)` holds for the DDS status that `get` reads from `entity` (each read
+// checked), or kWait passes: true if it held.
+template <class Status, class Done>
+bool WaitForStatus(const Entity& entity, dds_return_t (*get)(dds_entity_t, Status*), Done done) {
+  return WaitUntil(
+      [&] {
+        Status status{};
+        EXPECT_GE(get(entity.get(), &status), 0);
+        return done(status);
+      },
+      kWait);
+}
+
 // Writes samples 1..count of device "d" as fast as possible, before the reader looks.
 void WriteBurst(const Entity& writer, uint64_t count) {
   felt_msgs_PointerSample sample{};
@@ -78,9 +94,7 @@ void WriteBurst(const Entity& writer, uint64_t count) {
 
 TEST(QosTest, KeepLastOneGivesASlowReaderOnlyTheNewestSample) {
   PointerTopic t;
-  const Qos qos = StreamQos();
-  const Entity reader = t.Reader(qos);
-  const Entity writer = t.Writer(qos);
+  const auto [reader, writer] = t.ReaderThenWriter(StreamQos());
   WriteBurst(writer, 10);
   // The reader never took anything while the burst went by: it holds the newest only.
   std::vector<uint64_t> seqs;
@@ -96,8 +110,7 @@ TEST(QosTest, KeepAllControlHandsTheSameSlowReaderEverySample) {
   Qos qos = StreamQos();
   dds_qset_history(qos.get(), DDS_HISTORY_KEEP_ALL, 0);
   dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
-  const Entity reader = t.Reader(qos);
-  const Entity writer = t.Writer(qos);
+  const auto [reader, writer] = t.ReaderThenWriter(qos);
   WriteBurst(writer, 10);
   std::vector<uint64_t> seqs;
   ASSERT_TRUE(PeekUntil(
@@ -108,18 +121,11 @@ TEST(QosTest, KeepAllControlHandsTheSameSlowReaderEverySample) {
 
 TEST(QosTest, TheStreamDeadlineIsDetectedWhenAWriterGoesSilent) {
   PointerTopic t;
-  const Qos qos = StreamQos();
-  const Entity reader = t.Reader(qos);
-  const Entity writer = t.Writer(qos);
+  const auto [reader, writer] = t.ReaderThenWriter(StreamQos());
   WriteBurst(writer, 1);
   // One sample, then silence: more than kStreamDeadline later the reader reports a miss.
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        dds_requested_deadline_missed_status_t status{};
-        EXPECT_GE(dds_get_requested_deadline_missed_status(reader.get(), &status), 0);
-        return status.total_count >= 1;
-      },
-      kWait));
+  ASSERT_TRUE(WaitForStatus(reader, dds_get_requested_deadline_missed_status,
+                            [](const auto& status) { return status.total_count >= 1; }));
 }
 
 TEST(QosTest, AVolatileStreamGivesALateReaderNothingOld) {
@@ -131,13 +137,8 @@ TEST(QosTest, AVolatileStreamGivesALateReaderNothingOld) {
   ASSERT_TRUE(WaitUntil([&] { return !Peek(early).empty(); }, kWait));
   // A reader created after the samples were written must not act on an old position.
   const Entity late = t.Reader(qos, "late reader");
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        dds_subscription_matched_status_t status{};
-        EXPECT_GE(dds_get_subscription_matched_status(late.get(), &status), 0);
-        return status.current_count >= 1;
-      },
-      kWait));
+  ASSERT_TRUE(WaitForStatus(late, dds_get_subscription_matched_status,
+                            [](const auto& status) { return status.current_count >= 1; }));
   EXPECT_TRUE(Peek(late).empty());
 }
 

@@ -23,10 +23,7 @@
 namespace felt::transport {
 namespace {
 
-using testing::kWait;
-using testing::TestDds;
-using testing::TestDevice;
-using testing::UniqueTopics;
+using namespace ::felt::transport::testing;  // tests/transport/transport_test_util.h
 
 constexpr double kResponderGain_N_per_m = -100.0;  // the responder's force: gain * position
 

@@ -21,9 +21,7 @@
 namespace felt::transport {
 namespace {
 
-using testing::kWait;
-using testing::TestDds;
-using testing::TestDevice;
+using namespace ::felt::transport::testing;  // tests/transport/transport_test_util.h
 
 constexpr uint64_t kStopMarker = ~uint64_t{0};  // answers_seq of the force that ends the child
 constexpr char kChildTest[] = "TransportChildProcess.DISABLED_PublishUntilStopped";

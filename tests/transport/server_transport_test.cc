@@ -18,11 +18,7 @@
 namespace felt::transport {
 namespace {
 
-using testing::kWait;
-using testing::Sample;
-using testing::TestDds;
-using testing::TestDevice;
-using testing::UniqueTopics;
+using namespace ::felt::transport::testing;  // tests/transport/transport_test_util.h
 
 // A server with devices "left" and "right", and a client publishing for "left" (index 0).
 class ServerTransportTest : public ::testing::TestWithParam<ReceiveMode> {
@@ -56,6 +52,17 @@ class ServerTransportTest : public ::testing::TestWithParam<ReceiveMode> {
     const uint64_t before = Handled();
     ASSERT_TRUE(client_->PublishPointer(sample));
     ASSERT_TRUE(WaitUntil([&] { return Handled() > before; }, kWait));
+  }
+
+  // After one good sample (seq 1) and three bad ones: `rejected` counted all three, one was
+  // accepted, and the slot still holds seq 1 (no rejected sample reaches it).
+  void ExpectOnlyTheFirstAccepted(uint64_t TransportStats::*rejected) const {
+    const TransportStats s = server_->Stats();
+    EXPECT_EQ(s.*rejected, 3u);
+    EXPECT_EQ(s.pointer_accepted, 1u);
+    PointerSampleView view;
+    ASSERT_TRUE(server_->LatestPointer(0, &view));
+    EXPECT_EQ(view.seq, 1u) << "no rejected sample reaches the slot";
   }
 
   uint64_t Handled() const {
@@ -157,12 +164,9 @@ TEST_P(ServerTransportTest, NonFiniteSamplesAreRejected) {
   bad = Sample(4);
   bad.position_m_D[0] = -std::numeric_limits<double>::infinity();
   PublishAndWait(bad);
-  const TransportStats s = server_->Stats();
-  EXPECT_EQ(s.rejected_nonfinite, 3u);
-  EXPECT_EQ(s.pointer_accepted, 1u);
+  ExpectOnlyTheFirstAccepted(&TransportStats::rejected_nonfinite);
   PointerSampleView view;
   ASSERT_TRUE(server_->LatestPointer(0, &view));
-  EXPECT_EQ(view.seq, 1u) << "no rejected sample reaches the slot";
   EXPECT_DOUBLE_EQ(view.position_m_D[0], 0.2);
 }
 
@@ -176,12 +180,7 @@ TEST_P(ServerTransportTest, OutOfWorkspaceSamplesAreRejected) {
   bad = Sample(4);
   bad.position_m_D = {1e9, 1e9, 1e9};
   PublishAndWait(bad);
-  const TransportStats s = server_->Stats();
-  EXPECT_EQ(s.rejected_workspace, 3u);
-  EXPECT_EQ(s.pointer_accepted, 1u);
-  PointerSampleView view;
-  ASSERT_TRUE(server_->LatestPointer(0, &view));
-  EXPECT_EQ(view.seq, 1u);
+  ExpectOnlyTheFirstAccepted(&TransportStats::rejected_workspace);
 }
 
 TEST_P(ServerTransportTest, SequenceNumbersGoingBackwardsOrRepeatedAreRejected) {
