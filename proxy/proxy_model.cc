@@ -5,14 +5,17 @@
 #include <stdexcept>
 #include <string>
 
+#include "scene/scene_file.h"
+
 namespace felt {
 namespace {
 
-// Throws std::invalid_argument "<field>: <rule>, got <value>" unless ok.
-void RequireModelField(bool ok, const char* field, const char* rule, double value) {
+// Throws std::invalid_argument "<field>: <rule>, got <value>" unless ok (the scene parser's
+// wording, so a rule reads the same wherever it is checked).
+void RequireModelField(bool ok, const char* field, const std::string& rule, double value) {
   if (!ok) {
     throw std::invalid_argument(std::string(field) + ": " + rule + ", got " +
-                                std::to_string(value));
+                                FormatSceneNumber(value));
   }
 }
 
@@ -37,9 +40,18 @@ ProxyModel CompileProxyModel(const DeviceSpec& device, const ProxySpec& proxy) {
                     "must be >= 0", proxy.friction_static);
   RequireModelField(NonNegativeFinite(proxy.friction_dynamic), "proxy.friction_dynamic",
                     "must be >= 0", proxy.friction_dynamic);
-  RequireModelField(proxy.max_iterations >= 1, "proxy.max_iterations", "must be >= 1",
+  RequireModelField(proxy.friction_dynamic <= proxy.friction_static, "proxy.friction_dynamic",
+                    "must be <= friction_static (" + FormatSceneNumber(proxy.friction_static) + ")",
+                    proxy.friction_dynamic);
+  RequireModelField(proxy.max_iterations >= 1 && proxy.max_iterations <= kMaxProxyIterations,
+                    "proxy.max_iterations",
+                    "must be in [1, " + std::to_string(kMaxProxyIterations) + "]",
                     proxy.max_iterations);
-  RequireModelField(proxy.candidate_capacity >= 1, "proxy.candidate_capacity", "must be >= 1",
+  RequireModelField(proxy.candidate_capacity >= kMinCandidateCapacity &&
+                        proxy.candidate_capacity <= kMaxCandidateCapacity,
+                    "proxy.candidate_capacity",
+                    "must be in [" + std::to_string(kMinCandidateCapacity) + ", " +
+                        std::to_string(kMaxCandidateCapacity) + "]",
                     proxy.candidate_capacity);
 
   ProxyModel m;
@@ -56,7 +68,7 @@ ProxyModel CompileProxyModel(const DeviceSpec& device, const ProxySpec& proxy) {
   m.max_iterations = proxy.max_iterations;
   m.force_shading = proxy.force_shading;
   m.friction_static = proxy.friction_static;
-  m.friction_dynamic = std::min(proxy.friction_dynamic, proxy.friction_static);
+  m.friction_dynamic = proxy.friction_dynamic;
   m.obstacles = proxy.obstacles;
   m.snapshot_mode = proxy.snapshot_mode;
   m.candidate_capacity = proxy.candidate_capacity;

@@ -40,7 +40,7 @@ struct ProxyModel {
   int32_t max_iterations = 0;     ///< sweep/solve rounds per pass, >= 1
   bool force_shading = false;     ///< Morgenbesser & Srinivasan 1996: Ruspini 1997's two passes
   double friction_static = 0.0;   ///< mu_s >= 0 (0: frictionless; Ruspini 1997 §4)
-  double friction_dynamic = 0.0;  ///< mu_d, already min(ProxySpec mu_d, mu_s)
+  double friction_dynamic = 0.0;  ///< mu_d, <= mu_s
   /// The scene's static obstacles (world, m), constraint sources beside the cloth's triangles
   /// (proxy/obstacle_sweep.h). Empty: nothing is tested.
   std::vector<ObstacleSpec> obstacles;

@@ -167,9 +167,10 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
                                         FormatSceneNumber(p.friction_dynamic));
   }
   p.snapshot_mode = table->Choice<SnapshotMode>("snapshot_mode", p.snapshot_mode, kSnapshotModes);
-  p.max_iterations = table->Integer("max_iterations", p.max_iterations, InRange(1, 100));
-  p.candidate_capacity =
-      table->Integer("candidate_capacity", p.candidate_capacity, InRange(16, 65536));
+  p.max_iterations =
+      table->Integer("max_iterations", p.max_iterations, InRange(1, kMaxProxyIterations));
+  p.candidate_capacity = table->Integer("candidate_capacity", p.candidate_capacity,
+                                        InRange(kMinCandidateCapacity, kMaxCandidateCapacity));
   const std::vector<std::string> names = CollisionStructureNames();
   std::vector<std::string_view> views(names.begin(), names.end());
   const size_t default_index =

@@ -56,6 +56,12 @@ enum class SnapshotMode : uint8_t {
 /// The scene-file name of a mode: "newest", "blend_forces", "interpolate", "extrapolate".
 const char* SnapshotModeName(SnapshotMode mode);
 
+/// Limits that the scene parser (proxy/proxy_scene.h) and CompileProxyModel both enforce, so a
+/// key's rule is the same wherever it is validated.
+inline constexpr int32_t kMaxProxyIterations = 100;      ///< proxy.max_iterations
+inline constexpr int32_t kMinCandidateCapacity = 16;     ///< proxy.candidate_capacity
+inline constexpr int32_t kMaxCandidateCapacity = 65536;  ///< proxy.candidate_capacity
+
 /// How the proxy renders: [proxy] in a scene.
 struct ProxySpec {
   bool force_shading = true;      ///< Morgenbesser & Srinivasan 1996, Ruspini 1997's two passes

@@ -39,7 +39,7 @@ TEST(ProxyModelTest, CompiledConstantsAreTheTicksExpressions) {
   d.offset_W_m = Vec3(0.1, -0.2, 0.3);
   ProxySpec p;
   p.friction_static = 0.3;
-  p.friction_dynamic = 0.5;  // above mu_s: the tick uses mu_s
+  p.friction_dynamic = 0.3;
   p.obstacles = {testing::Table()};
   const ProxyModel m = CompileProxyModel(d, p);
   EXPECT_EQ(m.stiffness_W_N_per_m, d.stiffness_N_per_m / (d.scale * d.scale));
@@ -68,10 +68,16 @@ TEST(ProxyModelTest, ValidationNamesTheField) {
   EXPECT_EQ(CompileError(d, ProxySpec{}).rfind("device.damping_N_s_per_m", 0), 0u);
   ProxySpec p;
   p.max_iterations = 0;
-  EXPECT_EQ(CompileError(DeviceSpec{}, p).rfind("proxy.max_iterations: must be >= 1", 0), 0u);
+  EXPECT_EQ(CompileError(DeviceSpec{}, p), "proxy.max_iterations: must be in [1, 100], got 0");
   p = ProxySpec{};
-  p.candidate_capacity = 0;
-  EXPECT_EQ(CompileError(DeviceSpec{}, p).rfind("proxy.candidate_capacity", 0), 0u);
+  p.candidate_capacity = 8;  // the scene parser's rule and message (proxy_scene_test)
+  EXPECT_EQ(CompileError(DeviceSpec{}, p),
+            "proxy.candidate_capacity: must be in [16, 65536], got 8");
+  p = ProxySpec{};
+  p.friction_static = 0.2;
+  p.friction_dynamic = 0.3;
+  EXPECT_EQ(CompileError(DeviceSpec{}, p),
+            "proxy.friction_dynamic: must be <= friction_static (0.2), got 0.3");
   EXPECT_EQ(CompileError(DeviceSpec{}, ProxySpec{}), "");
 }
 
