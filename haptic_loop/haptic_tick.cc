@@ -174,7 +174,7 @@ void HapticLoop::SendForce(uint32_t index, int64_t now_ns, const SafetyOutput& o
   force.answers_seq = d->input.seq;
   force.answers_device_time_ns = d->input.device_time_ns;
   force.force_D_N = out.force_D_N;
-  force.proxy_D_m = WorldToDevice(d->spec, d->last_result.proxy_W_m);
+  force.proxy_D_m = d->model.ToDevice(d->last_result.proxy_W_m);
   force.in_contact = d->fresh && d->last_result.num_contacts > 0;
   force.flags = out.flags;
   force.tick_time_ns = now_ns;

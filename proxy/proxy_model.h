@@ -49,8 +49,14 @@ struct ProxyModel {
   SnapshotMode snapshot_mode = SnapshotMode::kNewest;  ///< which cloth each tick runs against
   int32_t candidate_capacity = 0;  ///< triangles gathered per tick (ProxyState's size), >= 1
 
-  /// Device position [m, device frame] to world [m]: DeviceToWorld's expression, bit for bit.
-  Vec3 ToWorld(const Vec3& p_D) const { return scale * (rotation_WD * p_D) + offset_W_m; }
+  /// Device position [m, device frame] to world [m] (MapDeviceToWorld, as DeviceToWorld).
+  Vec3 ToWorld(const Vec3& p_D) const {
+    return MapDeviceToWorld(scale, rotation_WD, offset_W_m, p_D);
+  }
+  /// World position [m] to device frame [m] (MapWorldToDevice, as WorldToDevice).
+  Vec3 ToDevice(const Vec3& p_W) const {
+    return MapWorldToDevice(scale, rotation_WD, offset_W_m, p_W);
+  }
 };
 
 /// Compiles the model of one device (`device`) under the scene's proxy settings (`proxy`).

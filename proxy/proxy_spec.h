@@ -35,13 +35,24 @@ struct DeviceSpec {
   Vec3 offset_W_m = Vec3::Zero();  ///< world position of the device origin, m
 };
 
+/// The workspace map's one expression: p_W = scale * R_WD p_D + offset_W [m].
+inline Vec3 MapDeviceToWorld(double scale, const Eigen::Matrix3d& rotation_WD,
+                             const Vec3& offset_W_m, const Vec3& p_D) {
+  return scale * (rotation_WD * p_D) + offset_W_m;
+}
+/// Its inverse: p_D = R_WD^T (p_W - offset_W) / scale [m].
+inline Vec3 MapWorldToDevice(double scale, const Eigen::Matrix3d& rotation_WD,
+                             const Vec3& offset_W_m, const Vec3& p_W) {
+  return rotation_WD.transpose() * (p_W - offset_W_m) / scale;
+}
+
 /// Device position [m, device frame] to world [m]: scale * R_WD p_D + offset_W.
 inline Vec3 DeviceToWorld(const DeviceSpec& d, const Vec3& p_D) {
-  return d.scale * (d.rotation_WD * p_D) + d.offset_W_m;
+  return MapDeviceToWorld(d.scale, d.rotation_WD, d.offset_W_m, p_D);
 }
 /// World position [m] to device frame [m]: the inverse of DeviceToWorld.
 inline Vec3 WorldToDevice(const DeviceSpec& d, const Vec3& p_W) {
-  return d.rotation_WD.transpose() * (p_W - d.offset_W_m) / d.scale;
+  return MapWorldToDevice(d.scale, d.rotation_WD, d.offset_W_m, p_W);
 }
 
 /// Which cloth the proxy is run against each tick (issue 4; 001_0f9f1b7fedff7723.txt §7).
