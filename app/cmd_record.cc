@@ -14,7 +14,7 @@
 
 #include "app/command.h"
 #include "app/command_util.h"
-#include "transport/clock.h"
+#include "rt/clock.h"
 #include "transport/recorder.h"
 
 namespace felt::app::cmd_record {
@@ -55,10 +55,10 @@ int Record(const RecordArgs& args) {
 
   // Record until the duration (counted from the first sample) or a signal.
   int64_t end_ns = INT64_MAX;
-  while (!StopRequested().load() && transport::MonotonicNowNs() < end_ns) {
+  while (!StopRequested().load() && MonotonicNowNs() < end_ns) {
     recorder.Poll(std::chrono::milliseconds(50));
     if (args.duration_s && end_ns == INT64_MAX && recorder.Stats().pointers_written > 0) {
-      end_ns = transport::MonotonicNowNs() + static_cast<int64_t>(*args.duration_s * 1e9);
+      end_ns = MonotonicNowNs() + static_cast<int64_t>(*args.duration_s * 1e9);
     }
   }
   recorder.Close();

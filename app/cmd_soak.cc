@@ -38,9 +38,9 @@
 #include "base/process.h"
 #include "base/report.h"
 #include "recordings/trace.h"
+#include "rt/clock.h"
 #include "scene/scene_file.h"
 #include "server/server_spec.h"
-#include "transport/clock.h"
 
 namespace felt::app::cmd_soak {
 namespace {
@@ -151,7 +151,7 @@ struct Child {
   void RequestStop() {
     if (process.running() && stop_sent_ns == 0) {
       process.Signal(SIGINT);
-      stop_sent_ns = transport::MonotonicNowNs();
+      stop_sent_ns = MonotonicNowNs();
     }
   }
 };
@@ -261,7 +261,7 @@ int Soak(const SoakArgs& args) {
   Child replay = SpawnChild("replay", exe, replay_args, args.verbose);
 
   // Watch: output, the start of publication, RSS once a second, the ends.
-  const int64_t start_ns = transport::MonotonicNowNs();
+  const int64_t start_ns = MonotonicNowNs();
   const int64_t limit_ns =
       start_ns + static_cast<int64_t>((duration_s + args.discovery_timeout_s + 60.0) * 1e9);
   int64_t publishing_ns = 0, replay_end_ns = 0, next_rss_ns = 0;
@@ -271,7 +271,7 @@ int Soak(const SoakArgs& args) {
   const auto on_replay_line = [&](const std::string& line) {
     if (publishing_ns == 0 && line.find("felt replay: publishing") != std::string::npos) {
       // The replay starts now: the server's memory and CPU at the start.
-      publishing_ns = transport::MonotonicNowNs();
+      publishing_ns = MonotonicNowNs();
       rss_start_kb = rss_max_kb = ReadRssKb(serve.process.pid());
       serve_cpu_start_s = ReadCpuS(serve.process.pid());
       replay_cpu_start_s = ReadCpuS(replay.process.pid());
@@ -284,7 +284,7 @@ int Soak(const SoakArgs& args) {
     (void)poll(fds, 2, 100);
     serve.Drain([](const std::string&) {});
     replay.Drain(on_replay_line);
-    const int64_t now_ns = transport::MonotonicNowNs();
+    const int64_t now_ns = MonotonicNowNs();
     if (publishing_ns != 0 && replay_end_ns == 0 && now_ns >= next_rss_ns) {
       rss_max_kb = std::max(rss_max_kb, ReadRssKb(serve.process.pid()));
       next_rss_ns += 1000000000;

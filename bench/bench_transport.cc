@@ -80,7 +80,7 @@ void Row(const char* name, const transport::HopSummary& h) {
               h.p999_us, h.max_us, static_cast<unsigned long long>(h.count));
 }
 
-int64_t NowNs() { return transport::MonotonicNowNs(); }
+int64_t NowNs() { return MonotonicNowNs(); }
 
 void SleepUntil(int64_t deadline_ns) {
   const timespec ts{static_cast<time_t>(deadline_ns / 1000000000),

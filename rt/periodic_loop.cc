@@ -27,12 +27,6 @@ void SleepUntil(int64_t ns) {
 
 }  // namespace
 
-int64_t MonotonicNowNs() {
-  timespec t{};
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return static_cast<int64_t>(t.tv_sec) * kNsPerS + t.tv_nsec;
-}
-
 PeriodicLoop::PeriodicLoop(int64_t period_ns, int64_t spin_ns)
     : period_ns_(period_ns), spin_ns_(spin_ns) {
   if (period_ns <= 0) {

@@ -6,10 +6,9 @@
 
 #include <cstdint>
 
-namespace felt {
+#include "rt/clock.h"
 
-/// CLOCK_MONOTONIC now, in ns. Real-time safe (vDSO, no system call on these machines).
-int64_t MonotonicNowNs();
+namespace felt {
 
 /// What one wake-up of a PeriodicLoop looked like. Times are CLOCK_MONOTONIC in ns.
 struct TickInfo {

@@ -11,7 +11,7 @@
 #include <memory>
 #include <string>
 
-#include "transport/clock.h"
+#include "rt/clock.h"
 #include "transport/settings.h"
 #include "transport/views.h"
 

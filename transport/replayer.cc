@@ -17,8 +17,8 @@
 
 #include "base/json.h"
 #include "base/report.h"
+#include "rt/clock.h"
 #include "transport/client_transport.h"
-#include "transport/clock.h"
 #include "transport/recorder.h"
 
 namespace felt::transport {

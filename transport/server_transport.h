@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "base/non_copyable.h"
-#include "transport/clock.h"
+#include "rt/clock.h"
 #include "transport/settings.h"
 #include "transport/views.h"
 

@@ -41,15 +41,14 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
     table->ExpectKeys({"domain", "dds_config", "receive_mode", "force_queue_capacity",
                        "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples",
                        "devices"});
-    config.dds.domain_id =
-        static_cast<uint32_t>(table->Integer("domain", 0, InRange(0, 230)));
+    config.dds.domain_id = static_cast<uint32_t>(table->Integer("domain", 0, InRange(0, 230)));
     config.dds.config_file = table->String("dds_config", std::string());
     static constexpr NamedValue<ReceiveMode> kModes[] = {{"listener", ReceiveMode::kListener},
                                                          {"waitset", ReceiveMode::kWaitset}};
     config.receive_mode = table->Choice<ReceiveMode>(
         "receive_mode", ReceiveMode::kListener, std::span<const NamedValue<ReceiveMode>>(kModes));
-    config.force_queue_capacity = static_cast<size_t>(
-        table->Integer("force_queue_capacity", 256, InRange(1, 65536)));
+    config.force_queue_capacity =
+        static_cast<size_t>(table->Integer("force_queue_capacity", 256, InRange(1, 65536)));
     defaults = ReadLimits(*table, defaults);
   }
   for (size_t i = 0; i < devices.size(); ++i) {
@@ -59,8 +58,8 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
   if (table) {
     std::set<std::string> seen;
     for (const SceneTable& entry : table->ArrayOfTables("devices")) {
-      entry.ExpectKeys({"id", "workspace_min_m", "workspace_max_m", "max_rate_hz",
-                        "burst_samples"});
+      entry.ExpectKeys(
+          {"id", "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples"});
       const std::string id = entry.String("id", kRequired, /*non_empty=*/true);
       if (!seen.insert(id).second) entry.Fail("id", "device '" + id + "' is listed twice");
       size_t index = devices.size();

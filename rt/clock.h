@@ -1,13 +1,13 @@
 #pragma once
-// The clocks the transport stamps samples with.
+// The clocks every loop and the transport read (both through the vDSO: no system call).
 
 #include <time.h>
 
 #include <cstdint>
 
-namespace felt::transport {
+namespace felt {
 
-/// CLOCK_MONOTONIC now, ns (the clock of every receive_time_ns). Real-time safe (vDSO).
+/// CLOCK_MONOTONIC now, ns (loop deadlines, every receive_time_ns). Real-time safe (vDSO).
 inline int64_t MonotonicNowNs() {
   timespec ts{};
   clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -21,4 +21,4 @@ inline int64_t WallNowNs() {
   return static_cast<int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
 }
 
-}  // namespace felt::transport
+}  // namespace felt
