@@ -204,244 +204,267 @@ std::string Fixed(double v, int decimals) {
   return fmt::format("{:.{}f}", v, decimals);
 }
 
-int Soak(const SoakArgs& args) {
-  // Set-up: options, then the scene and the trace are read and checked before anything starts.
+// What a soak runs, read and checked before anything starts.
+struct SoakPlan {
+  std::string device_id;    // the scene's first device, which the replay stands in for
+  double duration_s = 0.0;  // replay time
+  uint32_t domain = 0;      // DDS domain of both children
+  std::string dir;          // a private directory for the children's reports
+  std::string serve_json;   // the server's --stats-json
+  std::string replay_json;  // the replay's --json
+  std::string exe;          // this felt binary
+};
+
+SoakPlan PlanSoak(const SoakArgs& args) {
   if (!(args.minutes > 0.0 && args.minutes <= 1440.0)) {
     throw std::invalid_argument(
         fmt::format("--minutes must be in (0, 1440], got {}", args.minutes));
   }
   const ServerSpec spec = ParseServerSpec(LoadSceneDocument(args.scene));
   if (spec.devices.empty()) throw std::invalid_argument(args.scene + ": the scene has no device");
-  const std::string device_id = spec.devices.front().id;
-  const Trace trace = ReadTrace(args.trace);
-  const double duration_s = args.minutes * 60.0;
-  const uint32_t domain = args.domain.value_or(100 + static_cast<uint32_t>(getpid() % 100));
-
-  // A private directory for the children's reports.
+  (void)ReadTrace(args.trace);  // a bad trace is refused here, before a child starts
+  SoakPlan plan;
+  plan.device_id = spec.devices.front().id;
+  plan.duration_s = args.minutes * 60.0;
+  plan.domain = args.domain.value_or(100 + static_cast<uint32_t>(getpid() % 100));
   std::string dir_template = (std::filesystem::temp_directory_path() / "felt-soak-XXXXXX").string();
   if (mkdtemp(dir_template.data()) == nullptr) {
     throw std::runtime_error("soak: cannot create a temporary directory: " +
                              std::string(std::strerror(errno)));
   }
-  const std::string dir = dir_template;
-  const std::string serve_json = dir + "/serve.json";
-  const std::string replay_json = dir + "/replay.json";
+  plan.dir = dir_template;
+  plan.serve_json = plan.dir + "/serve.json";
+  plan.replay_json = plan.dir + "/replay.json";
   char exe_buffer[4096];
   const ssize_t exe_length = readlink("/proc/self/exe", exe_buffer, sizeof(exe_buffer) - 1);
   if (exe_length <= 0) throw std::runtime_error("soak: cannot read /proc/self/exe");
-  const std::string exe(exe_buffer, static_cast<size_t>(exe_length));
+  plan.exe.assign(exe_buffer, static_cast<size_t>(exe_length));
+  return plan;
+}
 
-  // Signals: SIGINT/SIGTERM stop both children; no SA_RESTART, so poll() returns at once.
-  InstallStopHandlers();
-
-  const std::string load_start = report::LoadAverage();
-  std::printf("felt soak: %.1f s of %s into %s over DDS domain %u (device %s), load %s\n",
-              duration_s, args.trace.c_str(), args.scene.c_str(), domain, device_id.c_str(),
-              load_start.c_str());
-  std::fflush(stdout);
-
-  // The two children.
+// `felt serve` and `felt replay` as the plan has them.
+std::pair<Child, Child> SpawnChildren(const SoakArgs& args, const SoakPlan& plan) {
   std::vector<std::string> serve_args = {
-      "serve",        "--scene", args.scene, "--domain", std::to_string(domain),
-      "--stats-json", serve_json};
+      "serve",        "--scene",      args.scene, "--domain", std::to_string(plan.domain),
+      "--stats-json", plan.serve_json};
   if (args.no_realtime) serve_args.push_back("--no-realtime");
   const std::vector<std::string> replay_args = {"replay",
                                                 args.trace,
                                                 "--domain",
-                                                std::to_string(domain),
+                                                std::to_string(plan.domain),
                                                 "--device",
-                                                device_id,
+                                                plan.device_id,
                                                 "--duration",
-                                                fmt::format("{}", duration_s),
+                                                fmt::format("{}", plan.duration_s),
                                                 "--json",
-                                                replay_json,
+                                                plan.replay_json,
                                                 "--discovery-timeout",
                                                 fmt::format("{}", args.discovery_timeout_s)};
-  Child serve = SpawnChild("serve", exe, serve_args, args.verbose);
-  Child replay = SpawnChild("replay", exe, replay_args, args.verbose);
+  Child serve = SpawnChild("serve", plan.exe, serve_args, args.verbose);
+  Child replay = SpawnChild("replay", plan.exe, replay_args, args.verbose);
+  return {std::move(serve), std::move(replay)};
+}
 
-  // Watch: output, the start of publication, RSS once a second, the ends.
-  const int64_t start_ns = MonotonicNowNs();
-  const int64_t limit_ns =
-      start_ns + static_cast<int64_t>((duration_s + args.discovery_timeout_s + 60.0) * 1e9);
-  int64_t publishing_ns = 0, replay_end_ns = 0, next_rss_ns = 0;
+// What watching the two children saw: the replay's window, the server's memory and CPU over it.
+struct SoakWatch {
+  int64_t publishing_ns = 0;  // the replay started publishing (0: never)
+  int64_t replay_end_ns = 0;  // the replay ended (0: never)
   int64_t rss_start_kb = -1, rss_end_kb = -1, rss_max_kb = -1;
   double serve_cpu_start_s = -1, serve_cpu_end_s = -1, replay_cpu_start_s = -1;
   bool interrupted = false, timed_out = false, serve_died = false;
+
+  // The replay's window in seconds (NaN when it never started or ended).
+  double window_s() const {
+    return publishing_ns != 0 && replay_end_ns != 0
+               ? static_cast<double>(replay_end_ns - publishing_ns) / 1e9
+               : std::nan("");
+  }
+};
+
+// Watches both children until they end: output, the start of publication, the server's RSS once a
+// second, the replay's end (which stops the server), signals, the time limit, the grace time.
+SoakWatch WatchChildren(const SoakArgs& args, const SoakPlan& plan, Child* serve, Child* replay) {
+  SoakWatch w;
+  const int64_t limit_ns =
+      MonotonicNowNs() +
+      static_cast<int64_t>((plan.duration_s + args.discovery_timeout_s + 60.0) * 1e9);
+  int64_t next_rss_ns = 0;
   const auto on_replay_line = [&](const std::string& line) {
-    if (publishing_ns == 0 && line.find("felt replay: publishing") != std::string::npos) {
+    if (w.publishing_ns == 0 && line.find("felt replay: publishing") != std::string::npos) {
       // The replay starts now: the server's memory and CPU at the start.
-      publishing_ns = MonotonicNowNs();
-      rss_start_kb = rss_max_kb = ReadRssKb(serve.process.pid());
-      serve_cpu_start_s = ReadCpuS(serve.process.pid());
-      replay_cpu_start_s = ReadCpuS(replay.process.pid());
-      next_rss_ns = publishing_ns + 1000000000;
+      w.publishing_ns = MonotonicNowNs();
+      w.rss_start_kb = w.rss_max_kb = ReadRssKb(serve->process.pid());
+      w.serve_cpu_start_s = ReadCpuS(serve->process.pid());
+      w.replay_cpu_start_s = ReadCpuS(replay->process.pid());
+      next_rss_ns = w.publishing_ns + 1000000000;
     }
   };
-  while (serve.process.running() || replay.process.running()) {
-    pollfd fds[2] = {{serve.process.output_fd(), POLLIN, 0},
-                     {replay.process.output_fd(), POLLIN, 0}};
+  while (serve->process.running() || replay->process.running()) {
+    pollfd fds[2] = {{serve->process.output_fd(), POLLIN, 0},
+                     {replay->process.output_fd(), POLLIN, 0}};
     (void)poll(fds, 2, 100);
-    serve.Drain([](const std::string&) {});
-    replay.Drain(on_replay_line);
+    serve->Drain([](const std::string&) {});
+    replay->Drain(on_replay_line);
     const int64_t now_ns = MonotonicNowNs();
-    if (publishing_ns != 0 && replay_end_ns == 0 && now_ns >= next_rss_ns) {
-      rss_max_kb = std::max(rss_max_kb, ReadRssKb(serve.process.pid()));
+    if (w.publishing_ns != 0 && w.replay_end_ns == 0 && now_ns >= next_rss_ns) {
+      w.rss_max_kb = std::max(w.rss_max_kb, ReadRssKb(serve->process.pid()));
       next_rss_ns += 1000000000;
     }
     // The replay's end: the server's memory and CPU at the end, then the server is stopped.
-    if (replay.process.running() && replay.process.Poll()) {
-      replay.Drain(on_replay_line);
-    }
-    if (!replay.process.running() && replay_end_ns == 0) {
-      replay_end_ns = now_ns;
-      if (serve.process.running()) {
-        rss_end_kb = ReadRssKb(serve.process.pid());
-        rss_max_kb = std::max(rss_max_kb, rss_end_kb);
-        serve_cpu_end_s = ReadCpuS(serve.process.pid());
+    if (replay->process.running() && replay->process.Poll()) replay->Drain(on_replay_line);
+    if (!replay->process.running() && w.replay_end_ns == 0) {
+      w.replay_end_ns = now_ns;
+      if (serve->process.running()) {
+        w.rss_end_kb = ReadRssKb(serve->process.pid());
+        w.rss_max_kb = std::max(w.rss_max_kb, w.rss_end_kb);
+        w.serve_cpu_end_s = ReadCpuS(serve->process.pid());
       }
-      serve.RequestStop();
+      serve->RequestStop();
     }
-    if (serve.process.running() && serve.process.Poll()) {
-      serve.Drain([](const std::string&) {});
-      if (replay.process.running()) {
-        serve_died = true;
-        replay.RequestStop();
+    if (serve->process.running() && serve->process.Poll()) {
+      serve->Drain([](const std::string&) {});
+      if (replay->process.running()) {
+        w.serve_died = true;
+        replay->RequestStop();
       }
     }
-    // A signal, or the overall limit: stop both.
     // A signal stops the replay first; its end then stops the server as usual (so the memory at
-    // the end and the server's counts are still taken).
-    if (StopRequested().load() && !interrupted) {
-      interrupted = true;
-      replay.RequestStop();
+    // the end and the server's counts are still taken). The overall limit stops both.
+    if (StopRequested().load() && !w.interrupted) {
+      w.interrupted = true;
+      replay->RequestStop();
     }
-    if (now_ns > limit_ns && !timed_out) {
-      timed_out = true;
-      serve.RequestStop();
-      replay.RequestStop();
+    if (now_ns > limit_ns && !w.timed_out) {
+      w.timed_out = true;
+      serve->RequestStop();
+      replay->RequestStop();
     }
     // A child that does not stop within the grace time is killed.
-    for (Child* c : {&serve, &replay}) {
+    for (Child* c : {serve, replay}) {
       if (c->process.running() && c->stop_sent_ns != 0 && now_ns - c->stop_sent_ns > kStopGraceNs) {
         c->process.Signal(SIGKILL);
       }
     }
   }
-  const std::string load_end = report::LoadAverage();
-  const double window_s = publishing_ns != 0 && replay_end_ns != 0
-                              ? static_cast<double>(replay_end_ns - publishing_ns) / 1e9
-                              : std::nan("");
+  return w;
+}
 
-  // The children's failures: their last output.
+// Whether a child failed; after SIGINT/SIGTERM, a child that ended on the SIGINT passed on (even
+// before its handler was installed) or gave up early is expected, not a failure. Prints each
+// child's last output when one failed.
+bool ReportChildFailures(const SoakWatch& w, const Child& serve, const Child& replay) {
   const auto failed = [](const Child& c) {
     return c.process.term_signal() != 0 ||
            (c.process.exit_code() != 0 && c.process.exit_code() != -1);
   };
-  // After SIGINT/SIGTERM, a child that ended on the SIGINT passed on (even before its handler was
-  // installed) or gave up early is expected, not a failure.
   const bool child_failed =
-      !interrupted && (failed(serve) || failed(replay) || serve_died || timed_out);
-  if (child_failed) {
-    for (const Child* c : {&serve, &replay}) {
-      std::fprintf(stderr, "felt soak: %s: %s; its last output:\n", c->name.c_str(),
-                   c->process.Outcome().c_str());
-      for (const std::string& line : c->tail) std::fprintf(stderr, "  | %s\n", line.c_str());
-    }
-    if (serve_died) std::fprintf(stderr, "felt soak: the server ended before the replay\n");
-    if (timed_out) std::fprintf(stderr, "felt soak: the run passed its time limit\n");
+      !w.interrupted && (failed(serve) || failed(replay) || w.serve_died || w.timed_out);
+  if (!child_failed) return false;
+  for (const Child* c : {&serve, &replay}) {
+    std::fprintf(stderr, "felt soak: %s: %s; its last output:\n", c->name.c_str(),
+                 c->process.Outcome().c_str());
+    for (const std::string& line : c->tail) std::fprintf(stderr, "  | %s\n", line.c_str());
   }
+  if (w.serve_died) std::fprintf(stderr, "felt soak: the server ended before the replay\n");
+  if (w.timed_out) std::fprintf(stderr, "felt soak: the run passed its time limit\n");
+  return true;
+}
 
-  // The children's reports (missing when a child failed early).
+// Everything a soak reports: the children's reports, the derived figures and the checks.
+struct SoakResult {
   Json serve_report, replay_report;  // null when missing
-  if (std::filesystem::exists(serve_json)) serve_report = ReadJsonFile(serve_json);
-  if (std::filesystem::exists(replay_json)) replay_report = ReadJsonFile(replay_json);
-  if (args.keep_files) {
-    std::printf("felt soak: the children's reports are in %s\n", dir.c_str());
-  } else {
-    std::filesystem::remove_all(dir);
-  }
+  double window_s = 0, serve_cpu_s = 0, replay_cpu_s = 0, rss_growth_kb = 0;
+  double pointer_lost = 0, dropped = 0;
+  std::vector<Check> checks;
+  bool pass = true;  // every check passed
+  bool child_failed = false;
+  std::string load_start, load_end;
+};
 
-  // Derived figures.
-  const double serve_cpu_s = serve_cpu_start_s >= 0 && serve_cpu_end_s >= 0
-                                 ? serve_cpu_end_s - serve_cpu_start_s
-                                 : std::nan("");
-  const double replay_total_cpu_s = static_cast<double>(replay.process.usage().ru_utime.tv_sec +
-                                                        replay.process.usage().ru_stime.tv_sec) +
-                                    static_cast<double>(replay.process.usage().ru_utime.tv_usec +
-                                                        replay.process.usage().ru_stime.tv_usec) /
-                                        1e6;
-  const double replay_cpu_s =
-      replay_cpu_start_s >= 0 ? replay_total_cpu_s - replay_cpu_start_s : std::nan("");
-  const double rss_growth_kb = rss_start_kb >= 0 && rss_end_kb >= 0
-                                   ? static_cast<double>(rss_end_kb - rss_start_kb)
-                                   : std::nan("");
+// The derived figures and the checks (a value that is unknown fails).
+void Evaluate(const SoakArgs& args, const SoakWatch& w, const Child& replay, SoakResult* r) {
+  r->window_s = w.window_s();
+  r->serve_cpu_s = w.serve_cpu_start_s >= 0 && w.serve_cpu_end_s >= 0
+                       ? w.serve_cpu_end_s - w.serve_cpu_start_s
+                       : std::nan("");
+  const rusage& u = replay.process.usage();
+  const double replay_total_cpu_s =
+      static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+      static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e6;
+  r->replay_cpu_s =
+      w.replay_cpu_start_s >= 0 ? replay_total_cpu_s - w.replay_cpu_start_s : std::nan("");
+  r->rss_growth_kb = w.rss_start_kb >= 0 && w.rss_end_kb >= 0
+                         ? static_cast<double>(w.rss_end_kb - w.rss_start_kb)
+                         : std::nan("");
   // Pointer samples lost: known only when the replay saw the server's status before and after.
-  const double pointer_lost =
+  const Json& replay_report = r->replay_report;
+  r->pointer_lost =
       Flag(replay_report, "server_counts") ? Num(replay_report, "pointer_lost") : std::nan("");
-  const double dropped =
-      pointer_lost + Num(replay_report, "forces_lost") + Num(replay_report, "publish_failures");
-
-  // The checks (a value that is unknown fails).
-  std::vector<Check> checks = {
-      {"dropped samples (pointer lost + forces lost + publish failures)", dropped,
+  r->dropped =
+      r->pointer_lost + Num(replay_report, "forces_lost") + Num(replay_report, "publish_failures");
+  r->checks = {
+      {"dropped samples (pointer lost + forces lost + publish failures)", r->dropped,
        args.max_dropped},
-      {"server RSS growth kB", rss_growth_kb, args.max_rss_growth_kb},
-      {"haptic lateness p99 us", Num(serve_report, "haptic.lateness_us.p99"),
+      {"server RSS growth kB", r->rss_growth_kb, args.max_rss_growth_kb},
+      {"haptic lateness p99 us", Num(r->serve_report, "haptic.lateness_us.p99"),
        args.max_lateness_p99_us},
-      {"haptic lateness p99.9 us", Num(serve_report, "haptic.lateness_us.p999"),
+      {"haptic lateness p99.9 us", Num(r->serve_report, "haptic.lateness_us.p999"),
        args.max_lateness_p999_us},
   };
-  bool pass = true;
-  for (Check& c : checks) {
+  for (Check& c : r->checks) {
     c.pass = std::isfinite(c.value) && c.value <= c.limit;
-    pass = pass && c.pass;
+    r->pass = r->pass && c.pass;
   }
+}
 
-  // JSON.
+Json SoakJson(const SoakArgs& args, const SoakPlan& plan, const SoakWatch& w, const Child& serve,
+              const Child& replay, const SoakResult& r) {
   Json server{{"exit_code", serve.process.exit_code()},
-              {"rss_start_kB", rss_start_kb},
-              {"rss_end_kB", rss_end_kb},
-              {"rss_max_kB", rss_max_kb},
-              {"rss_growth_kB", rss_growth_kb},
-              {"cpu_s", serve_cpu_s},
-              {"cpu_percent", serve_cpu_s / window_s * 100.0}};
-  if (!serve_report.is_null()) server["stats"] = serve_report;
+              {"rss_start_kB", w.rss_start_kb},
+              {"rss_end_kB", w.rss_end_kb},
+              {"rss_max_kB", w.rss_max_kb},
+              {"rss_growth_kB", r.rss_growth_kb},
+              {"cpu_s", r.serve_cpu_s},
+              {"cpu_percent", r.serve_cpu_s / r.window_s * 100.0}};
+  if (!r.serve_report.is_null()) server["stats"] = r.serve_report;
   Json replayed{{"exit_code", replay.process.exit_code()},
-                {"cpu_s", replay_cpu_s},
-                {"cpu_percent", replay_cpu_s / window_s * 100.0}};
-  if (!replay_report.is_null()) replayed["report"] = replay_report;
+                {"cpu_s", r.replay_cpu_s},
+                {"cpu_percent", r.replay_cpu_s / r.window_s * 100.0}};
+  if (!r.replay_report.is_null()) replayed["report"] = r.replay_report;
   Json check_json = Json::object();
-  for (const Check& c : checks) {
+  for (const Check& c : r.checks) {
     check_json[c.name] = Json{{"value", c.value}, {"limit", c.limit}, {"pass", c.pass}};
   }
-  const Json json{{"command", fmt::format("felt soak --minutes {} --scene {} --trace {}",
-                                          args.minutes, args.scene, args.trace)},
-                  {"minutes", args.minutes},
-                  {"scene", args.scene},
-                  {"trace", args.trace},
-                  {"device_id", device_id},
-                  {"domain", domain},
-                  {"load_average_start", load_start},
-                  {"load_average_end", load_end},
-                  {"window_s", window_s},
-                  {"interrupted", interrupted},
-                  {"children_ok", !child_failed},
-                  {"server", server},
-                  {"replay", replayed},
-                  {"thresholds", Json{{"max_dropped", args.max_dropped},
-                                      {"max_rss_growth_kB", args.max_rss_growth_kb},
-                                      {"max_haptic_lateness_p99_us", args.max_lateness_p99_us},
-                                      {"max_haptic_lateness_p999_us", args.max_lateness_p999_us}}},
-                  {"checks", check_json},
-                  {"pass", pass && !child_failed}};
+  return Json{{"command", fmt::format("felt soak --minutes {} --scene {} --trace {}", args.minutes,
+                                      args.scene, args.trace)},
+              {"minutes", args.minutes},
+              {"scene", args.scene},
+              {"trace", args.trace},
+              {"device_id", plan.device_id},
+              {"domain", plan.domain},
+              {"load_average_start", r.load_start},
+              {"load_average_end", r.load_end},
+              {"window_s", r.window_s},
+              {"interrupted", w.interrupted},
+              {"children_ok", !r.child_failed},
+              {"server", server},
+              {"replay", replayed},
+              {"thresholds", Json{{"max_dropped", args.max_dropped},
+                                  {"max_rss_growth_kB", args.max_rss_growth_kb},
+                                  {"max_haptic_lateness_p99_us", args.max_lateness_p99_us},
+                                  {"max_haptic_lateness_p999_us", args.max_lateness_p999_us}}},
+              {"checks", check_json},
+              {"pass", r.pass && !r.child_failed}};
+}
 
-  // Markdown.
+std::string SoakMarkdown(const SoakArgs& args, const SoakWatch& w, const SoakResult& r) {
+  const Json& serve_report = r.serve_report;
+  const Json& replay_report = r.replay_report;
   std::string md = "# felt soak\n\n";
   md += fmt::format("Command: `felt soak --minutes {} --scene {} --trace {}{}`  \n", args.minutes,
                     args.scene, args.trace, args.no_realtime ? " --no-realtime" : "");
   md += fmt::format("Load average (1, 5, 15 min): start {}, end {}. Replay window {} s.\n\n",
-                    load_start, load_end, Fixed(window_s, 1));
+                    r.load_start, r.load_end, Fixed(r.window_s, 1));
   md += "| quantity | p50 | p99 | p99.9 | max |\n|---|---|---|---|---|\n";
   const auto row = [&](const std::string& label, const Json& root, const std::string& path,
                        int decimals) {
@@ -461,90 +484,125 @@ int Soak(const SoakArgs& args) {
   const auto item = [&](const std::string& label, const std::string& value) {
     md += fmt::format("| {} | {} |\n", label, value);
   };
+  // "a / b" of two counts in a report.
+  const auto pair = [](const Json& root, const char* a, const char* b) {
+    return Fixed(Num(root, a), 0) + " / " + Fixed(Num(root, b), 0);
+  };
   item("realtime (SCHED_FIFO)", Flag(serve_report, "realtime") ? "true" : "false");
-  item("haptic ticks / overruns", Fixed(Num(serve_report, "haptic.ticks"), 0) + " / " +
-                                      Fixed(Num(serve_report, "haptic.overruns"), 0));
-  item("sim frames / overruns", Fixed(Num(serve_report, "sim.frames"), 0) + " / " +
-                                    Fixed(Num(serve_report, "sim.overruns"), 0));
-  item("pointer samples published / late",
-       Fixed(Num(replay_report, "published"), 0) + " / " + Fixed(Num(replay_report, "late"), 0));
-  item("pointer samples lost (server count)", Fixed(pointer_lost, 0));
-  item("pointer samples answered / unanswered", Fixed(Num(replay_report, "answered"), 0) + " / " +
-                                                    Fixed(Num(replay_report, "unanswered"), 0));
-  item("forces received / lost", Fixed(Num(replay_report, "forces_received"), 0) + " / " +
-                                     Fixed(Num(replay_report, "forces_lost"), 0));
+  item("haptic ticks / overruns", pair(serve_report, "haptic.ticks", "haptic.overruns"));
+  item("sim frames / overruns", pair(serve_report, "sim.frames", "sim.overruns"));
+  item("pointer samples published / late", pair(replay_report, "published", "late"));
+  item("pointer samples lost (server count)", Fixed(r.pointer_lost, 0));
+  item("pointer samples answered / unanswered", pair(replay_report, "answered", "unanswered"));
+  item("forces received / lost", pair(replay_report, "forces_received", "forces_lost"));
   item("contact ticks / peak force (N)", Fixed(Num(serve_report, "contacts"), 0) + " / " +
                                              Fixed(Num(serve_report, "peak_force_N"), 2));
-  item("server RSS start / end / max (kB)", Fixed(static_cast<double>(rss_start_kb), 0) + " / " +
-                                                Fixed(static_cast<double>(rss_end_kb), 0) + " / " +
-                                                Fixed(static_cast<double>(rss_max_kb), 0));
-  item("server CPU (% of one core)", Fixed(serve_cpu_s / window_s * 100.0, 1));
-  item("replay CPU (% of one core)", Fixed(replay_cpu_s / window_s * 100.0, 1));
+  item("server RSS start / end / max (kB)", Fixed(static_cast<double>(w.rss_start_kb), 0) + " / " +
+                                                Fixed(static_cast<double>(w.rss_end_kb), 0) +
+                                                " / " +
+                                                Fixed(static_cast<double>(w.rss_max_kb), 0));
+  item("server CPU (% of one core)", Fixed(r.serve_cpu_s / r.window_s * 100.0, 1));
+  item("replay CPU (% of one core)", Fixed(r.replay_cpu_s / r.window_s * 100.0, 1));
   md += "\n| check | value | limit | pass |\n|---|---|---|---|\n";
-  for (const Check& c : checks) {
+  for (const Check& c : r.checks) {
     md += fmt::format("| {} | {} | {} | {} |\n", c.name, Fixed(c.value, 0), Fixed(c.limit, 0),
                       c.pass ? "yes" : "**no**");
   }
+  return md;
+}
 
-  // Files.
-  if (!args.json.empty()) WriteOptionFile("--json", args.json, JsonText(json));
-  std::string md_path = args.md;
-  if (md_path.empty() && !args.json.empty()) {
-    md_path = std::filesystem::path(args.json).replace_extension(".md").string();
-  }
-  if (!md_path.empty()) WriteOptionFile("--md", md_path, md);
-
-  // The short summary.
-  std::printf(
-      "haptic loop   lateness us p50 %s p99 %s p99.9 %s max %s; %s ticks, %s overruns; "
-      "realtime %s\n",
-      Fixed(Num(serve_report, "haptic.lateness_us.p50"), 0).c_str(),
-      Fixed(Num(serve_report, "haptic.lateness_us.p99"), 0).c_str(),
-      Fixed(Num(serve_report, "haptic.lateness_us.p999"), 0).c_str(),
-      Fixed(Num(serve_report, "haptic.lateness_us.max"), 0).c_str(),
-      Fixed(Num(serve_report, "haptic.ticks"), 0).c_str(),
-      Fixed(Num(serve_report, "haptic.overruns"), 0).c_str(),
-      Flag(serve_report, "realtime") ? "true" : "false");
-  std::printf("sim loop      frame ms p50 %s p99 %s max %s; %s frames\n",
-              Fixed(Num(serve_report, "sim.frame_ms.p50"), 2).c_str(),
-              Fixed(Num(serve_report, "sim.frame_ms.p99"), 2).c_str(),
-              Fixed(Num(serve_report, "sim.frame_ms.max"), 2).c_str(),
+// The short summary on stdout.
+void PrintSoakSummary(const SoakArgs& args, const SoakWatch& w, const SoakResult& r) {
+  const Json& serve_report = r.serve_report;
+  const Json& replay_report = r.replay_report;
+  // "p50 1 p99 2 p99.9 3 max 4" of a percentile object in a report.
+  const auto times = [](const Json& root, const std::string& path, int decimals, bool p999) {
+    std::string out = "p50 " + Fixed(Num(root, path + ".p50"), decimals) + " p99 " +
+                      Fixed(Num(root, path + ".p99"), decimals);
+    if (p999) out += " p99.9 " + Fixed(Num(root, path + ".p999"), decimals);
+    return out + " max " + Fixed(Num(root, path + ".max"), decimals);
+  };
+  std::printf("haptic loop   lateness us %s; %s ticks, %s overruns; realtime %s\n",
+              times(serve_report, "haptic.lateness_us", 0, true).c_str(),
+              Fixed(Num(serve_report, "haptic.ticks"), 0).c_str(),
+              Fixed(Num(serve_report, "haptic.overruns"), 0).c_str(),
+              Flag(serve_report, "realtime") ? "true" : "false");
+  std::printf("sim loop      frame ms %s; %s frames\n",
+              times(serve_report, "sim.frame_ms", 2, false).c_str(),
               Fixed(Num(serve_report, "sim.frames"), 0).c_str());
-  std::printf("latency us    p50 %s p99 %s p99.9 %s max %s (pointer published -> force received)\n",
-              Fixed(Num(replay_report, "latency_us.p50"), 0).c_str(),
-              Fixed(Num(replay_report, "latency_us.p99"), 0).c_str(),
-              Fixed(Num(replay_report, "latency_us.p999"), 0).c_str(),
-              Fixed(Num(replay_report, "latency_us.max"), 0).c_str());
+  std::printf("latency us    %s (pointer published -> force received)\n",
+              times(replay_report, "latency_us", 0, true).c_str());
   std::printf("samples       %s published, %s late, %s lost; forces %s received, %s lost\n",
               Fixed(Num(replay_report, "published"), 0).c_str(),
-              Fixed(Num(replay_report, "late"), 0).c_str(), Fixed(pointer_lost, 0).c_str(),
+              Fixed(Num(replay_report, "late"), 0).c_str(), Fixed(r.pointer_lost, 0).c_str(),
               Fixed(Num(replay_report, "forces_received"), 0).c_str(),
               Fixed(Num(replay_report, "forces_lost"), 0).c_str());
   std::printf("contacts      %s ticks in contact, peak force %s N\n",
               Fixed(Num(serve_report, "contacts"), 0).c_str(),
               Fixed(Num(serve_report, "peak_force_N"), 2).c_str());
   std::printf("server        RSS %s -> %s kB (growth %s kB), CPU %s%%; replay CPU %s%%\n",
-              Fixed(static_cast<double>(rss_start_kb), 0).c_str(),
-              Fixed(static_cast<double>(rss_end_kb), 0).c_str(), Fixed(rss_growth_kb, 0).c_str(),
-              Fixed(serve_cpu_s / window_s * 100.0, 1).c_str(),
-              Fixed(replay_cpu_s / window_s * 100.0, 1).c_str());
+              Fixed(static_cast<double>(w.rss_start_kb), 0).c_str(),
+              Fixed(static_cast<double>(w.rss_end_kb), 0).c_str(),
+              Fixed(r.rss_growth_kb, 0).c_str(),
+              Fixed(r.serve_cpu_s / r.window_s * 100.0, 1).c_str(),
+              Fixed(r.replay_cpu_s / r.window_s * 100.0, 1).c_str());
   // With --report-only a crossed threshold is information, not a failure (the `make run` demo).
   const char* crossed = args.report_only ? "over" : "FAIL";
-  for (const Check& c : checks) {
+  for (const Check& c : r.checks) {
     std::printf("check         %-4s %s = %s (limit %s)\n", c.pass ? "ok" : crossed, c.name.c_str(),
                 Fixed(c.value, 0).c_str(), Fixed(c.limit, 0).c_str());
   }
   std::printf("felt soak: %s (load %s)\n",
-              interrupted        ? "interrupted"
-              : child_failed     ? "FAILED: a child process failed"
-              : pass             ? "PASS"
+              w.interrupted      ? "interrupted"
+              : r.child_failed   ? "FAILED: a child process failed"
+              : r.pass           ? "PASS"
               : args.report_only ? "over a threshold, reported only (--report-only: exit 0)"
                                  : "FAIL: a threshold was crossed",
-              load_end.c_str());
+              r.load_end.c_str());
   std::fflush(stdout);
-  if (interrupted) return kExitInterrupted;
-  if (child_failed) return 1;
-  if (!pass && !args.report_only) return kExitThreshold;
+}
+
+int Soak(const SoakArgs& args) {
+  // Set-up: options, the scene and the trace read and checked before anything starts.
+  const SoakPlan plan = PlanSoak(args);
+  // Signals: SIGINT/SIGTERM stop both children; no SA_RESTART, so poll() returns at once.
+  InstallStopHandlers();
+  SoakResult r;
+  r.load_start = report::LoadAverage();
+  std::printf("felt soak: %.1f s of %s into %s over DDS domain %u (device %s), load %s\n",
+              plan.duration_s, args.trace.c_str(), args.scene.c_str(), plan.domain,
+              plan.device_id.c_str(), r.load_start.c_str());
+  std::fflush(stdout);
+
+  // The two children, watched until both end.
+  auto [serve, replay] = SpawnChildren(args, plan);
+  const SoakWatch w = WatchChildren(args, plan, &serve, &replay);
+  r.load_end = report::LoadAverage();
+  r.child_failed = ReportChildFailures(w, serve, replay);
+
+  // The children's reports (missing when a child failed early), the figures and the checks.
+  if (std::filesystem::exists(plan.serve_json)) r.serve_report = ReadJsonFile(plan.serve_json);
+  if (std::filesystem::exists(plan.replay_json)) r.replay_report = ReadJsonFile(plan.replay_json);
+  if (args.keep_files) {
+    std::printf("felt soak: the children's reports are in %s\n", plan.dir.c_str());
+  } else {
+    std::filesystem::remove_all(plan.dir);
+  }
+  Evaluate(args, w, replay, &r);
+
+  // Files, then the summary.
+  if (!args.json.empty()) {
+    WriteOptionFile("--json", args.json, JsonText(SoakJson(args, plan, w, serve, replay, r)));
+  }
+  std::string md_path = args.md;
+  if (md_path.empty() && !args.json.empty()) {
+    md_path = std::filesystem::path(args.json).replace_extension(".md").string();
+  }
+  if (!md_path.empty()) WriteOptionFile("--md", md_path, SoakMarkdown(args, w, r));
+  PrintSoakSummary(args, w, r);
+  if (w.interrupted) return kExitInterrupted;
+  if (r.child_failed) return 1;
+  if (!r.pass && !args.report_only) return kExitThreshold;
   return 0;
 }
 
