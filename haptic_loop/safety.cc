@@ -43,6 +43,52 @@ void ValidateSafetySpec(const SafetySpec& spec) {
           "max_passivity_damping_N_s_per_m", "must be >= 0", spec.max_passivity_damping_N_s_per_m);
 }
 
+namespace {
+
+// 2. Ramp gain: up with fresh input (ramp-in), down with stale input (ramp to zero); the flags
+// say which.
+void RampGain(const SafetySpec& spec, bool input_fresh, double dt_s, SafetyState* state,
+              uint32_t* flags) {
+  if (input_fresh) {
+    state->gain = std::min(1.0, state->gain + dt_s / spec.ramp_in_s);
+    if (state->gain < 1.0) *flags |= kSafetyRamping;
+  } else {
+    state->gain = std::max(0.0, state->gain - dt_s / spec.ramp_out_s);
+    *flags |= kSafetyStaleInput;
+  }
+}
+
+// 4. Force-rate (jerk) limit relative to the force sent last tick; true if it limited `force`.
+bool LimitForceRate(const SafetySpec& spec, const Vec3& last_force_D_N, double dt_s, Vec3* force) {
+  const Vec3 last = Finite(last_force_D_N) ? last_force_D_N : Vec3::Zero();
+  const Vec3 step = *force - last;
+  const double max_step = spec.max_force_rate_N_per_s * dt_s;
+  if (!(step.norm() > max_step)) return false;
+  *force = last + step * (max_step / step.norm());
+  return true;
+}
+
+// 5. Passivity observer and controller (Hannaford & Ryu 2002, eqs. (9) and (11)): the energy
+// E accumulates the power the user puts into the environment, F_user . v = -F_D . v; returns the
+// new E, and true in *clamped if the controller's force had to be clamped.
+double ObservePassivity(const SafetySpec& spec, const Vec3& v, double dt_s, SafetyState* state,
+                        Vec3* force, bool* clamped) {
+  double energy = state->energy_J - force->dot(v) * dt_s;
+  const double v2 = v.squaredNorm();
+  if (spec.passivity_controller && energy < 0.0 && v2 > 1e-12) {
+    // Least damping that brings E back to 0: alpha |v|^2 dt = -E, capped.
+    const double alpha = std::min(-energy / (v2 * dt_s), spec.max_passivity_damping_N_s_per_m);
+    *force -= alpha * v;  // the device resists the motion
+    *clamped = ClampMagnitude(spec.max_force_N, force) || *clamped;
+    state->dissipated_J += alpha * v2 * dt_s;
+    ++state->controller_ticks;
+    energy = state->energy_J - force->dot(v) * dt_s;
+  }
+  return energy;
+}
+
+}  // namespace
+
 SafetyOutput ApplySafety(const SafetySpec& spec, const SafetyInput& input, double dt_s,
                          SafetyState* state) {
   SafetyOutput out;
@@ -58,7 +104,9 @@ SafetyOutput ApplySafety(const SafetySpec& spec, const SafetyInput& input, doubl
   if (!Finite(v)) v.setZero();
 
   // A non-finite value zeroes the force at once (no rate limit on the way down) and restarts the
-  // ramp-in: the next good sample fades in like a reconnect.
+  // ramp-in: the next good sample fades in like a reconnect. Otherwise: ramp (2; with stale
+  // input the target is the proxy's last force, so the force fades out from there), magnitude
+  // clamp to the device's maximum (3), rate limit (4), passivity (5).
   Vec3 force = Vec3::Zero();
   bool clamped = false;
   double energy = state->energy_J;
@@ -66,42 +114,11 @@ SafetyOutput ApplySafety(const SafetySpec& spec, const SafetyInput& input, doubl
     state->gain = 0.0;
     if (!input.input_fresh) out.flags |= kSafetyStaleInput;
   } else {
-    // 2. Ramp gain: up with fresh input (ramp-in), down with stale input (ramp to zero). With
-    // stale input the target is the proxy's last force, so the force fades out from there.
-    if (input.input_fresh) {
-      state->gain = std::min(1.0, state->gain + dt_s / spec.ramp_in_s);
-      if (state->gain < 1.0) out.flags |= kSafetyRamping;
-    } else {
-      state->gain = std::max(0.0, state->gain - dt_s / spec.ramp_out_s);
-      out.flags |= kSafetyStaleInput;
-    }
+    RampGain(spec, input.input_fresh, dt_s, state, &out.flags);
     force = state->gain * target;
-
-    // 3. Magnitude clamp to the device's maximum.
     clamped = ClampMagnitude(spec.max_force_N, &force);
-
-    // 4. Force-rate (jerk) limit relative to the force sent last tick.
-    const Vec3 last = Finite(state->last_force_D_N) ? state->last_force_D_N : Vec3::Zero();
-    const Vec3 step = force - last;
-    const double max_step = spec.max_force_rate_N_per_s * dt_s;
-    if (step.norm() > max_step) {
-      force = last + step * (max_step / step.norm());
-      clamped = true;
-    }
-
-    // 5. Passivity observer and controller (Hannaford & Ryu 2002, eqs. (9) and (11)): E
-    // accumulates the power the user puts into the environment, F_user . v = -F_D . v.
-    energy = state->energy_J - force.dot(v) * dt_s;
-    const double v2 = v.squaredNorm();
-    if (spec.passivity_controller && energy < 0.0 && v2 > 1e-12) {
-      // Least damping that brings E back to 0: alpha |v|^2 dt = -E, capped.
-      const double alpha = std::min(-energy / (v2 * dt_s), spec.max_passivity_damping_N_s_per_m);
-      force -= alpha * v;  // the device resists the motion
-      clamped = ClampMagnitude(spec.max_force_N, &force) || clamped;
-      state->dissipated_J += alpha * v2 * dt_s;
-      ++state->controller_ticks;
-      energy = state->energy_J - force.dot(v) * dt_s;
-    }
+    clamped = LimitForceRate(spec, state->last_force_D_N, dt_s, &force) || clamped;
+    energy = ObservePassivity(spec, v, dt_s, state, &force, &clamped);
   }
 
   // 6. Final check of the output.
