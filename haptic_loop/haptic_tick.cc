@@ -14,8 +14,7 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
                        const HapticSpec& haptic, const ClothSnapshot& initial,
                        SnapshotBuffer* snapshots, ReactionQueue* reactions, PointerSource* source,
                        ForceSink* sink, LoopStats* stats)
-    : haptic_(haptic),
-      stale_ns_(static_cast<int64_t>(haptic.stale_input_s * 1e9)),
+    : stale_ns_(static_cast<int64_t>(haptic.stale_input_s * 1e9)),
       stall_ns_(static_cast<int64_t>(haptic.sim_stall_s * 1e9)),
       snapshots_(snapshots),
       reactions_(reactions),
@@ -36,7 +35,7 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
   const int32_t per_device =
       std::max<int32_t>(1, kMaxReactionForces / static_cast<int32_t>(devices.size()));
   for (const DeviceSpec& d : devices) {
-    SafetySpec safety = DeviceSafetySpec(haptic_, d);
+    SafetySpec safety = DeviceSafetySpec(haptic, d);
     ValidateSafetySpec(safety);
     ProxyModel model = CompileProxyModel(d, proxy);
     ProxyState state(model.candidate_capacity, std::min(per_device, 256));

@@ -116,7 +116,6 @@ class HapticLoop {
   SafetyOutput ApplyDeviceSafety(const TickCloth& cloth, bool input_nan, double dt_s, Device* d);
   void SendForce(uint32_t index, int64_t now_ns, const SafetyOutput& out, Device* d);
 
-  HapticSpec haptic_;
   int64_t stale_ns_;
   int64_t stall_ns_;
   SnapshotBuffer* snapshots_;

@@ -6,7 +6,6 @@
 //
 // Monitor thread: once per monitor period, logs FormatMonitorLine plus the server's counters with
 // spdlog and calls the status callback (the DDS transport's PublishStatus in `felt serve`).
-#include <array>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
