@@ -78,6 +78,10 @@ class HapticLoop {
   const DeviceSpec& device_spec(uint32_t i) const { return devices_[i].spec; }
   /// The counters of device `i` (any thread).
   const DeviceCounters& device_counters(uint32_t i) const { return *devices_[i].counters; }
+  /// The proxy model of device `i`.
+  const ProxyModel& proxy_model(uint32_t i) const { return devices_[i].model; }
+  /// The proxy state of device `i`: from the haptic thread, or while it is not ticking.
+  const ProxyState& proxy_state(uint32_t i) const { return devices_[i].proxy; }
   /// The loop's own counters (any thread).
   const HapticCounters& counters() const { return counters_; }
 

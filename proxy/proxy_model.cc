@@ -12,6 +12,17 @@ namespace {
 
 // Throws std::invalid_argument "<field>: <rule>, got <value>" unless ok (the scene parser's
 // wording, so a rule reads the same wherever it is checked).
+// "must be in [lo, hi]" (appended piece by piece: GCC 12's -Warray-bounds misfires on
+// "literal" + std::to_string(...) in a unity build).
+std::string MustBeInRange(int64_t lo, int64_t hi) {
+  std::string text = "must be in [";
+  text += std::to_string(lo);
+  text += ", ";
+  text += std::to_string(hi);
+  text += "]";
+  return text;
+}
+
 void RequireModelField(bool ok, const char* field, const std::string& rule, double value) {
   if (!ok) {
     throw std::invalid_argument(std::string(field) + ": " + rule + ", got " +
@@ -45,13 +56,12 @@ ProxyModel CompileProxyModel(const DeviceSpec& device, const ProxySpec& proxy) {
                     proxy.friction_dynamic);
   RequireModelField(proxy.max_iterations >= 1 && proxy.max_iterations <= kMaxProxyIterations,
                     "proxy.max_iterations",
-                    "must be in [1, " + std::to_string(kMaxProxyIterations) + "]",
+                    MustBeInRange(1, kMaxProxyIterations),
                     proxy.max_iterations);
   RequireModelField(proxy.candidate_capacity >= kMinCandidateCapacity &&
                         proxy.candidate_capacity <= kMaxCandidateCapacity,
                     "proxy.candidate_capacity",
-                    "must be in [" + std::to_string(kMinCandidateCapacity) + ", " +
-                        std::to_string(kMaxCandidateCapacity) + "]",
+                    MustBeInRange(kMinCandidateCapacity, kMaxCandidateCapacity),
                     proxy.candidate_capacity);
 
   ProxyModel m;

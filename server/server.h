@@ -142,6 +142,9 @@ class Server : NonCopyable {
   uint64_t sim_frames() const { return sim_.counters().frames.load(std::memory_order_acquire); }
   /// Sim time of the newest frame [s]: frames x 1 / frame_rate_hz (skipped periods are dropped).
   double sim_time_s() const { return sim_.counters().time_s.load(std::memory_order_acquire); }
+  /// The haptic loop (its proxies' state: only from the thread driving HapticTick, or while the
+  /// haptic thread is not running).
+  const HapticLoop& haptic() const { return haptic_; }
   /// Total reaction impulse the sim has applied to the cloth, N s (any thread).
   double applied_impulse_N_s() const { return sim_.counters().applied_impulse_N_s.load(); }
 
