@@ -64,6 +64,11 @@ enum class SnapshotMode : uint8_t {
   kExtrapolate,  ///< (d) positions extrapolated from the newest with its velocities
 };
 
+/// Every snapshot mode, in the order tables list them.
+inline constexpr SnapshotMode kSnapshotModes[] = {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
+                                                  SnapshotMode::kInterpolate,
+                                                  SnapshotMode::kExtrapolate};
+
 /// The scene-file name of a mode: "newest", "blend_forces", "interpolate", "extrapolate".
 const char* SnapshotModeName(SnapshotMode mode);
 
