@@ -10,7 +10,7 @@
 namespace felt {
 namespace {
 
-constexpr std::array<NamedValue<SnapshotMode>, 4> kSnapshotModes = {{
+constexpr std::array<NamedValue<SnapshotMode>, 4> kSnapshotModeNames = {{
     {"newest", SnapshotMode::kNewest},
     {"blend_forces", SnapshotMode::kBlendForces},
     {"interpolate", SnapshotMode::kInterpolate},
@@ -105,7 +105,7 @@ DeviceSpec ReadDeviceKeys(const SceneTable& table, DeviceSpec base) {
 }  // namespace
 
 const char* SnapshotModeName(SnapshotMode mode) {
-  for (const auto& m : kSnapshotModes) {
+  for (const auto& m : kSnapshotModeNames) {
     if (m.value == mode) return m.name.data();
   }
   return "?";
@@ -166,7 +166,7 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
                                         FormatSceneNumber(p.friction_static) + "), got " +
                                         FormatSceneNumber(p.friction_dynamic));
   }
-  p.snapshot_mode = table->Choice<SnapshotMode>("snapshot_mode", p.snapshot_mode, kSnapshotModes);
+  p.snapshot_mode = table->Choice<SnapshotMode>("snapshot_mode", p.snapshot_mode, kSnapshotModeNames);
   p.max_iterations =
       table->Integer("max_iterations", p.max_iterations, InRange(1, kMaxProxyIterations));
   p.candidate_capacity = table->Integer("candidate_capacity", p.candidate_capacity,
