@@ -11,9 +11,10 @@
 namespace felt {
 
 HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& devices,
-                       const HapticSpec& haptic, const ClothSnapshot& initial,
-                       SnapshotBuffer* snapshots, ReactionQueue* reactions, PointerSource* source,
-                       ForceSink* sink, LoopStats* stats)
+                       const HapticSpec& haptic, const ClothModel& cloth,
+                       const ClothSnapshot& initial, SnapshotBuffer* snapshots,
+                       ReactionQueue* reactions, PointerSource* source, ForceSink* sink,
+                       LoopStats* stats)
     : stale_ns_(static_cast<int64_t>(haptic.stale_input_s * 1e9)),
       stall_ns_(static_cast<int64_t>(haptic.sim_stall_s * 1e9)),
       snapshots_(snapshots),
@@ -41,18 +42,39 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
     ProxyState state(model.candidate_capacity, std::min(per_device, 256));
     devices_.emplace_back(d, safety, std::move(model), std::move(state));
   }
+
+  // Mode patch: one patch for every device (their windows merge where they meet).
+  if (proxy.snapshot_mode == SnapshotMode::kPatch) {
+    if (cloth.num_particles() != initial.num_particles()) {
+      throw std::invalid_argument("HapticLoop: the cloth model and the snapshot differ in size");
+    }
+    const auto n_devices = static_cast<int32_t>(devices.size());
+    patch_ = std::make_unique<ClothPatch>(cloth, proxy.patch_radius, n_devices);
+    overlay_.roles = patch_->roles();
+    overlay_.x = patch_->x();
+    overlay_.x_before = patch_->x_before();
+    overlay_.normals = patch_->normals();
+    patch_centres_.assign(devices.size(), -1);
+    patch_springs_.resize(devices.size());
+  }
 }
 
 void HapticLoop::Tick(int64_t now_ns, double dt_s) {
   Bump(counters_.ticks);
-  const TickCloth cloth = TakeNewestSnapshot(now_ns);
+  bool arrived = false;
+  const TickCloth cloth = TakeNewestSnapshot(now_ns, &arrived);
+  // Mode patch: the patch to this tick, before its state is handed back and the proxies run.
+  if (patch_ != nullptr) StepPatch(cloth, dt_s);
+  // A new snapshot: hand the reactions of the frame that ended to the sim (or retry a batch that
+  // found the queue full).
+  if (arrived || staged_pending_) StageReactions();
   // Each device: newest sample, proxy while the input is fresh, safety, force out.
   for (uint32_t i = 0; i < devices_.size(); ++i) TickDevice(i, now_ns, dt_s, cloth);
 }
 
-HapticLoop::TickCloth HapticLoop::TakeNewestSnapshot(int64_t now_ns) {
-  // The newest snapshot, without waiting. A new one: keep a copy as the next "previous", and
-  // hand the reactions of the frame that ended to the sim.
+HapticLoop::TickCloth HapticLoop::TakeNewestSnapshot(int64_t now_ns, bool* arrived) {
+  // The newest snapshot, without waiting. A new one: keep a copy as the next "previous" (the
+  // caller then hands the reactions of the frame that ended to the sim).
   const bool fresh_snapshot = snapshots_->Acquire();
   PublishedSnapshot& slot = snapshots_->read_slot_mutable();
   const bool first_snapshot = newest_copy_ < 0;
@@ -73,9 +95,7 @@ HapticLoop::TickCloth HapticLoop::TakeNewestSnapshot(int64_t now_ns) {
     swap(copies_[next], slot.snapshot);
     previous_copy_ = newest_copy_;
     newest_copy_ = next;
-    StageReactions();
-  } else if (!fresh_snapshot && !first_snapshot && staged_pending_) {
-    StageReactions();  // retry the push of a batch that found the queue full
+    *arrived = true;
   }
 
   // The newest lives in a haptic-owned copy (the first tick made one); its age says whether the
@@ -114,6 +134,9 @@ void HapticLoop::StageReactions() {
       for (int32_t i = 0; i < n; ++i) batch.forces[batch.count + i].force_N *= t / duration_s;
       batch.count += n;
     }
+    // Mode patch: the patch's free particles as they are now (after this tick's step).
+    batch.patch_count =
+        patch_ != nullptr ? patch_->HandBack(std::span<ParticleState>(batch.patch)) : 0;
     staged_pending_ = true;
   }
   if (reactions_->TryPush(*staged_)) {
@@ -122,6 +145,45 @@ void HapticLoop::StageReactions() {
   } else {
     Bump(counters_.reaction_queue_full);
   }
+}
+
+void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
+  // Each device's window centre: the cloth particle nearest its last contact point (the corner
+  // with the largest barycentric weight), or nearest where its free proxy still presses the cloth
+  // for the sim (hand_seed); none for a device without fresh input or away from the cloth.
+  const std::vector<Triangle>& tris = *cloth.newest->triangles;
+  int32_t springs = 0;
+  for (size_t i = 0; i < devices_.size(); ++i) {
+    const Device& d = devices_[i];
+    const ProxyState& ps = d.proxy;
+    const ProxyContact* contact = nullptr;
+    for (int32_t k = 0; k < ps.body.num_contacts && contact == nullptr; ++k) {
+      if (ps.body.contacts[k].triangle >= 0) contact = &ps.body.contacts[k];
+    }
+    if (contact == nullptr && ps.hand_seed.triangle >= 0) contact = &ps.hand_seed;
+    int32_t centre = -1;
+    if (d.fresh && contact != nullptr && contact->triangle < static_cast<int32_t>(tris.size())) {
+      Eigen::Index corner = 0;
+      contact->barycentric.maxCoeff(&corner);
+      centre = tris[contact->triangle][corner];
+    }
+    patch_centres_[i] = centre;
+    if (d.fresh && ps.reaction.has_contact_spring()) {
+      patch_springs_[springs++] = ps.reaction.contact_spring();
+    }
+  }
+  // Particles entering a window start where the previous tick's cloth had them.
+  const double tau_s = cloth.since_newest_s;
+  patch_->Place(patch_centres_, *cloth.newest, std::max(0.0, tau_s - dt_s), dt_s);
+  if (!patch_->active()) return;
+  const PatchStepResult step = patch_->Step(
+      std::span<const ExternalForce>(patch_springs_.data(), static_cast<size_t>(springs)), dt_s,
+      *cloth.newest, tau_s);
+  overlay_.offset_m = patch_->MaxDistanceFrom(*cloth.newest);
+  Bump(counters_.patch_ticks);
+  counters_.patch_particles.store(static_cast<uint64_t>(step.free_particles),
+                                  std::memory_order_relaxed);
+  if (step.recovered) Bump(counters_.patch_nan_events);
 }
 
 bool HapticLoop::ReadInput(uint32_t index, int64_t now_ns, Device* d) {
@@ -150,7 +212,8 @@ void HapticLoop::TickDevice(uint32_t index, int64_t now_ns, double dt_s, const T
     sample.p_D_m = d.input.p_D_m;
     sample.v_D_m_per_s = d.input.v_D_m_per_s;
     d.last_result = ProxyTick(d.model, *cloth.newest, cloth.previous, cloth.since_newest_s, sample,
-                              dt_s, &d.proxy);
+                              dt_s, &d.proxy,
+                              patch_ != nullptr && patch_->active() ? &overlay_ : nullptr);
   }
   const SafetyOutput out = ApplyDeviceSafety(cloth, input_nan, dt_s, &d);
   SendForce(index, now_ns, out, &d);

@@ -13,6 +13,13 @@
 // on the SPSC queue (sim_loop/sim_frame.h); if the queue is full the batch stays staged and is
 // pushed again next tick, and the accumulators keep accumulating meanwhile (they are drained only
 // once the staged batch is gone), so no impulse is dropped.
+//
+// Mode patch (issue 20): after taking the snapshot and before the proxies, the tick places the
+// local patch's windows around each device's last contact (or the cloth point its free proxy still
+// presses: ProxyState::hand_seed) and steps the patch by the tick with the contact springs of the
+// last tick (sim_loop/cloth_patch.h); the proxies then render the patch where it is and the newest
+// snapshot extrapolated elsewhere. A staged batch carries the patch's free particles to the sim,
+// which continues from them (OverrideParticles), so the push is neither missed nor counted twice.
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -52,6 +59,9 @@ struct HapticCounters {
   std::atomic<bool> sim_stalled{false};          ///< the last tick saw a stalled sim
   std::atomic<uint64_t> reaction_batches{0};     ///< batches pushed haptic -> sim
   std::atomic<uint64_t> reaction_queue_full{0};  ///< ticks a staged batch waited for room
+  std::atomic<uint64_t> patch_ticks{0};          ///< mode patch: ticks that stepped a window
+  std::atomic<uint64_t> patch_particles{0};      ///< mode patch: free particles at the last step
+  std::atomic<uint64_t> patch_nan_events{0};     ///< mode patch: steps restarted from the drive
 };
 
 /// The haptic loop: every device's proxy, safety state and counters, the haptic side of both
@@ -65,8 +75,9 @@ class HapticLoop {
   /// must outlive the loop. Throws std::invalid_argument naming the field (no device, a bad
   /// safety value).
   HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& devices,
-             const HapticSpec& haptic, const ClothSnapshot& initial, SnapshotBuffer* snapshots,
-             ReactionQueue* reactions, PointerSource* source, ForceSink* sink, LoopStats* stats);
+             const HapticSpec& haptic, const ClothModel& cloth, const ClothSnapshot& initial,
+             SnapshotBuffer* snapshots, ReactionQueue* reactions, PointerSource* source,
+             ForceSink* sink, LoopStats* stats);
 
   /// One tick at CLOCK_MONOTONIC `now_ns` for a tick of `dt_s` [s]. Haptic thread only (one
   /// thread at a time). Real-time safe: no allocation, lock, log, exception or I/O.
@@ -82,6 +93,9 @@ class HapticLoop {
   const ProxyModel& proxy_model(uint32_t i) const { return devices_[i].model; }
   /// The proxy state of device `i`: from the haptic thread, or while it is not ticking.
   const ProxyState& proxy_state(uint32_t i) const { return devices_[i].proxy; }
+  /// The local patch (mode patch; null otherwise): from the haptic thread, or while it is not
+  /// ticking.
+  const ClothPatch* patch() const { return patch_.get(); }
   /// The loop's own counters (any thread).
   const HapticCounters& counters() const { return counters_; }
 
@@ -113,7 +127,8 @@ class HapticLoop {
     bool stalled = false;                     ///< older than the [haptic] sim_stall limit
   };
 
-  TickCloth TakeNewestSnapshot(int64_t now_ns);
+  TickCloth TakeNewestSnapshot(int64_t now_ns, bool* arrived);
+  void StepPatch(const TickCloth& cloth, double dt_s);
   void StageReactions();
   void TickDevice(uint32_t index, int64_t now_ns, double dt_s, const TickCloth& cloth);
   bool ReadInput(uint32_t index, int64_t now_ns, Device* d);
@@ -141,6 +156,12 @@ class HapticLoop {
 
   std::vector<Device> devices_;
   HapticCounters counters_;
+
+  // Mode patch: the local patch, the overlay the proxies read, and the tick's scratch.
+  std::unique_ptr<ClothPatch> patch_;
+  PatchOverlay overlay_;
+  std::vector<int32_t> patch_centres_;       // [devices]
+  std::vector<ExternalForce> patch_springs_;  // [devices]
 };
 
 }  // namespace felt

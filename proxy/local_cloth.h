@@ -17,27 +17,33 @@
 
 #include "collision/collision.h"
 #include "collision/geometry.h"
+#include "sim_loop/cloth_patch.h"
 #include "sim_loop/snapshot.h"
 
 namespace felt {
 
 /// A cloth at one instant, as a recipe over one or two snapshots (nothing is copied):
 /// x_i = from.x_i + alpha (to.x_i - from.x_i) + tau to.v_i, world, m. With from == to, alpha = 0,
-/// tau = 0 it is exactly `to` (bit for bit).
+/// tau = 0 it is exactly `to` (bit for bit). In mode patch the local patch's particles
+/// (sim_loop/cloth_patch.h) are read from its arrays instead (`patch_role` not null).
 struct ClothView {
   const ClothSnapshot* from = nullptr;  ///< interpolation start (== to when not interpolating)
   const ClothSnapshot* to = nullptr;    ///< interpolation end; its velocities extrapolate
   double alpha = 0.0;                   ///< interpolation weight in [0, 1]
   double tau_s = 0.0;                   ///< extrapolation time, s
+  const PatchRole* patch_role = nullptr;  ///< mode patch: each particle's role (null: no patch)
+  const Vec3* patch_x = nullptr;          ///< the patch's positions [m] (its particles only)
+  const Vec3* patch_normals = nullptr;    ///< the patch's unit normals (its free particles only)
 
   /// The cloth `s` itself.
   static ClothView Of(const ClothSnapshot& s) { return {&s, &s, 0.0, 0.0}; }
   /// Position of particle i [m]. Real-time safe.
   Vec3 Position(int32_t i) const {
+    if (patch_role != nullptr && patch_role[i] != PatchRole::kOutside) return patch_x[i];
     return from->x[i] + alpha * (to->x[i] - from->x[i]) + tau_s * to->v[i];
   }
-  /// Unit vertex normal of particle i (interpolated like the positions, not extrapolated); zero
-  /// where the snapshots have none. Real-time safe.
+  /// Unit vertex normal of particle i (interpolated like the positions, not extrapolated; a free
+  /// particle of the patch: the patch's); zero where the snapshots have none. Real-time safe.
   Vec3 Normal(int32_t i) const;
   /// Positions of triangle t's three corners [m]. Real-time safe.
   void Corners(int32_t t, Vec3* a, Vec3* b, Vec3* c) const;

@@ -611,7 +611,8 @@ void ViewsForMode(const ClothSnapshot& newest, const ProxyState& state, TickClot
       cloth->inflation_m = (1.0 - std::min(alpha, alpha_before)) * disp;
       break;
     }
-    case SnapshotMode::kExtrapolate: {
+    case SnapshotMode::kExtrapolate:
+    case SnapshotMode::kPatch: {
       cloth->now = ClothView{&newest, &newest, 0.0, tau};
       double before_extent = state.last_tau_s * newest.max_speed_m_per_s;
       if (cloth->arrived) {
@@ -866,7 +867,8 @@ GodObjectStep UpdateGodObject(const ProxyModel& model, const LocalCloth& cloth,
 ProxyState MakeProxyState(const ProxyModel& model) { return ProxyState(model.candidate_capacity); }
 
 TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
-                          const ClothSnapshot* previous, double since_newest_s, ProxyState* state) {
+                          const ClothSnapshot* previous, double since_newest_s, ProxyState* state,
+                          const PatchOverlay* patch) {
   TickCloth cloth;
   // Which snapshots this tick has; a previous one of another cloth is ignored.
   const ClothSnapshot* prev = previous;
@@ -885,10 +887,21 @@ TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
   cloth.alpha = frame_dt > 0.0 ? std::clamp(since_newest_s / frame_dt, 0.0, 1.0) : 1.0;
   cloth.tau_s = std::max(0.0, since_newest_s);
   ViewsForMode(newest, *state, &cloth);
+  // Mode patch: the local patch's particles in both cloths (extrapolated elsewhere).
+  if (cloth.mode == SnapshotMode::kPatch && patch != nullptr && patch->roles != nullptr) {
+    cloth.now.patch_role = patch->roles;
+    cloth.now.patch_x = patch->x;
+    cloth.now.patch_normals = patch->normals;
+    cloth.before.patch_role = patch->roles;
+    cloth.before.patch_x = patch->x_before;
+    cloth.before.patch_normals = patch->normals;
+    cloth.moved = !cloth.first;
+    cloth.inflation_m = std::max(cloth.inflation_m, patch->offset_m);
+  }
   // A previous tick that fell back to its newest snapshot (MoveProxies) left the proxy on that
   // cloth: the one now called prev after an arrival.
-  cloth.interpolated =
-      cloth.mode == SnapshotMode::kInterpolate || cloth.mode == SnapshotMode::kExtrapolate;
+  cloth.interpolated = cloth.mode == SnapshotMode::kInterpolate ||
+                      cloth.mode == SnapshotMode::kExtrapolate || cloth.mode == SnapshotMode::kPatch;
   if (cloth.interpolated && state->last_on_newest && !cloth.first) {
     cloth.before = cloth.arrived ? ClothView::Of(*prev) : ClothView::Of(newest);
     cloth.moved = true;
@@ -911,10 +924,11 @@ ClampedForce ClampDeviceForce(const ProxyModel& model, const Vec3& force_D_N) {
 
 ProxyTickResult ProxyTick(const ProxyModel& model, const ClothSnapshot& newest,
                           const ClothSnapshot* previous, double since_newest_s,
-                          const DeviceSample& sample, double tick_dt_s, ProxyState* state) {
+                          const DeviceSample& sample, double tick_dt_s, ProxyState* state,
+                          const PatchOverlay* patch) {
   ++state->counters.ticks;
   const Vec3 goal = model.ToWorld(sample.p_D_m);  // step 1
-  const TickCloth cloth = ChooseTickCloth(model, newest, previous, since_newest_s, state);
+  const TickCloth cloth = ChooseTickCloth(model, newest, previous, since_newest_s, state, patch);
   const TickBodies bodies = MoveProxies(model, newest, cloth, goal, state);
   const TickForces f = CouplingForces(model, cloth, goal, sample, tick_dt_s, *state);
   const ClampedForce force = ClampDeviceForce(model, f.w_main * f.main_D + f.w_prev * f.prev_D);

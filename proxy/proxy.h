@@ -116,6 +116,16 @@ struct ProxyTickResult {
                            ///< itself (the cloth the structure's fallback queries answer for)
 };
 
+/// The local patch a tick in mode patch renders (sim_loop/cloth_patch.h; the haptic loop steps it
+/// before the proxies). Its particles replace the extrapolated cloth's in the tick's cloth.
+struct PatchOverlay {
+  const PatchRole* roles = nullptr;  ///< each particle's role [cloth's particles]
+  const Vec3* x = nullptr;           ///< the patch's positions now [m, world]
+  const Vec3* x_before = nullptr;    ///< its positions at the previous tick [m, world]
+  const Vec3* normals = nullptr;     ///< unit normals of its free particles [world]
+  double offset_m = 0.0;  ///< bound on |patch x - newest x| over its particles, now and before, m
+};
+
 /// The cloth of one tick (step 2 of the file comment), as ChooseTickCloth chose it.
 struct TickCloth {
   const ClothSnapshot* prev = nullptr;        ///< `previous` if of the same cloth, else nullptr
@@ -135,8 +145,10 @@ struct TickCloth {
 /// the mode they allow, and the tick's cloth and the previous tick's by that mode (`newest`,
 /// `previous` and `since_newest_s` [s] as for ProxyTick). Records a newer snapshot's arrival in
 /// `state` (frame, pair displacement, counters.new_snapshots). Real-time safe.
+/// Mode patch: `patch` (null, or before the patch holds a window: mode extrapolate's cloth).
 TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
-                          const ClothSnapshot* previous, double since_newest_s, ProxyState* state);
+                          const ClothSnapshot* previous, double since_newest_s, ProxyState* state,
+                          const PatchOverlay* patch = nullptr);
 
 /// A device force after the clamp.
 struct ClampedForce {
@@ -153,11 +165,13 @@ ClampedForce ClampDeviceForce(const ProxyModel& model, const Vec3& force_D_N);
 /// none yet: modes b-d then act as mode a); `since_newest_s` the time since `newest` arrived [s];
 /// `sample` the device sample (device frame); `tick_dt_s` the tick period [s] (reaction time
 /// weight and damping velocity). A newer newest.frame than the state has seen means a new
-/// snapshot arrived. Snapshots of the same cloth only. Real-time safe: no allocation, lock,
-/// exception, log or I/O.
+/// snapshot arrived. Snapshots of the same cloth only. Mode patch renders `patch` (the haptic
+/// loop's local patch, already stepped to this tick; null: as mode extrapolate). Real-time safe:
+/// no allocation, lock, exception, log or I/O.
 ProxyTickResult ProxyTick(const ProxyModel& model, const ClothSnapshot& newest,
                           const ClothSnapshot* previous, double since_newest_s,
-                          const DeviceSample& sample, double tick_dt_s, ProxyState* state);
+                          const DeviceSample& sample, double tick_dt_s, ProxyState* state,
+                          const PatchOverlay* patch = nullptr);
 
 /// What one god-object update did.
 struct GodObjectStep {

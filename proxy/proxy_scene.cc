@@ -10,11 +10,12 @@
 namespace felt {
 namespace {
 
-constexpr std::array<NamedValue<SnapshotMode>, 4> kSnapshotModeNames = {{
+constexpr std::array<NamedValue<SnapshotMode>, 5> kSnapshotModeNames = {{
     {"newest", SnapshotMode::kNewest},
     {"blend_forces", SnapshotMode::kBlendForces},
     {"interpolate", SnapshotMode::kInterpolate},
     {"extrapolate", SnapshotMode::kExtrapolate},
+    {"patch", SnapshotMode::kPatch},
 }};
 
 // Every structure spec a scene can name, with its full name (CollisionStructureName).
@@ -157,7 +158,8 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
   const std::optional<SceneTable> table = SceneTable::Section(doc, "proxy");
   if (!table) return p;
   table->ExpectKeys({"force_shading", "friction_static", "friction_dynamic", "snapshot_mode",
-                     "max_iterations", "candidate_capacity", "collision_structure"});
+                     "max_iterations", "candidate_capacity", "collision_structure",
+                     "patch_radius"});
   p.force_shading = table->Bool("force_shading", p.force_shading);
   p.friction_static = table->Number("friction_static", p.friction_static, NonNegative());
   p.friction_dynamic = table->Number("friction_dynamic", p.friction_dynamic, NonNegative());
@@ -166,7 +168,10 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
                                         FormatSceneNumber(p.friction_static) + "), got " +
                                         FormatSceneNumber(p.friction_dynamic));
   }
-  p.snapshot_mode = table->Choice<SnapshotMode>("snapshot_mode", p.snapshot_mode, kSnapshotModeNames);
+  p.snapshot_mode = table->Choice<SnapshotMode>("snapshot_mode", p.snapshot_mode,
+                                                kSnapshotModeNames);
+  p.patch_radius =
+      table->Integer("patch_radius", p.patch_radius, InRange(kMinPatchRadius, kMaxPatchRadius));
   p.max_iterations =
       table->Integer("max_iterations", p.max_iterations, InRange(1, kMaxProxyIterations));
   p.candidate_capacity = table->Integer("candidate_capacity", p.candidate_capacity,

@@ -19,6 +19,7 @@
 
 #include "collision/collision_structure.h"
 #include "collision/mesh.h"
+#include "sim_loop/cloth_patch.h"
 #include "sim_loop/cloth_spec.h"
 
 namespace felt {
@@ -62,14 +63,16 @@ enum class SnapshotMode : uint8_t {
                  ///<     time since the newest arrived / its frame dt
   kInterpolate,  ///< (c) positions interpolated between the two newest snapshots (one frame late)
   kExtrapolate,  ///< (d) positions extrapolated from the newest with its velocities
+  kPatch,        ///< (e) issue 20: the cloth near each contact stepped at the haptic rate in the
+                 ///<     tick (sim_loop/cloth_patch.h), the rest extrapolated as (d)
 };
 
 /// Every snapshot mode, in the order tables list them.
 inline constexpr SnapshotMode kSnapshotModes[] = {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
                                                   SnapshotMode::kInterpolate,
-                                                  SnapshotMode::kExtrapolate};
+                                                  SnapshotMode::kExtrapolate, SnapshotMode::kPatch};
 
-/// The scene-file name of a mode: "newest", "blend_forces", "interpolate", "extrapolate".
+/// The scene-file name of a mode: "newest", "blend_forces", "interpolate", "extrapolate", "patch".
 const char* SnapshotModeName(SnapshotMode mode);
 
 /// Limits that the scene parser (proxy/proxy_scene.h) and CompileProxyModel both enforce, so a
@@ -84,6 +87,9 @@ struct ProxySpec {
   double friction_static = 0.0;   ///< static friction coefficient mu_s >= 0 (0: frictionless)
   double friction_dynamic = 0.0;  ///< dynamic friction coefficient, 0 <= mu_d <= mu_s
   SnapshotMode snapshot_mode = SnapshotMode::kInterpolate;
+  /// Mode patch: the local patch's windows reach this many particles each way from a contact
+  /// (sim_loop/cloth_patch.h), in [kMinPatchRadius, kMaxPatchRadius]; unused by the other modes.
+  int32_t patch_radius = 4;
   int32_t max_iterations = 10;  ///< sweep/solve rounds per pass within one tick, >= 1
   /// Triangles near the proxy gathered per tick (sized once in the proxy state), >= 16. A tick
   /// that finds more is counted (ProxyCounters::overflow_ticks) and uses the first ones found.

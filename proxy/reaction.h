@@ -57,6 +57,8 @@ class ReactionAccumulator {
 
   /// True if the last tick recorded a contact spring.
   bool has_contact_spring() const { return has_spring_; }
+  /// The contact spring of the last tick (meaningful when has_contact_spring()).
+  const ExternalForce& contact_spring() const { return spring_; }
 
   /// Adds dt_s [s] of elapsed time (every tick calls it once, in contact or not), the time the
   /// impulses are averaged over. Real-time safe.

@@ -27,8 +27,9 @@ Server::Server(ServerSpec spec, PointerSource* source, ForceSink* sink, ServerOp
       haptic_stats_(std::make_unique<LoopStats>(PeriodNs(spec_.haptic.haptic_rate_hz))),
       sim_stats_(std::make_unique<LoopStats>(PeriodNs(spec_.sim.integration.frame_rate_hz))),
       sim_(spec_.sim, spec_.proxy.structure),
-      haptic_(spec_.proxy, spec_.devices, spec_.haptic, sim_.snapshots().read_slot().snapshot,
-              &sim_.snapshots(), &sim_.reactions(), source, sink, haptic_stats_.get()) {}
+      haptic_(spec_.proxy, spec_.devices, spec_.haptic, sim_.model(),
+              sim_.snapshots().read_slot().snapshot, &sim_.snapshots(), &sim_.reactions(), source,
+              sink, haptic_stats_.get()) {}
 
 Server::~Server() { Stop(); }
 

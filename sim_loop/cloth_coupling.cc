@@ -238,13 +238,19 @@ void BeginCouplingFrame(CouplingSprings* springs) {
 
 void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
                        ClothState* state) {
-  CouplingSprings& cs = state->scratch->coupling;
+  AddCouplingSpring(model, e, h_s, state->x, &state->scratch->coupling, &state->counters);
+}
+
+void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
+                       std::span<const Vec3> x, CouplingSprings* springs,
+                       ClothCounters* counters) {
+  CouplingSprings& cs = *springs;
   if (!ValidSpring(model, e)) {
-    ++state->counters.invalid_external_forces;
+    ++counters->invalid_external_forces;
     return;
   }
   if (cs.count >= kMaxCouplingSprings) {
-    ++state->counters.coupling_overflows;
+    ++counters->coupling_overflows;
     return;
   }
   // The candidates (ForEachCandidate); pinned particles take no share.
@@ -274,7 +280,7 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
   // (e.g. the two layers of a fold).
   s.smoothing_m = 0.0;
   if (s.num_candidates > 0) {
-    s.smoothing_m = std::clamp(kCouplingSmoothingFraction * ExactPenetration(s, state->x),
+    s.smoothing_m = std::clamp(kCouplingSmoothingFraction * ExactPenetration(s, x),
                                kMinCouplingSmoothing_m, kMaxCouplingSmoothing_m);
   }
   // Bound k by what the integrator stays stable with at the substep (Colgate et al. 1995).
@@ -282,7 +288,7 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
   s.stiffness_N_per_m = std::min(e.stiffness_N_per_m, k_max);
   if (e.stiffness_N_per_m > k_max && !cs.reduced_this_frame) {
     cs.reduced_this_frame = true;
-    ++state->counters.coupling_reduced_frames;
+    ++counters->coupling_reduced_frames;
   }
 }
 

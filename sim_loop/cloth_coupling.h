@@ -91,6 +91,12 @@ void BeginCouplingFrame(CouplingSprings* springs);
 void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
                        ClothState* state);
 
+/// AddCouplingSpring on explicit parts: positions `x` [m, world, n entries; only the candidates'
+/// corners are read], the springs to add to and the counters to count in (the local patch of the
+/// haptic loop, sim_loop/cloth_patch.h, keeps its own). Real-time safe.
+void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
+                       std::span<const Vec3> x, CouplingSprings* springs, ClothCounters* counters);
+
 /// Adds scale * the contact springs' forces at positions `x` [m, world, n entries] into `f`
 /// (3 n packed doubles, xyz per particle). Per spring and candidate triangle i: its nearest point
 /// c_i to the goal g (barycentrics b_i), d_i = |g - c_i|, sd_i = d_i signed by the side of

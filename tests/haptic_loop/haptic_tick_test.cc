@@ -29,7 +29,7 @@ struct Loops {
         source(static_cast<uint32_t>(spec.devices.size())),
         sink(static_cast<uint32_t>(spec.devices.size())),
         stats(kTickNs),
-        haptic(spec.proxy, spec.devices, spec.haptic, sim.snapshots().read_slot().snapshot,
+        haptic(spec.proxy, spec.devices, spec.haptic, sim.model(), sim.snapshots().read_slot().snapshot,
                &sim.snapshots(), &sim.reactions(), &source, &sink, &stats) {
     sim.PublishInitialSnapshot(kT0Ns);
   }

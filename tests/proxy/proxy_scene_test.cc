@@ -140,7 +140,9 @@ TEST(ProxySceneTest, EveryErrorNamesFileLineColumnFieldAndRule) {
   EXPECT_EQ(DeviceError("[[devices]]\nscale = 2\n").substr(0, 29), "test.toml:1:1: devices[0].id:");
   EXPECT_EQ(ProxyError("[proxy]\nsnapshot_mode = \"latest\"\n"),
             "test.toml:2:1: proxy.snapshot_mode: unknown value 'latest'; expected one of: "
-            "newest, blend_forces, interpolate, extrapolate");
+            "newest, blend_forces, interpolate, extrapolate, patch");
+  EXPECT_EQ(ProxyError("[proxy]\npatch_radius = 2\n"),
+            "test.toml:2:1: proxy.patch_radius: must be in [3, 32], got 2");
   EXPECT_NE(ProxyError("[proxy]\ncollision_structure = \"bvh-sphere-3\"\n")
                 .find("test.toml:2:1: proxy.collision_structure: unknown value 'bvh-sphere-3' "
                       "(did you mean 'bvh-sphere-2'?)"),

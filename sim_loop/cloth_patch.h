@@ -1,0 +1,191 @@
+#pragma once
+// The local patch (issue 20, snapshot mode `patch`): the cloth near each contact, stepped at the
+// haptic rate inside the haptic tick, so that the proxy touches a cloth that reacts to it within
+// the tick instead of one frame (16.7 ms) later.
+//
+// The intermediate model of multirate haptics (Astley & Hayward 1998: a fine local model at the
+// haptic rate coupled to the coarse global one; Cavusoglu & Tendick 2000: the local model is
+// updated by the slow simulation; ../shared/notes/multirate-haptics.md), made of the cloth itself:
+// a rectangle of the grid (a window) around each contact, `radius` particles each way. The outer
+// two rings of a window (a bend spring's reach) are driven: they follow the 60 Hz cloth, its newest
+// snapshot extrapolated in time with the snapshot's frame-motion velocities (x0 + tau v0); so are
+// pinned particles. The inner particles are free: integrated with the cloth's own forces (the
+// model's springs, gravity, drag), the haptic contact springs of the last tick (the same unilateral
+// sphere the sim integrates: sim_loop/cloth_coupling.h), Provot's structural and shear limits
+// (000_25210a744b053ca5.txt slide 9, Gauss-Seidel over the window's pairs, driven ends fixed), and
+// the scene's obstacles (projection to the margin, inward velocity removed). The integrator is
+// leapfrog Verlet (001_0f9f1b7fedff7723.txt §3.5, kick-drift-kick as sim_loop's), at substeps no
+// longer than the cloth's nominal one (and the contact spring's stability bound).
+//
+// A window edge on the cloth's own edge has nothing beyond it, so its rings there are free. Windows
+// that overlap or come within two particles of each other (so that a spring joins them) are merged
+// into their bounding rectangle: two devices on one cloth share one simulation where their patches
+// meet, and each feels the other's push at once.
+//
+// Hand-back (HandBack): the free particles' states go to the sim with the frame's reactions
+// (sim_loop/sim_frame.h), which sets them before its next frame (OverrideParticles): the global
+// cloth continues from the patch's motion instead of integrating the push a second time, and still
+// receives the contact spring, so the cloth around the patch follows it.
+//
+// Arrays are the cloth's size, indexed by particle, so a window is addressed like the cloth (rows
+// of a window are contiguous) and the coupling kernels run unchanged; only window particles are
+// ever touched. Sized once; Place, Step and HandBack are real-time safe.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "sim_loop/cloth.h"
+#include "sim_loop/cloth_coupling.h"
+#include "sim_loop/snapshot.h"
+
+namespace felt {
+
+/// A rectangle of the cloth's grid, columns col0..col1 and rows row0..row1 inclusive.
+struct PatchWindow {
+  int32_t col0 = 0;   ///< first column
+  int32_t row0 = 0;   ///< first row
+  int32_t col1 = -1;  ///< last column (< col0: empty)
+  int32_t row1 = -1;  ///< last row
+  /// True when the window holds no particle.
+  bool empty() const { return col1 < col0 || row1 < row0; }
+  /// Particles in the window.
+  int32_t size() const { return empty() ? 0 : (col1 - col0 + 1) * (row1 - row0 + 1); }
+};
+
+/// What a particle is to the patch.
+enum class PatchRole : uint8_t {
+  kOutside = 0,  ///< not in any window: the 60 Hz cloth's
+  kDriven = 1,   ///< in a window's outer rings (or pinned): follows the 60 Hz cloth
+  kFree = 2,     ///< integrated by the patch
+};
+
+/// The smallest window radius, particles (two driven rings around at least one free particle).
+inline constexpr int32_t kMinPatchRadius = 3;
+/// The largest window radius, particles.
+inline constexpr int32_t kMaxPatchRadius = 32;
+/// A window follows its centre once the centre is this many particles (Chebyshev) from the
+/// window's own centre: hysteresis, so a contact hopping between neighbouring particles does not
+/// move the window back and forth.
+inline constexpr int32_t kPatchRecentreDistance = 2;
+
+/// Driven particles approach the drive with this time constant [s] (first order, on top of the
+/// drive's own motion): a particle that was free and turns driven, or a ring the drive's newest
+/// snapshot jumps away from, eases onto the 60 Hz cloth instead of jumping there (a jump of the
+/// ring is turned into velocity by Provot's correction v += dx / h next to it).
+inline constexpr double kPatchDriveTime_s = 0.010;
+/// A window whose centre is gone (its device left the cloth) stays while its free particles lie
+/// farther than this from the drive [m], so the patch hands its motion back to the sim before
+/// it is forgotten instead of snapping to the 60 Hz cloth ...
+inline constexpr double kPatchReleaseDistance_m = 0.0005;
+/// ... but at most this long [s].
+inline constexpr double kPatchMaxLinger_s = 0.25;
+
+/// What one Step did.
+struct PatchStepResult {
+  int32_t substeps = 0;        ///< substeps integrated (0: no window)
+  int32_t free_particles = 0;  ///< particles integrated
+  int32_t springs = 0;         ///< contact springs applied
+  bool recovered = false;      ///< non-finite values appeared: the windows restarted from the drive
+};
+
+/// Counters of a patch since it was made.
+struct PatchCounters {
+  uint64_t steps = 0;                  ///< Step calls with at least one window
+  uint64_t placements = 0;             ///< windows placed or moved
+  uint64_t merges = 0;                 ///< windows merged with another
+  uint64_t nan_events = 0;             ///< steps that restarted from the drive
+  uint64_t springs_outside = 0;        ///< contact springs too near a window's edge, not applied
+  uint64_t handback_overflows = 0;     ///< free particles that did not fit a hand-back
+  ClothCounters coupling;              ///< AddCouplingSpring's counts (invalid, reduced, dropped)
+};
+
+/// The local patch (file comment). Owned by the haptic thread.
+class ClothPatch {
+ public:
+  /// A patch of `model` (kept by reference: it must outlive the patch) with windows of `radius`
+  /// particles each way around their centres ([kMinPatchRadius, kMaxPatchRadius]), at most
+  /// `max_windows` >= 1 of them. Allocates (set-up time); throws std::invalid_argument naming the
+  /// bad value.
+  ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows);
+
+  /// The windows of this tick: one around each particle index of `centres` (slot k: device k;
+  /// negative entries: no centre), a window kept where it is while its centre stays within
+  /// kPatchRecentreDistance of it, then merged where they meet (file comment). A slot whose centre
+  /// is gone keeps its window while it lingers (kPatchReleaseDistance_m, kPatchMaxLinger_s; dt_s
+  /// [s] is the tick). Particles that enter take the drive's state at tau_s [s]: x = drive.x +
+  /// tau_s drive.v, v = drive.v; particles that leave are forgotten. Real-time safe.
+  void Place(std::span<const int32_t> centres, const ClothSnapshot& drive, double tau_s,
+             double dt_s);
+
+  /// Advances the windows by dt_s [s]: the driven particles to the drive at tau_s [s] (the
+  /// time since the drive's snapshot at the end of the step), the free ones by the forces of the
+  /// file comment with the contact springs of `external` (entries with stiffness_N_per_m > 0 whose
+  /// 3 x 3 cells of candidates lie inside a window; others are ignored). Keeps the positions at
+  /// the start of the step (x_before). Real-time safe.
+  PatchStepResult Step(std::span<const ExternalForce> external, double dt_s,
+                       const ClothSnapshot& drive, double tau_s);
+
+  /// Writes the free particles' states into `out` (as many as fit; the rest are counted in
+  /// counters().handback_overflows) and returns how many. Real-time safe.
+  int32_t HandBack(std::span<ParticleState> out);
+
+  /// Largest distance [m] of a window particle's position, now or at the start of the last step,
+  /// from `s`'s position of it (0 without windows). Real-time safe; O(window particles).
+  double MaxDistanceFrom(const ClothSnapshot& s) const;
+
+  /// Role of each particle [cloth's particles].
+  const PatchRole* roles() const { return role_.data(); }
+  /// Positions [m, world; cloth's particles, meaningful in the windows].
+  const Vec3* x() const { return x_.data(); }
+  /// Positions at the start of the last step [m, world; meaningful in the windows].
+  const Vec3* x_before() const { return x_before_.data(); }
+  /// Unit area-weighted vertex normals of the free particles (as ComputeVertexNormals; every
+  /// triangle around a free particle lies in its window) [world; meaningful for free particles].
+  const Vec3* normals() const { return normals_.data(); }
+  /// Velocities [m/s, world; meaningful in the windows].
+  const Vec3* v() const { return v_.data(); }
+  /// The windows now.
+  std::span<const PatchWindow> windows() const { return {windows_.data(), window_count_}; }
+  /// True when at least one window is held.
+  bool active() const { return window_count_ > 0; }
+  /// The window radius, particles.
+  int32_t radius() const { return radius_; }
+  /// Counters since construction.
+  const PatchCounters& counters() const { return counters_; }
+
+ private:
+  void MarkRoles(std::span<const PatchWindow> windows, PatchRole* roles) const;
+  bool SpringInside(const ExternalForce& e) const;
+  void SetDriven(const ClothSnapshot& drive, double tau_s, double dt_s);
+  double DriftFromDrive(const PatchWindow& window, const ClothSnapshot& drive, double tau_s) const;
+  void ComputeAccelerations();
+  void Integrate(double h);
+  void ApplyProvotToWindows(double h);
+  void ApplyObstaclesToWindows();
+  bool AllFinite() const;
+  void RestartFromDrive(const ClothSnapshot& drive, double tau_s);
+  void ComputeNormals();
+  template <typename Visit>
+  void ForEachParticle(Visit&& visit) const;
+
+  const ClothModel& model_;
+  int32_t radius_;
+  double h_max_s_;  // the patch's longest substep, s
+  std::vector<PatchWindow> windows_;       // [max_windows]
+  std::vector<PatchWindow> next_windows_;  // [max_windows], scratch of Place
+  std::vector<int32_t> anchors_;           // [max_windows] each slot's window centre (-1: none)
+  std::vector<double> linger_s_;           // [max_windows] time each slot has lingered, s
+  size_t window_count_ = 0;
+  std::vector<PatchRole> role_;       // [n]
+  std::vector<PatchRole> next_role_;  // [n], scratch of Place
+  std::vector<Vec3> x_, v_, x_before_, a_, a_last_, normals_;  // [n] each
+  std::vector<double> f_;                           // [3 n] forces, packed xyz
+  std::vector<uint8_t> restart_;                    // [n] leapfrog restarts from v
+  std::vector<int32_t> level1_;  // indices of model_.provot_families with level 1
+  double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
+  CouplingSprings springs_;
+  PatchCounters counters_;
+};
+
+}  // namespace felt
