@@ -50,6 +50,7 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
     }
     const auto n_devices = static_cast<int32_t>(devices.size());
     patch_ = std::make_unique<ClothPatch>(cloth, proxy.patch_radius, n_devices);
+    patch_handback_ = proxy.patch_handback;
     overlay_.roles = patch_->roles();
     overlay_.x = patch_->x();
     overlay_.x_before = patch_->x_before();
@@ -135,8 +136,11 @@ void HapticLoop::StageReactions() {
       batch.count += n;
     }
     // Mode patch: the patch's free particles as they are now (after this tick's step).
-    batch.patch_count =
-        patch_ != nullptr ? patch_->HandBack(std::span<ParticleState>(batch.patch)) : 0;
+    batch.patch_count = 0;
+    if (patch_ != nullptr && patch_handback_ != PatchHandBack::kReactions) {
+      batch.patch_count = patch_->HandBack(std::span<ParticleState>(batch.patch),
+                                           patch_handback_ == PatchHandBack::kStates);
+    }
     staged_pending_ = true;
   }
   if (reactions_->TryPush(*staged_)) {

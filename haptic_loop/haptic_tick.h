@@ -159,6 +159,7 @@ class HapticLoop {
 
   // Mode patch: the local patch, the overlay the proxies read, and the tick's scratch.
   std::unique_ptr<ClothPatch> patch_;
+  PatchHandBack patch_handback_ = PatchHandBack::kReactions;
   PatchOverlay overlay_;
   std::vector<int32_t> patch_centres_;       // [devices]
   std::vector<ExternalForce> patch_springs_;  // [devices]

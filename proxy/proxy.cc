@@ -735,7 +735,8 @@ ClothPress AddReactions(const ProxyModel& model, const ClothSnapshot& newest, Sn
 // this tick's one triangle made a press next to a vertex cycle at 20 Hz; docs/proxy.md).
 // Obstacle contacts (negative ids) put nothing on the cloth: the spring is the first cloth one.
 void SetHandSpring(const ProxyModel& model, const ClothSnapshot& newest, const Vec3& goal,
-                   const ClothPress& press, bool first, ProxyState* state) {
+                   const Vec3& hand_velocity_W, const ClothPress& press, bool first,
+                   ProxyState* state) {
   const int32_t spring_contact = FirstClothContact(state->body);
   const double spring_k_W = model.stiffness_W_N_per_m;
   const double spring_max_W = model.max_force_W_N;
@@ -752,7 +753,7 @@ void SetHandSpring(const ProxyModel& model, const ClothSnapshot& newest, const V
     const double reach_m = r + press.depth_m;
     state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W,
                                      proxy_c - reach_m * c.normal_W, spring_k_W, spring_max_W,
-                                     reach_m);
+                                     reach_m, hand_velocity_W);
     state->hand_seed = c;
   } else if (state->hand_seed.triangle >= 0 && !first) {
     // Free: the hand is still there for the cloth. The haptic side's cloth is a snapshot (or an
@@ -771,7 +772,7 @@ void SetHandSpring(const ProxyModel& model, const ClothSnapshot& newest, const V
     const Vec3 d = goal - ContactPointOn(c, a, b, cc);
     if (d.norm() < 3.0 * r && d.dot(c.normal_W) >= 0.0) {
       state->reaction.SetContactSpring(c.triangle, c.barycentric, c.normal_W, goal - r * c.normal_W,
-                                       spring_k_W, spring_max_W, r);
+                                       spring_k_W, spring_max_W, r, hand_velocity_W);
     } else {
       state->hand_seed.triangle = -1;
       state->reaction.ClearContactSpring();
@@ -934,7 +935,11 @@ ProxyTickResult ProxyTick(const ProxyModel& model, const ClothSnapshot& newest,
   const ClampedForce force = ClampDeviceForce(model, f.w_main * f.main_D + f.w_prev * f.prev_D);
   const ClothPress press =
       AddReactions(model, newest, cloth.mode, goal, f, force.factor, tick_dt_s, state);
-  SetHandSpring(model, newest, goal, press, cloth.first, state);
+  // The hand's velocity for the sim's spring (ProxyModel::predict_hand), world.
+  const Vec3 hand_v_W = model.predict_hand
+                            ? Vec3(model.scale * (model.rotation_WD * sample.v_D_m_per_s))
+                            : Vec3::Zero();
+  SetHandSpring(model, newest, goal, hand_v_W, press, cloth.first, state);
   const ProxyTickResult out = TickResult(model, *state, bodies, f, force, goal);
   RecordTick(cloth, bodies, out, state);
   return out;

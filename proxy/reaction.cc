@@ -39,7 +39,8 @@ void ReactionAccumulator::AddForce(int32_t triangle, const Triangle& corners,
 void ReactionAccumulator::SetContactSpring(int32_t triangle, const Vec3& barycentric,
                                            const Vec3& normal_W, const Vec3& anchor_W_m,
                                            double stiffness_N_per_m, double max_force_N,
-                                           double radius_m) {
+                                           double radius_m,
+                                           const Vec3& anchor_velocity_W_m_per_s) {
   spring_.triangle = triangle;
   spring_.barycentric = barycentric;
   spring_.normal = normal_W;
@@ -47,6 +48,7 @@ void ReactionAccumulator::SetContactSpring(int32_t triangle, const Vec3& barycen
   spring_.stiffness_N_per_m = stiffness_N_per_m;
   spring_.max_force_N = max_force_N;
   spring_.radius_m = radius_m;
+  spring_.anchor_velocity_m_per_s = anchor_velocity_W_m_per_s;
   has_spring_ = true;
 }
 

@@ -47,10 +47,12 @@ class ReactionAccumulator {
   /// [world], anchor [m, world: where the contact point sits when the proxy is at the user's
   /// hand], stiffness [N/m, world], force clamp [N, world] and a sphere radius [m, world: the sim
   /// presses a sphere of that radius centred at anchor + radius normal onto the cloth's nearest
-  /// point; ExternalForce]. Real-time safe.
+  /// point; ExternalForce] and the hand's predicted velocity [m/s, world; zero: held]. Real-time
+  /// safe.
   void SetContactSpring(int32_t triangle, const Vec3& barycentric, const Vec3& normal_W,
                         const Vec3& anchor_W_m, double stiffness_N_per_m, double max_force_N,
-                        double radius_m = 0.0);
+                        double radius_m = 0.0,
+                        const Vec3& anchor_velocity_W_m_per_s = Vec3::Zero());
 
   /// No contact at this tick: the drain falls back to the averaged impulses. Real-time safe.
   void ClearContactSpring() { has_spring_ = false; }

@@ -106,6 +106,9 @@ struct ExternalForce {
   Vec3 normal = Vec3::UnitZ();     ///< spring: unit, from the cloth toward the proxy's side
   double max_force_N = 0.0;        ///< spring: force clamp (the device's, mapped to world), N
   double radius_m = 0.0;           ///< spring: the proxy sphere's radius, world, m (>= 0)
+  /// spring: the hand's velocity, world, m/s: the sphere moves at it from the frame's start
+  /// (a first-order prediction of the hand over the frame; zero: held where it is)
+  Vec3 anchor_velocity_m_per_s = Vec3::Zero();
 };
 
 /// The validated, immutable cloth: shared read-only by every thread. Compiled from a SimSpec by
@@ -277,9 +280,10 @@ struct ParticleState {
   int32_t particle = -1;              ///< index into the cloth's particles
   Vec3 x_m = Vec3::Zero();            ///< position, world, m
   Vec3 v_m_per_s = Vec3::Zero();      ///< velocity, world, m/s
+  bool set_velocity = true;           ///< false: the position only (the cloth keeps its velocity)
 };
 
-/// Sets the position and velocity of each listed free particle of `state` to the given ones and
+/// Sets the position (and velocity, when set_velocity) of each listed free particle of `state` and
 /// restarts its integrator history (as after a constraint replaced its velocity: leapfrog restarts
 /// it from v, basic Verlet re-derives its previous position). Entries naming a pinned or
 /// out-of-range particle, or holding non-finite values, are skipped and counted in

@@ -62,7 +62,7 @@ bool ValidSpring(const ClothModel& model, const ExternalForce& e) {
          e.triangle < static_cast<int32_t>(model.triangles.size()) && e.barycentric.allFinite() &&
          std::isfinite(e.stiffness_N_per_m) && e.anchor_m.allFinite() && e.normal.allFinite() &&
          n_len > 0.0 && e.max_force_N >= 0.0 && !std::isnan(e.max_force_N) && e.radius_m >= 0.0 &&
-         std::isfinite(e.radius_m);
+         std::isfinite(e.radius_m) && e.anchor_velocity_m_per_s.allFinite();
 }
 
 // Where a spring's sphere meets one candidate triangle at positions x: its nearest point to the
@@ -270,6 +270,8 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
   s.normal = e.normal / e.normal.norm();
   s.radius_m = e.radius_m;
   s.goal_m = e.anchor_m + e.radius_m * s.normal;
+  s.goal_start_m = s.goal_m;
+  s.goal_velocity_m_per_s = e.anchor_velocity_m_per_s;
   s.max_force_N = e.max_force_N;
   // The crease smoothing, in proportion to the press at the frame's start (so that a light press's
   // force turns across a crease over a fixed fraction of its penetration) up to 20 um, fixed for
@@ -289,6 +291,13 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
   if (e.stiffness_N_per_m > k_max && !cs.reduced_this_frame) {
     cs.reduced_this_frame = true;
     ++counters->coupling_reduced_frames;
+  }
+}
+
+void AdvanceCouplingSprings(double t_s, CouplingSprings* springs) {
+  for (int32_t k = 0; k < springs->count; ++k) {
+    CouplingSpring& s = springs->springs[k];
+    s.goal_m = s.goal_start_m + t_s * s.goal_velocity_m_per_s;
   }
 }
 

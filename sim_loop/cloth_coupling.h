@@ -45,6 +45,8 @@ struct CouplingSpring {
   double stiffness_N_per_m = 0.0;  ///< k_eff (after the stability bound)
   double max_force_N = 0.0;        ///< force clamp, N
   double smoothing_m = 0.0;        ///< crease smoothing epsilon, m (0: the exact nearest point)
+  Vec3 goal_start_m = Vec3::Zero();         ///< goal_m at the frame's start, m
+  Vec3 goal_velocity_m_per_s = Vec3::Zero();  ///< the goal's predicted velocity, m/s
 };
 
 /// The frame's contact springs: storage of kMaxCouplingSprings, count in use.
@@ -96,6 +98,10 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
 /// haptic loop, sim_loop/cloth_patch.h, keeps its own). Real-time safe.
 void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h_s,
                        std::span<const Vec3> x, CouplingSprings* springs, ClothCounters* counters);
+
+/// Moves every spring's goal to where its predicted hand is `t_s` [s] after the frame's start:
+/// goal = goal_start + t_s goal_velocity (ExternalForce::anchor_velocity_m_per_s). Real-time safe.
+void AdvanceCouplingSprings(double t_s, CouplingSprings* springs);
 
 /// Adds scale * the contact springs' forces at positions `x` [m, world, n entries] into `f`
 /// (3 n packed doubles, xyz per particle). Per spring and candidate triangle i: its nearest point

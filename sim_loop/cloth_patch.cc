@@ -400,6 +400,7 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   }
   const bool provot = model_.provot_enabled && !level1_.empty();
   for (int32_t s = 0; s < substeps; ++s) {
+    if (s > 0) AdvanceCouplingSprings(s * h, &springs_);
     ComputeAccelerations();
     Integrate(h);
     if (provot) ApplyProvotToWindows(h);
@@ -417,7 +418,7 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   return out;
 }
 
-int32_t ClothPatch::HandBack(std::span<ParticleState> out) {
+int32_t ClothPatch::HandBack(std::span<ParticleState> out, bool velocities) {
   size_t count = 0;
   ForEachParticle([&](int32_t p) {
     if (role_[p] != PatchRole::kFree) return;
@@ -425,7 +426,7 @@ int32_t ClothPatch::HandBack(std::span<ParticleState> out) {
       ++counters_.handback_overflows;
       return;
     }
-    out[count++] = {p, x_[p], v_[p]};
+    out[count++] = {p, x_[p], v_[p], velocities};
   });
   return static_cast<int32_t>(count);
 }

@@ -127,8 +127,9 @@ class ClothPatch {
                        const ClothSnapshot& drive, double tau_s);
 
   /// Writes the free particles' states into `out` (as many as fit; the rest are counted in
-  /// counters().handback_overflows) and returns how many. Real-time safe.
-  int32_t HandBack(std::span<ParticleState> out);
+  /// counters().handback_overflows), with their velocities when `velocities` (else marked
+  /// position only), and returns how many. Real-time safe.
+  int32_t HandBack(std::span<ParticleState> out, bool velocities);
 
   /// Largest distance [m] of a window particle's position, now or at the start of the last step,
   /// from `s`'s position of it (0 without windows). Real-time safe; O(window particles).

@@ -74,6 +74,7 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   for (int32_t k = 0; k < substeps; ++k) {
     // Integrate, then constrain: Provot (000 slide 9), obstacles, pins at the substep's end time.
     if (obstacles) std::copy(state->x.begin(), state->x.end(), s.x_start.begin());
+    if (k > 0) AdvanceCouplingSprings(k * h, &s.coupling);  // predicted hands (zero: held)
     if (!IntegrateSubstep(model, h, state)) ++state->counters.cg_not_converged;
     if (provot) ApplyProvot(model, h, state);
     if (obstacles) ApplyObstacles(model, h, state);
@@ -114,12 +115,12 @@ int32_t OverrideParticles(const ClothModel& model, std::span<const ParticleState
   int32_t applied = 0;
   for (const ParticleState& ps : states) {
     if (ps.particle < 0 || ps.particle >= n || model.inv_mass_per_kg[ps.particle] == 0.0 ||
-        !ps.x_m.allFinite() || !ps.v_m_per_s.allFinite()) {
+        !ps.x_m.allFinite() || (ps.set_velocity && !ps.v_m_per_s.allFinite())) {
       ++state->counters.invalid_external_forces;
       continue;
     }
     state->x[ps.particle] = ps.x_m;
-    state->v[ps.particle] = ps.v_m_per_s;
+    if (ps.set_velocity) state->v[ps.particle] = ps.v_m_per_s;
     SyncVerletHistory(model, ps.particle, h, state);
     ++applied;
   }

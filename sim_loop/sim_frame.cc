@@ -57,8 +57,37 @@ size_t SimLoop::TakeQueuedReactions() {
   return count;
 }
 
+size_t SimLoop::HoldContactSprings(bool any_batch, size_t count, double frame_dt_s) {
+  // A frame with reactions keeps their contact springs; a frame without any (the sim running
+  // faster than the haptic loop stages batches, e.g. 2 kHz frames against 1 kHz ticks, or a late
+  // haptic tick) reuses them for up to kMaxHeldSpringFrames frames, each spring's hand moved on by
+  // its predicted velocity: a hand in contact does not let go of the cloth between batches.
+  if (any_batch) {
+    held_count_ = 0;
+    held_frames_ = 0;
+    held_elapsed_s_ = frame_dt_s;
+    for (size_t i = 0; i < count && held_count_ < held_.size(); ++i) {
+      if (external_[i].stiffness_N_per_m > 0.0) held_[held_count_++] = external_[i];
+    }
+    return count;
+  }
+  if (held_count_ == 0 || held_frames_ >= kMaxHeldSpringFrames) return 0;
+  ++held_frames_;
+  // Each held hand has moved on by the previous frame's length since its frame started.
+  for (size_t i = 0; i < held_count_; ++i) {
+    held_[i].anchor_m += held_elapsed_s_ * held_[i].anchor_velocity_m_per_s;
+    external_[i] = held_[i];
+  }
+  held_elapsed_s_ = frame_dt_s;
+  return held_count_;
+}
+
 void SimLoop::Frame(double frame_dt_s, int64_t publish_ns) {
-  const size_t count = TakeQueuedReactions();
+  const uint64_t batches_before = counters_.reaction_batches_applied.load(std::memory_order_relaxed);
+  size_t count = TakeQueuedReactions();
+  const bool any_batch =
+      counters_.reaction_batches_applied.load(std::memory_order_relaxed) != batches_before;
+  count = HoldContactSprings(any_batch, count, frame_dt_s);
 
   // Step, repair, publish with the frame's motion as the velocities (sim_loop/frame_motion.h).
   std::copy(cloth_.x.begin(), cloth_.x.end(), frame_start_x_.begin());

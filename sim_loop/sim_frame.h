@@ -28,6 +28,12 @@ namespace felt {
 /// the last entry (total kept, counted by ReactionAccumulator::overflows()).
 inline constexpr int32_t kMaxReactionForces = 1024;
 
+/// A frame without reactions reuses the last batch's contact springs for at most this many frames
+/// (SimLoop::Frame); then the cloth lets go.
+inline constexpr int32_t kMaxHeldSpringFrames = 4;
+/// Contact springs one frame can hold (ExternalForce with stiffness; the cloth's own limit).
+inline constexpr size_t kMaxHeldContactSprings = 16;
+
 /// Reaction batches (sim frames) in flight haptic -> sim.
 inline constexpr size_t kReactionQueueCapacity = 8;
 
@@ -114,6 +120,10 @@ class SimLoop {
   // The reactions queued since the last frame into external_, weighted by their durations
   // (impulse kept); returns how many forces.
   size_t TakeQueuedReactions();
+  // Keeps the contact springs of a frame that received a batch (`any_batch`, `count` forces), or
+  // puts the held ones into external_ for a frame without (see kMaxHeldSpringFrames); returns the
+  // frame's force count.
+  size_t HoldContactSprings(bool any_batch, size_t count, double frame_dt_s);
 
   ClothModel model_;
   ClothState cloth_;
@@ -121,6 +131,10 @@ class SimLoop {
   std::unique_ptr<ReactionQueue> reactions_;
   std::unique_ptr<ReactionBatch> popped_;  // scratch
   std::vector<ExternalForce> external_;    // sized once
+  std::array<ExternalForce, kMaxHeldContactSprings> held_;  // the last batch's contact springs
+  size_t held_count_ = 0;
+  int32_t held_frames_ = 0;       // frames that reused them
+  double held_elapsed_s_ = 0.0;   // length of the frame that last used them, s
   // The published positions of the last frame and the frame-motion velocities
   // (sim_loop/frame_motion.h), [particles] each, sized once.
   std::vector<Vec3> frame_start_x_;
