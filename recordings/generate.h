@@ -2,6 +2,10 @@
 // The generator of the bundled pointer traces (recordings/*.trace, `felt trace generate`):
 // motion a person would make with a Touch-class device against the default scene's curtain.
 //
+// Two sets: the five smooth bundled traces (recordings/*.trace) and the hard ones
+// (recordings/hard/*.trace: scrubbing, dragging at a pin, vibration, one-sample jumps, a random
+// walk with bursts).
+//
 // Geometry (device frame _D, metres; the default scene maps p_W = 3.0 * p_D): the curtain hangs in
 // the plane z_D = 0 with x_D in [-0.0827, 0.0827] and its pinned top edge at y_D = +0.0833; the
 // user is on the +z side, so pressing into the cloth is moving toward -z. The device workspace is
@@ -35,6 +39,11 @@ namespace felt {
 inline constexpr double kWorkspaceHalfExtent_m = 0.08;
 /// Scale of the default scene's device-to-world map, p_W = kDefaultDeviceScale * p_D.
 inline constexpr double kDefaultDeviceScale = 3.0;
+/// Half width of the default curtain in the device frame, 0.248 m / 3 [m]: x_D in [-this, this].
+inline constexpr double kCurtainHalfWidth_m = 0.248 / kDefaultDeviceScale;
+/// Height of the default curtain's pinned top edge in the device frame, 0.25 m / 3 [m]; its two
+/// top corners (+-kCurtainHalfWidth_m, kCurtainTopY_m, 0) are the only pins.
+inline constexpr double kCurtainTopY_m = 0.25 / kDefaultDeviceScale;
 /// RMS of the tremor per axis [m].
 inline constexpr double kTremorRms_m = 0.00015;
 /// Sinusoids per axis in the tremor sum.
@@ -50,17 +59,39 @@ inline constexpr uint64_t kDefaultTraceSeed = 1;
 /// Decimals the bundled files are written with (1 um, 1 um/s, 1 us; keeps each file < 1 MB).
 inline constexpr int kBundledDecimals = 6;
 
+/// Frequency of the `vibrate` trace's vibration [Hz].
+inline constexpr double kVibrateFrequency_hz = 250.0;
+/// Amplitude of the `vibrate` trace's vibration along z_D [m] (in phase with the x_D one).
+inline constexpr double kVibrateAmplitudeZ_m = 0.0004;
+/// Amplitude of the `vibrate` trace's vibration along x_D [m].
+inline constexpr double kVibrateAmplitudeX_m = 0.0002;
+/// Sideways amplitude of the `scrub` trace [m].
+inline constexpr double kScrubAmplitude_m = 0.03;
+/// Frequency of the `scrub` trace's back-and-forth [Hz]; peak speed 2 pi f A = 0.94 m/s.
+inline constexpr double kScrubFrequency_hz = 5.0;
 /// The names of the bundled traces, in generation order:
 /// poke_hold, slow_stroke, fast_swipe, circle, pinch_drag.
 const std::vector<std::string>& BundledTraceNames();
 
-/// One generated trace (samples at k / kGeneratedRate_hz, device frame) by name; throws
-/// std::invalid_argument for an unknown name. Each trace draws its noise from a stream seeded by
-/// (seed, name), so traces are independent of each other and of generation order.
+/// The names of the hard traces (recordings/hard/), in generation order:
+/// scrub, pin_drag, vibrate, jump, burst_walk.
+const std::vector<std::string>& HardTraceNames();
+
+/// One generated trace, bundled or hard (samples at k / kGeneratedRate_hz, device frame), by name;
+/// throws std::invalid_argument for an unknown name. Each trace draws its noise from a stream
+/// seeded by (seed, name), so traces are independent of each other and of generation order.
+/// In `jump` the position steps between two samples; the first sample after each step reports
+/// the step divided by the sample period (1 ms) on top of the analytic velocity, the backward
+/// difference a device differentiating its encoders would report (recordings/README.md).
 Trace GenerateTrace(std::string_view name, uint64_t seed);
 
 /// Generates every bundled trace into `out_dir`/NAME.trace with kBundledDecimals decimals and
 /// returns the paths written. Throws std::runtime_error if a file cannot be written.
 std::vector<std::string> WriteBundledTraces(const std::string& out_dir, uint64_t seed);
+
+/// Generates every hard trace into `out_dir`/NAME.trace (the committed ones live in
+/// recordings/hard/) with kBundledDecimals decimals and returns the paths written. Throws
+/// std::runtime_error if a file cannot be written.
+std::vector<std::string> WriteHardTraces(const std::string& out_dir, uint64_t seed);
 
 }  // namespace felt
