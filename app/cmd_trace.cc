@@ -99,6 +99,7 @@ CommandRun SetupImport(CLI::App& cmd) {
 struct GenerateArgs {
   std::string out_dir = "recordings";
   uint64_t seed = kDefaultTraceSeed;
+  std::string real_motion;
 };
 
 void PrintWritten(const std::string& path) {
@@ -111,6 +112,9 @@ CommandRun SetupGenerate(CLI::App& cmd) {
   cmd.add_option("--out-dir", args->out_dir,
                  "directory for the .trace files, hard ones in OUT_DIR/hard (default recordings)");
   cmd.add_option("--seed", args->seed, "noise seed (default 1, the bundled traces' seed)");
+  cmd.add_option("--real-motion", args->real_motion,
+                 "also write OUT_DIR/real_pen.trace from this directory's handwriting recording "
+                 "(GPL data: never commit the result)");
   return [args]() {
     const std::string hard_dir = args->out_dir + "/hard";
     std::filesystem::create_directories(hard_dir);
@@ -118,6 +122,13 @@ CommandRun SetupGenerate(CLI::App& cmd) {
       PrintWritten(path);
     }
     for (const std::string& path : WriteHardTraces(hard_dir, args->seed)) PrintWritten(path);
+    if (!args->real_motion.empty()) {
+      const std::string path = args->out_dir + "/real_pen.trace";
+      WriteTrace(path, RealPenTrace(args->real_motion), TraceWriteOptions{kBundledDecimals});
+      PrintWritten(path);
+      std::printf("%s derives from GPL data (%s/%s): do not commit it\n", path.c_str(),
+                  args->real_motion.c_str(), kRealPenFile);
+    }
     return 0;
   };
 }

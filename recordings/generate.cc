@@ -1,5 +1,6 @@
 #include "recordings/generate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -8,6 +9,7 @@
 #include <utility>
 
 #include "recordings/hermite.h"
+#include "recordings/import.h"
 
 namespace felt {
 namespace {
@@ -623,6 +625,114 @@ std::vector<std::string> WriteHardTraces(const std::string& out_dir, uint64_t se
     paths.push_back(path);
   }
   return paths;
+}
+
+Trace RealPenTrace(const std::string& real_motion_dir, int64_t trial, double press_depth_m) {
+  if (!(press_depth_m > 0.0 && press_depth_m < kWorkspaceHalfExtent_m)) {
+    throw std::invalid_argument("RealPenTrace: press_depth_m must be in (0, 0.08) m");
+  }
+  // One trial of the pen-tip recording, resampled to 1 kHz (x, y; z = 0).
+  ImportOptions options;
+  options.format = ImportFormat::kCsv;
+  options.select_trial = trial;
+  options.rate_hz = kGeneratedRate_hz;
+  const std::string path = real_motion_dir + "/" + kRealPenFile;
+  const Trace pen = ImportTrace(path, options);
+
+  // Centre it on the curtain, scaled uniformly to fit +-kRealPenHalfExtent_m.
+  Eigen::Vector2d lo = pen.samples.front().p_D.head<2>();
+  Eigen::Vector2d hi = lo;
+  for (const TraceSample& s : pen.samples) {
+    lo = lo.cwiseMin(s.p_D.head<2>());
+    hi = hi.cwiseMax(s.p_D.head<2>());
+  }
+  const Eigen::Vector2d centre = 0.5 * (lo + hi);
+  const double scale = kRealPenHalfExtent_m / (0.5 * (hi - lo).maxCoeff());
+
+  // The mapped writing, pressed in, as a Hermite curve through the 1 kHz samples with their
+  // exact velocities as tangents (recordings/hermite.h), to evaluate it at warped times.
+  std::vector<double> knot_t;
+  std::vector<Vec3> knot_p, knot_m;
+  for (const TraceSample& s : pen.samples) {
+    knot_t.push_back(s.t_s);
+    knot_p.emplace_back(scale * (s.p_D.x() - centre.x()), scale * (s.p_D.y() - centre.y()),
+                        -press_depth_m);
+    knot_m.emplace_back(scale * s.v_D.x(), scale * s.v_D.y(), 0.0);
+  }
+  const Vec3 first = knot_p.front();
+  const Vec3 last = knot_p.back();
+  const double D = knot_t.back();
+  const HermiteCurve writing(std::move(knot_t), std::move(knot_p), std::move(knot_m));
+
+  // The recording starts and ends mid-stroke; a time warp tau(t) with a minimum-jerk rate
+  // tau' = MinJerk(t / R) over the first and last R seconds (Flash & Hogan 1985 profile; its
+  // integral R (2.5 s^4 - 3 s^5 + s^6) is R / 2 at s = 1) starts and stops the pen at rest on its
+  // own path. The warped writing lasts L = D + R.
+  const double R = std::min(0.2, 0.5 * D);
+  const double L = D + R;
+  const auto ramp_integral = [](double s) { return s * s * s * s * (2.5 - 3.0 * s + s * s); };
+  Script script(Vec3(first.x(), first.y(), 0.045));
+  script.Hold(0.3);
+  script.MoveTo(Vec3(first.x(), first.y(), 0.005), 0.8);
+  script.MoveTo(first, 0.4);
+  script.Hold(0.2);
+  script.Follow(
+      L,
+      [writing, D, R, L, ramp_integral](double t) {
+        double tau = t - 0.5 * R, rate = 1.0;
+        if (t < R) {
+          tau = R * ramp_integral(t / R);
+          rate = MinJerk(t / R);
+        } else if (t > L - R) {
+          tau = D - R * ramp_integral((L - t) / R);
+          rate = MinJerk((L - t) / R);
+        }
+        const CurvePoint c = writing.Evaluate(tau);
+        return Motion{c.p, c.v * rate};
+      },
+      last);
+  script.Hold(0.2);
+  script.MoveTo(Vec3(last.x(), last.y(), 0.045), 0.9);
+  script.Hold(0.3);
+
+  Trace trace;
+  trace.header =
+      MakeTraceHeader(kGeneratedRate_hz, "touch (Touch-class, workspace +-0.08 m)",
+                      "felt trace generate --real-motion: " + path + ", trial " +
+                          std::to_string(trial));
+  TraceHeader& h = trace.header;
+  char mapping[256];
+  std::snprintf(mapping, sizeof mapping,
+                "x_D = %.6g (x %+.6g), y_D = %.6g (y %+.6g), z_D = -%.6g while writing", scale,
+                -centre.x(), scale, -centre.y(), press_depth_m);
+  h.Set("license", "derived from GPL (>= 2) data (cran/fda handwrit): never commit this file");
+  h.Set("motion",
+        "approach, press in, write one real handwriting trial scaled to +-5 cm on the curtain, "
+        "withdraw");
+  h.Set("scene", "default curtain in the plane z_D = 0 (p_W = 3.0 * p_D), user on +z");
+  h.Set("mapping", mapping);
+  if (const auto rate = pen.header.Get("source_rate_hz")) h.Set("source_rate_hz", *rate);
+  char warp[160];
+  std::snprintf(warp, sizeof warp,
+                "minimum-jerk rate ramps over the first and last %.3g s of writing, so the pen "
+                "starts and stops at rest on its path",
+                R);
+  h.Set("time_warp", warp);
+  h.Set("noise", "none added (the recording's own)");
+
+  // Sample the script exactly: the recording's own tremor and noise are in it already.
+  const int64_t count =
+      static_cast<int64_t>(std::llround(script.duration_s() * kGeneratedRate_hz)) + 1;
+  trace.samples.reserve(static_cast<size_t>(count));
+  for (int64_t k = 0; k < count; ++k) {
+    TraceSample sample;
+    sample.t_s = static_cast<double>(k) / kGeneratedRate_hz;
+    const Motion m = script.At(sample.t_s, &sample.buttons);
+    sample.p_D = m.p;
+    sample.v_D = m.v;
+    trace.samples.push_back(sample);
+  }
+  return trace;
 }
 
 }  // namespace felt

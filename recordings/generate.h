@@ -4,7 +4,8 @@
 //
 // Two sets: the five smooth bundled traces (recordings/*.trace) and the hard ones
 // (recordings/hard/*.trace: scrubbing, dragging at a pin, vibration, one-sample jumps, a random
-// walk with bursts).
+// walk with bursts), plus RealPenTrace, a real handwriting recording written onto the curtain
+// (made at run time from third-party data, never committed).
 //
 // Geometry (device frame _D, metres; the default scene maps p_W = 3.0 * p_D): the curtain hangs in
 // the plane z_D = 0 with x_D in [-0.0827, 0.0827] and its pinned top edge at y_D = +0.0833; the
@@ -69,6 +70,11 @@ inline constexpr double kVibrateAmplitudeX_m = 0.0002;
 inline constexpr double kScrubAmplitude_m = 0.03;
 /// Frequency of the `scrub` trace's back-and-forth [Hz]; peak speed 2 pi f A = 0.94 m/s.
 inline constexpr double kScrubFrequency_hz = 5.0;
+/// The real recording RealPenTrace reads from its data directory (cran/fda `handwrit`, GPL).
+inline constexpr const char* kRealPenFile = "fda_handwrit_optotrak_600Hz.csv";
+/// RealPenTrace scales the handwriting to fit x_D, y_D in [-this, this] [m].
+inline constexpr double kRealPenHalfExtent_m = 0.05;
+
 /// The names of the bundled traces, in generation order:
 /// poke_hold, slow_stroke, fast_swipe, circle, pinch_drag.
 const std::vector<std::string>& BundledTraceNames();
@@ -93,5 +99,15 @@ std::vector<std::string> WriteBundledTraces(const std::string& out_dir, uint64_t
 /// recordings/hard/) with kBundledDecimals decimals and returns the paths written. Throws
 /// std::runtime_error if a file cannot be written.
 std::vector<std::string> WriteHardTraces(const std::string& out_dir, uint64_t seed);
+
+/// A real pen recording written onto the curtain: trial `trial` of `real_motion_dir`/kRealPenFile
+/// (pen tip x, y at 609 Hz, imported with ImportTrace at kGeneratedRate_hz), centred on the
+/// curtain and scaled uniformly to fit x_D, y_D in +-kRealPenHalfExtent_m, written press_depth_m
+/// [m] into the cloth (z_D = -press_depth_m). Minimum-jerk segments approach from and withdraw to
+/// z_D = +0.045 at rest; the pen starts and stops along its path with a minimum-jerk time warp.
+/// No synthetic tremor or noise is added. The result derives from GPL data: never commit it.
+/// Throws TraceError if the file is missing or malformed, std::invalid_argument for a bad depth.
+Trace RealPenTrace(const std::string& real_motion_dir, int64_t trial = 1,
+                   double press_depth_m = 0.008);
 
 }  // namespace felt

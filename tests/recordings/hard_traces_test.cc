@@ -1,4 +1,4 @@
-// The hard pointer traces (recordings/hard/*.trace).
+// The hard pointer traces (recordings/hard/*.trace) and the real pen trace made at test time.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -240,6 +240,48 @@ TEST(HardTraces, BurstWalkWandersPressedInWithFastBursts) {
   EXPECT_GT(peak, 0.8);
   EXPECT_LT(peak, 1.3);
   EXPECT_GT((hi - lo).minCoeff(), 0.02);  // wanders over centimetres in x and y
+}
+
+TEST(HardTraces, RealPenWritesIntoTheClothInsideTheWorkspace) {
+  const std::string dir = test::RealMotionDir();
+  if (!std::filesystem::exists(dir + "/" + kRealPenFile)) {
+    GTEST_SKIP() << "no real-motion data at " << dir << "/" << kRealPenFile;
+  }
+  const Trace trace = RealPenTrace(dir);
+  EXPECT_NE(trace.header.Get("license")->find("never commit"), std::string::npos);
+  const auto& s = trace.samples;
+  const double duration = s.back().t_s;
+  EXPECT_GT(duration, 4.0);
+  EXPECT_LT(duration, 8.0);
+  int writing = 0;
+  double peak = 0.0;
+  Eigen::Vector2d lo(1.0, 1.0), hi(-1.0, -1.0);
+  for (size_t k = 0; k < s.size(); ++k) {
+    ASSERT_EQ(s[k].t_s, static_cast<double>(k) / 1000.0);
+    ASSERT_LE(s[k].p_D.cwiseAbs().maxCoeff(), kWorkspaceHalfExtent_m) << k;
+    ASSERT_GE(s[k].p_D.z(), -0.008 - 1e-12) << k;  // never deeper than the press depth
+    if (s[k].p_D.z() < -0.008 + 1e-9) {
+      ++writing;
+      lo = lo.cwiseMin(s[k].p_D.head<2>());
+      hi = hi.cwiseMax(s[k].p_D.head<2>());
+    }
+    peak = std::max(peak, s[k].v_D.norm());
+  }
+  EXPECT_GT(writing, 2300);  // the 2.3 s trial, pressed 8 mm in
+  // Scaled to fit +-5 cm: the larger extent spans it exactly.
+  EXPECT_NEAR(std::max(hi.x() - lo.x(), hi.y() - lo.y()), 2.0 * kRealPenHalfExtent_m, 1e-4);
+  EXPECT_LE(hi.cwiseAbs().maxCoeff(), kRealPenHalfExtent_m + 1e-4);
+  EXPECT_LE(lo.cwiseAbs().maxCoeff(), kRealPenHalfExtent_m + 1e-4);
+  EXPECT_GT(peak, 0.4);  // the pen's 0.6 m/s peak, scaled up about 1.4x
+  EXPECT_LT(peak, 1.5);
+  // At rest in front of the cloth at both ends.
+  for (const TraceSample* e : {&s.front(), &s.back()}) {
+    EXPECT_GT(e->p_D.z(), 0.03);
+    EXPECT_EQ(e->v_D.norm(), 0.0);
+  }
+  // The velocity is the derivative: the trapezoid integral follows the position to the bound the
+  // import tests use on smooth recordings (the handwriting is rough: up to 25 um per step).
+  EXPECT_LT(WorstIntegralDrift(trace, {}), 1e-3);
 }
 
 }  // namespace
