@@ -361,7 +361,8 @@ Plan MakeHardPlan(std::string_view name, uint64_t seed) {
     s.Oscillate(Vec3(kScrubAmplitude_m, 0.0, 0.0), kScrubFrequency_hz, 0.0, 2.2, 0.2);
     s.Hold(0.3);
     s.MoveTo(Vec3(0.002, -0.004, 0.045), 0.9);
-    return {std::move(s), 6.0,
+    return {std::move(s),
+            6.0,
             "press 1.2 cm in near the centre, scrub x +-3 cm at 5 Hz for 2.2 s (peak 2 pi f A = "
             "0.94 m/s device = 2.8 m/s world), withdraw",
             {{"set", "hard"}}};
@@ -381,7 +382,8 @@ Plan MakeHardPlan(std::string_view name, uint64_t seed) {
     s.MoveTo(press, 1.6);
     s.Hold(0.3);
     s.MoveTo(Vec3(-0.04, 0.0, 0.045), 0.9);
-    return {std::move(s), 8.0,
+    return {std::move(s),
+            8.0,
             "press 1.5 cm in at (-0.04, 0), drag 8 cm in 1.6 s to 1 cm from the top-left pinned "
             "corner in x and y, hold 1 s, drag back, withdraw",
             {{"set", "hard"}}};
@@ -398,12 +400,14 @@ Plan MakeHardPlan(std::string_view name, uint64_t seed) {
                 0.25 * kPi, 2.0, 0.02);
     s.Hold(0.5);
     s.MoveTo(Vec3(0.01, -0.01, 0.045), 0.9);
-    return {std::move(s), 6.0,
+    return {std::move(s),
+            6.0,
             "press 1 cm in, hold, vibrate 2 s at 250 Hz (0.4 mm along z, 0.2 mm along x, 20 ms "
             "minimum-jerk ramps), hold, withdraw",
             {{"set", "hard"},
-             {"vibration", "250 Hz, amplitude 0.4 mm z and 0.2 mm x; the velocity column is its "
-                           "exact derivative"}}};
+             {"vibration",
+              "250 Hz, amplitude 0.4 mm z and 0.2 mm x; the velocity column is its "
+              "exact derivative"}}};
   }
   if (name == "jump") {
     // Press 1 cm in, jump 4.5 cm sideways within one sample, hold, withdraw to 2 cm in front,
@@ -421,7 +425,8 @@ Plan MakeHardPlan(std::string_view name, uint64_t seed) {
     s.Jump(Vec3(0.02, -0.005, -0.01));
     s.Hold(1.0);
     s.MoveTo(Vec3(0.02, -0.005, 0.045), 0.9);
-    return {std::move(s), 7.0,
+    return {std::move(s),
+            7.0,
             "press 1 cm in, jump 4.5 cm sideways within one 1 ms sample, hold 1 s, withdraw to "
             "z_D = +0.02, jump to z_D = -0.01 (through the cloth) within one sample, hold 1 s, "
             "withdraw",
@@ -450,14 +455,16 @@ Plan MakeHardPlan(std::string_view name, uint64_t seed) {
         },
         walk_end);
     s.MoveTo(Vec3(walk_end.x(), walk_end.y(), 0.045), 0.9);
-    return {std::move(s), 8.0,
+    return {std::move(s),
+            8.0,
             "press 5 mm in at (0, -0.01), 5.3 s random walk (Ornstein-Uhlenbeck, 6 mm sd in x, y, "
             "1.5 mm in z) with random minimum-jerk flicks of 2-4 cm at 0.8-1.2 m/s peak, withdraw",
             {{"set", "hard"},
-             {"walk", "OU per axis (theta 1, 1, 2 /s; sd 6, 6, 1.5 mm) sampled every 40 ms, C1 "
-                      "Hermite between; " +
-                          std::to_string(walk.flick_count()) +
-                          " flicks; own streams seeded by (seed, 'burst_walk/ou' and '/flicks')"}}};
+             {"walk",
+              "OU per axis (theta 1, 1, 2 /s; sd 6, 6, 1.5 mm) sampled every 40 ms, C1 "
+              "Hermite between; " +
+                  std::to_string(walk.flick_count()) +
+                  " flicks; own streams seeded by (seed, 'burst_walk/ou' and '/flicks')"}}};
   }
   throw std::invalid_argument("unknown trace '" + std::string(name) +
                               "' (bundled: poke_hold, slow_stroke, fast_swipe, circle, "
@@ -696,10 +703,9 @@ Trace RealPenTrace(const std::string& real_motion_dir, int64_t trial, double pre
   script.Hold(0.3);
 
   Trace trace;
-  trace.header =
-      MakeTraceHeader(kGeneratedRate_hz, "touch (Touch-class, workspace +-0.08 m)",
-                      "felt trace generate --real-motion: " + path + ", trial " +
-                          std::to_string(trial));
+  trace.header = MakeTraceHeader(
+      kGeneratedRate_hz, "touch (Touch-class, workspace +-0.08 m)",
+      "felt trace generate --real-motion: " + path + ", trial " + std::to_string(trial));
   TraceHeader& h = trace.header;
   char mapping[256];
   std::snprintf(mapping, sizeof mapping,

@@ -15,7 +15,8 @@
 // Each trace is the sum of
 //  - voluntary motion: minimum-jerk point-to-point segments (Flash & Hogan, J. Neurosci. 5(7),
 //    1985: x(s) = x0 + (x1 - x0)(10 s^3 - 15 s^4 + 6 s^5), s = t / T), holds, and for the circle a
-//    minimum-jerk profile of the angle;
+//    minimum-jerk profile of the angle; the hard traces add oscillations under a minimum-jerk
+//    envelope (scrub, vibrate), one-sample jumps, and an Ornstein-Uhlenbeck walk with flicks;
 //  - physiological tremor: per axis a sum of kTremorComponents sinusoids with frequencies drawn
 //    uniformly in 8-12 Hz and random phases, scaled to kTremorRms_m RMS (band-limited noise of
 //    about 0.1-0.5 mm amplitude; Elble & Koller, "Tremor", 1990: 8-12 Hz physiological tremor);

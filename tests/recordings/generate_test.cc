@@ -47,8 +47,7 @@ void ExpectCommittedEqualsFresh(const std::vector<std::string>& names,
     const std::string committed = test::ReadFile(path);
     ASSERT_FALSE(committed.empty()) << path << " is missing; run felt trace generate";
     EXPECT_TRUE(committed == test::ReadFile(fresh_paths[i]))
-        << path << " differs from a fresh `felt trace generate --seed " << kDefaultTraceSeed
-        << "`";
+        << path << " differs from a fresh `felt trace generate --seed " << kDefaultTraceSeed << "`";
     EXPECT_LT(committed.size(), 1000000u);
   }
 }
