@@ -99,17 +99,35 @@ CommandRun SetupImport(CLI::App& cmd) {
 struct GenerateArgs {
   std::string out_dir = "recordings";
   uint64_t seed = kDefaultTraceSeed;
+  std::string real_motion;
 };
+
+void PrintWritten(const std::string& path) {
+  std::printf("wrote %s (%ju bytes)\n", path.c_str(),
+              static_cast<uintmax_t>(std::filesystem::file_size(path)));
+}
 
 CommandRun SetupGenerate(CLI::App& cmd) {
   auto args = std::make_shared<GenerateArgs>();
-  cmd.add_option("--out-dir", args->out_dir, "directory for the .trace files (default recordings)");
+  cmd.add_option("--out-dir", args->out_dir,
+                 "directory for the .trace files, hard ones in OUT_DIR/hard (default recordings)");
   cmd.add_option("--seed", args->seed, "noise seed (default 1, the bundled traces' seed)");
+  cmd.add_option("--real-motion", args->real_motion,
+                 "also write OUT_DIR/real_pen.trace from this directory's handwriting recording "
+                 "(GPL data: never commit the result)");
   return [args]() {
-    std::filesystem::create_directories(args->out_dir);
+    const std::string hard_dir = args->out_dir + "/hard";
+    std::filesystem::create_directories(hard_dir);
     for (const std::string& path : WriteBundledTraces(args->out_dir, args->seed)) {
-      std::printf("wrote %s (%ju bytes)\n", path.c_str(),
-                  static_cast<uintmax_t>(std::filesystem::file_size(path)));
+      PrintWritten(path);
+    }
+    for (const std::string& path : WriteHardTraces(hard_dir, args->seed)) PrintWritten(path);
+    if (!args->real_motion.empty()) {
+      const std::string path = args->out_dir + "/real_pen.trace";
+      WriteTrace(path, RealPenTrace(args->real_motion), TraceWriteOptions{kBundledDecimals});
+      PrintWritten(path);
+      std::printf("%s derives from GPL data (%s/%s): do not commit it\n", path.c_str(),
+                  args->real_motion.c_str(), kRealPenFile);
     }
     return 0;
   };
@@ -119,7 +137,7 @@ const bool kRegisteredImport =
     RegisterCommand({"trace", "import",
                      "convert a DeviceLog or CSV recording into a 1 kHz felt-trace", SetupImport});
 const bool kRegisteredGenerate = RegisterCommand(
-    {"trace", "generate", "write the bundled pointer traces (deterministic from --seed)",
+    {"trace", "generate", "write the bundled and hard pointer traces (deterministic from --seed)",
      SetupGenerate});
 
 }  // namespace

@@ -1,11 +1,15 @@
 #include "recordings/generate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
 #include <numbers>
 #include <stdexcept>
 #include <utility>
+
+#include "recordings/hermite.h"
+#include "recordings/import.h"
 
 namespace felt {
 namespace {
@@ -124,10 +128,61 @@ class Script {
         start);
   }
 
+  // An oscillation about the current position for duration_s:
+  //   p = at + amplitude_m e(tau) sin(2 pi f tau + phase),  v = amplitude_m (e' sin + e 2 pi f cos)
+  // with e a minimum-jerk envelope (Flash & Hogan 1985 profile) rising from 0 to 1 over the first
+  // ramp_s and falling back over the last ramp_s, so the segment starts and ends at rest.
+  void Oscillate(const Vec3& amplitude_m, double frequency_hz, double phase, double duration_s,
+                 double ramp_s) {
+    const Vec3 at = end_;
+    const double omega = 2.0 * kPi * frequency_hz;
+    const double T = duration_s;
+    const double R = ramp_s;
+    Add(
+        duration_s,
+        [at, amplitude_m, omega, phase, T, R](double tau) {
+          double e = 1.0, de = 0.0;  // envelope and its time derivative [1/s]
+          if (tau < R) {
+            e = MinJerk(tau / R);
+            de = MinJerkRate(tau / R) / R;
+          } else if (tau > T - R) {
+            e = MinJerk((T - tau) / R);
+            de = -MinJerkRate((T - tau) / R) / R;
+          }
+          const double sn = std::sin(omega * tau + phase);
+          const double cs = std::cos(omega * tau + phase);
+          return Motion{at + amplitude_m * (e * sn), amplitude_m * (de * sn + e * omega * cs)};
+        },
+        at);
+  }
+
+  // A step of the position to `target` at the current time, between two samples: the segments
+  // before end there and the next one starts at `target`.
+  void Jump(const Vec3& target) {
+    jumps_.push_back({duration_s(), target - end_});
+    end_ = target;
+  }
+
+  // A segment given as a function of the time since its start, tau in [0, duration_s), which the
+  // caller guarantees starts at the current position and ends at `end`.
+  void Follow(double duration_s, std::function<Motion(double)> f, const Vec3& end) {
+    Add(duration_s, std::move(f), end);
+  }
+
   // Buttons reported from the next segment on.
   void SetButtons(uint32_t buttons) { buttons_ = buttons; }
 
   double duration_s() const { return segments_.empty() ? 0.0 : segments_.back().t1; }
+
+  // The position the script has reached (where the next segment starts) [m].
+  const Vec3& end() const { return end_; }
+
+  // A one-sample step: at time t_s [s] the position moves by step_m [m].
+  struct Step {
+    double t_s;
+    Vec3 step_m;
+  };
+  const std::vector<Step>& jumps() const { return jumps_; }
 
   // Motion and buttons at t [s]; after the last segment the end position is held.
   Motion At(double t, uint32_t* buttons) const {
@@ -153,6 +208,7 @@ class Script {
     end_ = end;
   }
   std::vector<Segment> segments_;
+  std::vector<Step> jumps_;
   Vec3 end_;
   uint32_t buttons_ = 0;
 };
@@ -193,14 +249,229 @@ class Tremor {
   Component c_[3][kTremorComponents];
 };
 
-// The voluntary motion of each bundled trace and its total duration [s].
+// The burst_walk's voluntary motion, as an offset from where it starts: per axis an
+// Ornstein-Uhlenbeck process (Uhlenbeck & Ornstein, Phys. Rev. 36, 1930) sampled exactly every
+// kWalkKnot_s (Gillespie, Phys. Rev. E 54(2), 1996: x' = x e^(-theta dt) + sd sqrt(1 - e^(-2 theta
+// dt)) N) and joined by a C1 cubic Hermite curve with Bessel tangents (recordings/hermite.h), zero
+// at both ends so the walk starts and ends at rest; plus flicks, minimum-jerk moves of 2-4 cm in
+// x-y at a peak speed of 0.8-1.2 m/s (Flash & Hogan 1985), at random times, each displacing the
+// walk's centre for good. Velocity is the exact derivative of both.
+class BurstWalk {
+ public:
+  static constexpr double kWalkKnot_s = 0.04;
+  // Reversion rates [1/s] and stationary standard deviations [m] of the OU process per axis.
+  static constexpr double kTheta_per_s[3] = {1.0, 1.0, 2.0};
+  static constexpr double kSd_m[3] = {0.006, 0.006, 0.0015};
+  // The flicks keep the walk's centre within this radius of the start in x-y [m].
+  static constexpr double kFlickRadius_m = 0.04;
+
+  BurstWalk(uint64_t seed, double duration_s) : ou_(MakeOu(seed, duration_s)) {
+    // Flicks: a random direction, 2-4 cm, peak speed 0.8-1.2 m/s; the gaps between them are
+    // 0.35 s plus an exponential of mean 0.5 s; none in the first 0.3 s or the last 0.3 s.
+    SplitMix64 rng(seed ^ HashName("burst_walk/flicks"));
+    Vec3 centre = Vec3::Zero();
+    double t = 0.3 + Exponential(&rng, 0.5);
+    for (;;) {
+      const double length = 0.02 + 0.02 * rng.Uniform();
+      const double angle = 2.0 * kPi * rng.Uniform();
+      const double peak_speed = 0.8 + 0.4 * rng.Uniform();
+      const double T = 1.875 * length / peak_speed;  // minimum jerk peaks at 1.875 x mean speed
+      if (t + T > duration_s - 0.3) break;
+      Vec3 d(length * std::cos(angle), length * std::sin(angle), 0.0);
+      // Stay within kFlickRadius_m of the start: flip the flick, else aim it at the start.
+      if ((centre + d).norm() > kFlickRadius_m) d = -d;
+      if ((centre + d).norm() > kFlickRadius_m) d = -centre.normalized() * length;
+      flicks_.push_back({t, T, d});
+      centre += d;
+      t += T + 0.35 + Exponential(&rng, 0.5);
+    }
+  }
+
+  // Offset [m] and its velocity [m/s] at tau [s] after the walk's start.
+  Motion At(double tau) const {
+    const CurvePoint o = ou_.Evaluate(tau);
+    Motion m{o.p, o.v};
+    for (const Flick& f : flicks_) {
+      const double s = (tau - f.t0_s) / f.duration_s;
+      if (s <= 0.0) break;
+      if (s >= 1.0) {
+        m.p += f.d_m;
+      } else {
+        m.p += f.d_m * MinJerk(s);
+        m.v += f.d_m * (MinJerkRate(s) / f.duration_s);
+      }
+    }
+    return m;
+  }
+
+  int flick_count() const { return static_cast<int>(flicks_.size()); }
+
+ private:
+  struct Flick {
+    double t0_s, duration_s;
+    Vec3 d_m;
+  };
+
+  // Exponential with the given mean, by inversion.
+  static double Exponential(SplitMix64* rng, double mean) {
+    return -mean * std::log(1.0 - rng->Uniform());
+  }
+
+  static HermiteCurve MakeOu(uint64_t seed, double duration_s) {
+    SplitMix64 rng(seed ^ HashName("burst_walk/ou"));
+    const int n = static_cast<int>(std::llround(duration_s / kWalkKnot_s));
+    const double dt = duration_s / n;
+    std::vector<double> t(static_cast<size_t>(n) + 1);
+    std::vector<Vec3> p(t.size(), Vec3::Zero());
+    for (int i = 0; i <= n; ++i) t[i] = i * dt;
+    for (int i = 1; i <= n; ++i) {
+      for (int a = 0; a < 3; ++a) {
+        // Exact OU step (Gillespie 1996).
+        const double decay = std::exp(-kTheta_per_s[a] * dt);
+        p[i][a] = p[i - 1][a] * decay + kSd_m[a] * std::sqrt(1.0 - decay * decay) * rng.Normal();
+      }
+    }
+    std::vector<Vec3> m = BesselTangents(t, p);
+    m.front() = m.back() = Vec3::Zero();  // at rest at both ends
+    return HermiteCurve(std::move(t), std::move(p), std::move(m));
+  }
+
+  HermiteCurve ou_;
+  std::vector<Flick> flicks_;
+};
+
+// The voluntary motion of each generated trace, its total duration [s], and for the hard traces
+// header lines that describe what is special about them.
 struct Plan {
   Script script;
   double duration_s;
   const char* description;
+  std::vector<std::pair<std::string, std::string>> notes = {};
 };
 
-Plan MakePlan(std::string_view name) {
+// The hard traces (recordings/hard/); throws std::invalid_argument for an unknown name.
+Plan MakeHardPlan(std::string_view name, uint64_t seed) {
+  if (name == "scrub") {
+    // Press 1.2 cm in near the centre, scrub +-3 cm sideways at 5 Hz for 2.2 s, withdraw.
+    Script s(Vec3(0.003, -0.004, 0.045));
+    s.Hold(0.3);
+    s.MoveTo(Vec3(0.0, -0.005, 0.008), 0.7);
+    s.MoveTo(Vec3(0.0, -0.005, -0.012), 0.5);
+    s.Hold(0.3);
+    s.Oscillate(Vec3(kScrubAmplitude_m, 0.0, 0.0), kScrubFrequency_hz, 0.0, 2.2, 0.2);
+    s.Hold(0.3);
+    s.MoveTo(Vec3(0.002, -0.004, 0.045), 0.9);
+    return {std::move(s),
+            6.0,
+            "press 1.2 cm in near the centre, scrub x +-3 cm at 5 Hz for 2.2 s (peak 2 pi f A = "
+            "0.94 m/s device = 2.8 m/s world), withdraw",
+            {{"set", "hard"}}};
+  }
+  if (name == "pin_drag") {
+    // Press 1.5 cm in at the middle left, drag to 1 cm from the top-left pin in x and y, hold 1 s,
+    // drag back, withdraw.
+    const Vec3 press(-0.04, 0.0, -0.015);
+    const Vec3 near_pin(-kCurtainHalfWidth_m + 0.01, kCurtainTopY_m - 0.01, -0.015);
+    Script s(Vec3(-0.04, 0.0, 0.045));
+    s.Hold(0.3);
+    s.MoveTo(Vec3(-0.04, 0.0, 0.005), 0.8);
+    s.MoveTo(press, 0.6);
+    s.Hold(0.3);
+    s.MoveTo(near_pin, 1.6);
+    s.Hold(1.0);
+    s.MoveTo(press, 1.6);
+    s.Hold(0.3);
+    s.MoveTo(Vec3(-0.04, 0.0, 0.045), 0.9);
+    return {std::move(s),
+            8.0,
+            "press 1.5 cm in at (-0.04, 0), drag 8 cm in 1.6 s to 1 cm from the top-left pinned "
+            "corner in x and y, hold 1 s, drag back, withdraw",
+            {{"set", "hard"}}};
+  }
+  if (name == "vibrate") {
+    // Press 1 cm in, hold, vibrate at 250 Hz for 2 s (20 ms ramps), hold, withdraw.
+    Script s(Vec3(0.01, -0.01, 0.045));
+    s.Hold(0.3);
+    s.MoveTo(Vec3(0.01, -0.01, 0.005), 0.8);
+    s.MoveTo(Vec3(0.01, -0.01, -0.01), 0.5);
+    s.Hold(0.5);
+    // Phase pi/4: at 4 samples a period the samples never sit on the zeros.
+    s.Oscillate(Vec3(kVibrateAmplitudeX_m, 0.0, kVibrateAmplitudeZ_m), kVibrateFrequency_hz,
+                0.25 * kPi, 2.0, 0.02);
+    s.Hold(0.5);
+    s.MoveTo(Vec3(0.01, -0.01, 0.045), 0.9);
+    return {std::move(s),
+            6.0,
+            "press 1 cm in, hold, vibrate 2 s at 250 Hz (0.4 mm along z, 0.2 mm along x, 20 ms "
+            "minimum-jerk ramps), hold, withdraw",
+            {{"set", "hard"},
+             {"vibration",
+              "250 Hz, amplitude 0.4 mm z and 0.2 mm x; the velocity column is its "
+              "exact derivative"}}};
+  }
+  if (name == "jump") {
+    // Press 1 cm in, jump 4.5 cm sideways within one sample, hold, withdraw to 2 cm in front,
+    // jump to 1 cm behind the cloth within one sample, hold, withdraw. The jumps fall half way
+    // between samples (t = 2.1005 s and 4.2005 s).
+    Script s(Vec3(-0.025, -0.005, 0.045));
+    s.Hold(0.3);
+    s.MoveTo(Vec3(-0.025, -0.005, 0.005), 0.8);
+    s.MoveTo(Vec3(-0.025, -0.005, -0.01), 0.5);
+    s.Hold(0.5005);
+    s.Jump(Vec3(0.02, -0.005, -0.01));
+    s.Hold(1.0);
+    s.MoveTo(Vec3(0.02, -0.005, 0.02), 0.6);
+    s.Hold(0.5);
+    s.Jump(Vec3(0.02, -0.005, -0.01));
+    s.Hold(1.0);
+    s.MoveTo(Vec3(0.02, -0.005, 0.045), 0.9);
+    return {std::move(s),
+            7.0,
+            "press 1 cm in, jump 4.5 cm sideways within one 1 ms sample, hold 1 s, withdraw to "
+            "z_D = +0.02, jump to z_D = -0.01 (through the cloth) within one sample, hold 1 s, "
+            "withdraw",
+            {{"set", "hard"},
+             {"velocity_at_jumps",
+              "the first sample after each step adds step / 1 ms (the backward difference a "
+              "device differentiating its encoders reports), so the trapezoid integral of the "
+              "velocity matches the position again from the next sample on"}}};
+  }
+  if (name == "burst_walk") {
+    // Press 5 mm in at (0, -0.01), random walk with flicks for 5.3 s, withdraw.
+    const Vec3 start(0.0, -0.01, -0.005);
+    const double walk_s = 5.3;
+    const BurstWalk walk(seed, walk_s);
+    Script s(Vec3(0.002, -0.008, 0.045));
+    s.Hold(0.3);
+    s.MoveTo(Vec3(0.0, -0.01, 0.005), 0.8);
+    s.MoveTo(start, 0.4);
+    const Vec3 walk_end = start + walk.At(walk_s).p;
+    s.Follow(
+        walk_s,
+        [start, walk](double tau) {
+          Motion m = walk.At(tau);
+          m.p += start;
+          return m;
+        },
+        walk_end);
+    s.MoveTo(Vec3(walk_end.x(), walk_end.y(), 0.045), 0.9);
+    return {std::move(s),
+            8.0,
+            "press 5 mm in at (0, -0.01), 5.3 s random walk (Ornstein-Uhlenbeck, 6 mm sd in x, y, "
+            "1.5 mm in z) with random minimum-jerk flicks of 2-4 cm at 0.8-1.2 m/s peak, withdraw",
+            {{"set", "hard"},
+             {"walk",
+              "OU per axis (theta 1, 1, 2 /s; sd 6, 6, 1.5 mm) sampled every 40 ms, C1 "
+              "Hermite between; " +
+                  std::to_string(walk.flick_count()) +
+                  " flicks; own streams seeded by (seed, 'burst_walk/ou' and '/flicks')"}}};
+  }
+  throw std::invalid_argument("unknown trace '" + std::string(name) +
+                              "' (bundled: poke_hold, slow_stroke, fast_swipe, circle, "
+                              "pinch_drag; hard: scrub, pin_drag, vibrate, jump, burst_walk)");
+}
+
+Plan MakePlan(std::string_view name, uint64_t seed) {
   if (name == "poke_hold") {
     // Approach from 5 cm in front, press 1.5 cm into the cloth near its centre, hold 2 s, withdraw.
     Script s(Vec3(0.004, -0.006, 0.05));
@@ -273,8 +544,7 @@ Plan MakePlan(std::string_view name) {
             "press 2 cm in, button 0 down (grasp), drag 5 cm sideways, 8 cm back, return, button "
             "up, withdraw"};
   }
-  throw std::invalid_argument("unknown bundled trace '" + std::string(name) +
-                              "' (poke_hold, slow_stroke, fast_swipe, circle, pinch_drag)");
+  return MakeHardPlan(name, seed);
 }
 
 // A value in millimetres, 3 significant digits.
@@ -286,6 +556,12 @@ std::string Mm(double value_m) {
 
 }  // namespace
 
+const std::vector<std::string>& HardTraceNames() {
+  static const std::vector<std::string> names = {"scrub", "pin_drag", "vibrate", "jump",
+                                                 "burst_walk"};
+  return names;
+}
+
 const std::vector<std::string>& BundledTraceNames() {
   static const std::vector<std::string> names = {"poke_hold", "slow_stroke", "fast_swipe", "circle",
                                                  "pinch_drag"};
@@ -293,7 +569,7 @@ const std::vector<std::string>& BundledTraceNames() {
 }
 
 Trace GenerateTrace(std::string_view name, uint64_t seed) {
-  const Plan plan = MakePlan(name);
+  const Plan plan = MakePlan(name, seed);
 
   // One noise stream per (seed, name): tremor parameters first, then per-sample sensor noise.
   SplitMix64 rng(seed ^ HashName(name));
@@ -312,6 +588,7 @@ Trace GenerateTrace(std::string_view name, uint64_t seed) {
                       Mm(kTremorRms_m) + " mm RMS; in the velocity");
   h.Set("sensor_noise", "white " + Mm(kSensorNoiseSigma_m) + " mm sigma, then quantised to " +
                             Mm(kEncoderStep_m) + " mm; position only");
+  for (const auto& [key, value] : plan.notes) h.Set(key, value);
 
   // Sample: voluntary + tremor (exact velocity), sensor noise on the position only.
   const int64_t count = static_cast<int64_t>(std::llround(plan.duration_s * kGeneratedRate_hz)) + 1;
@@ -327,6 +604,11 @@ Trace GenerateTrace(std::string_view name, uint64_t seed) {
       sample.p_D[a] = kEncoderStep_m * std::round(measured / kEncoderStep_m);
     }
     sample.v_D = voluntary.v + shake.v;
+    // A step between the previous sample and this one: report its backward difference.
+    for (const Script::Step& jump : plan.script.jumps()) {
+      const double t_prev = static_cast<double>(k - 1) / kGeneratedRate_hz;
+      if (k > 0 && t_prev < jump.t_s && jump.t_s <= t) sample.v_D += jump.step_m / (t - t_prev);
+    }
     trace.samples.push_back(sample);
   }
   return trace;
@@ -340,6 +622,123 @@ std::vector<std::string> WriteBundledTraces(const std::string& out_dir, uint64_t
     paths.push_back(path);
   }
   return paths;
+}
+
+std::vector<std::string> WriteHardTraces(const std::string& out_dir, uint64_t seed) {
+  std::vector<std::string> paths;
+  for (const std::string& name : HardTraceNames()) {
+    const std::string path = out_dir + "/" + name + ".trace";
+    WriteTrace(path, GenerateTrace(name, seed), TraceWriteOptions{kBundledDecimals});
+    paths.push_back(path);
+  }
+  return paths;
+}
+
+Trace RealPenTrace(const std::string& real_motion_dir, int64_t trial, double press_depth_m) {
+  if (!(press_depth_m > 0.0 && press_depth_m < kWorkspaceHalfExtent_m)) {
+    throw std::invalid_argument("RealPenTrace: press_depth_m must be in (0, 0.08) m");
+  }
+  // One trial of the pen-tip recording, resampled to 1 kHz (x, y; z = 0).
+  ImportOptions options;
+  options.format = ImportFormat::kCsv;
+  options.select_trial = trial;
+  options.rate_hz = kGeneratedRate_hz;
+  const std::string path = real_motion_dir + "/" + kRealPenFile;
+  const Trace pen = ImportTrace(path, options);
+
+  // Centre it on the curtain, scaled uniformly to fit +-kRealPenHalfExtent_m.
+  Eigen::Vector2d lo = pen.samples.front().p_D.head<2>();
+  Eigen::Vector2d hi = lo;
+  for (const TraceSample& s : pen.samples) {
+    lo = lo.cwiseMin(s.p_D.head<2>());
+    hi = hi.cwiseMax(s.p_D.head<2>());
+  }
+  const Eigen::Vector2d centre = 0.5 * (lo + hi);
+  const double scale = kRealPenHalfExtent_m / (0.5 * (hi - lo).maxCoeff());
+
+  // The mapped writing, pressed in, as a Hermite curve through the 1 kHz samples with their
+  // exact velocities as tangents (recordings/hermite.h), to evaluate it at warped times.
+  std::vector<double> knot_t;
+  std::vector<Vec3> knot_p, knot_m;
+  for (const TraceSample& s : pen.samples) {
+    knot_t.push_back(s.t_s);
+    knot_p.emplace_back(scale * (s.p_D.x() - centre.x()), scale * (s.p_D.y() - centre.y()),
+                        -press_depth_m);
+    knot_m.emplace_back(scale * s.v_D.x(), scale * s.v_D.y(), 0.0);
+  }
+  const Vec3 first = knot_p.front();
+  const Vec3 last = knot_p.back();
+  const double D = knot_t.back();
+  const HermiteCurve writing(std::move(knot_t), std::move(knot_p), std::move(knot_m));
+
+  // The recording starts and ends mid-stroke; a time warp tau(t) with a minimum-jerk rate
+  // tau' = MinJerk(t / R) over the first and last R seconds (Flash & Hogan 1985 profile; its
+  // integral R (2.5 s^4 - 3 s^5 + s^6) is R / 2 at s = 1) starts and stops the pen at rest on its
+  // own path. The warped writing lasts L = D + R.
+  const double R = std::min(0.2, 0.5 * D);
+  const double L = D + R;
+  const auto ramp_integral = [](double s) { return s * s * s * s * (2.5 - 3.0 * s + s * s); };
+  Script script(Vec3(first.x(), first.y(), 0.045));
+  script.Hold(0.3);
+  script.MoveTo(Vec3(first.x(), first.y(), 0.005), 0.8);
+  script.MoveTo(first, 0.4);
+  script.Hold(0.2);
+  script.Follow(
+      L,
+      [writing, D, R, L, ramp_integral](double t) {
+        double tau = t - 0.5 * R, rate = 1.0;
+        if (t < R) {
+          tau = R * ramp_integral(t / R);
+          rate = MinJerk(t / R);
+        } else if (t > L - R) {
+          tau = D - R * ramp_integral((L - t) / R);
+          rate = MinJerk((L - t) / R);
+        }
+        const CurvePoint c = writing.Evaluate(tau);
+        return Motion{c.p, c.v * rate};
+      },
+      last);
+  script.Hold(0.2);
+  script.MoveTo(Vec3(last.x(), last.y(), 0.045), 0.9);
+  script.Hold(0.3);
+
+  Trace trace;
+  trace.header = MakeTraceHeader(
+      kGeneratedRate_hz, "touch (Touch-class, workspace +-0.08 m)",
+      "felt trace generate --real-motion: " + path + ", trial " + std::to_string(trial));
+  TraceHeader& h = trace.header;
+  char mapping[256];
+  std::snprintf(mapping, sizeof mapping,
+                "x_D = %.6g (x %+.6g), y_D = %.6g (y %+.6g), z_D = -%.6g while writing", scale,
+                -centre.x(), scale, -centre.y(), press_depth_m);
+  h.Set("license", "derived from GPL (>= 2) data (cran/fda handwrit): never commit this file");
+  h.Set("motion",
+        "approach, press in, write one real handwriting trial scaled to +-5 cm on the curtain, "
+        "withdraw");
+  h.Set("scene", "default curtain in the plane z_D = 0 (p_W = 3.0 * p_D), user on +z");
+  h.Set("mapping", mapping);
+  if (const auto rate = pen.header.Get("source_rate_hz")) h.Set("source_rate_hz", *rate);
+  char warp[160];
+  std::snprintf(warp, sizeof warp,
+                "minimum-jerk rate ramps over the first and last %.3g s of writing, so the pen "
+                "starts and stops at rest on its path",
+                R);
+  h.Set("time_warp", warp);
+  h.Set("noise", "none added (the recording's own)");
+
+  // Sample the script exactly: the recording's own tremor and noise are in it already.
+  const int64_t count =
+      static_cast<int64_t>(std::llround(script.duration_s() * kGeneratedRate_hz)) + 1;
+  trace.samples.reserve(static_cast<size_t>(count));
+  for (int64_t k = 0; k < count; ++k) {
+    TraceSample sample;
+    sample.t_s = static_cast<double>(k) / kGeneratedRate_hz;
+    const Motion m = script.At(sample.t_s, &sample.buttons);
+    sample.p_D = m.p;
+    sample.v_D = m.v;
+    trace.samples.push_back(sample);
+  }
+  return trace;
 }
 
 }  // namespace felt

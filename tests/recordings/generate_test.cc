@@ -18,7 +18,9 @@ std::string BundledPath(const std::string& name) {
 
 TEST(GenerateTest, SameSeedSameBytesOtherSeedOtherNoise) {
   const std::string dir = test::ScratchDir("generate_determinism");
-  for (const std::string& name : BundledTraceNames()) {
+  std::vector<std::string> names = BundledTraceNames();
+  names.insert(names.end(), HardTraceNames().begin(), HardTraceNames().end());
+  for (const std::string& name : names) {
     SCOPED_TRACE(name);
     const Trace a = GenerateTrace(name, 42);
     const Trace b = GenerateTrace(name, 42);
@@ -33,20 +35,33 @@ TEST(GenerateTest, SameSeedSameBytesOtherSeedOtherNoise) {
   EXPECT_THROW(GenerateTrace("wave", 1), std::invalid_argument);
 }
 
-TEST(GenerateTest, BundledFilesEqualAFreshGeneration) {
-  const std::string dir = test::ScratchDir("generate_fresh");
-  const std::vector<std::string> paths = WriteBundledTraces(dir, kDefaultTraceSeed);
-  ASSERT_EQ(paths.size(), BundledTraceNames().size());
-  for (size_t i = 0; i < paths.size(); ++i) {
-    const std::string& name = BundledTraceNames()[i];
-    SCOPED_TRACE(name);
-    const std::string committed = test::ReadFile(BundledPath(name));
-    ASSERT_FALSE(committed.empty()) << BundledPath(name) << " is missing; run felt trace generate";
-    EXPECT_TRUE(committed == test::ReadFile(paths[i]))
-        << BundledPath(name) << " differs from a fresh `felt trace generate --seed "
-        << kDefaultTraceSeed << "`";
+// The committed files are exactly what `felt trace generate --seed 1` writes: the bundled ones in
+// recordings/, the hard ones in recordings/hard/.
+void ExpectCommittedEqualsFresh(const std::vector<std::string>& names,
+                                const std::vector<std::string>& fresh_paths,
+                                const std::string& committed_dir) {
+  ASSERT_EQ(fresh_paths.size(), names.size());
+  for (size_t i = 0; i < fresh_paths.size(); ++i) {
+    const std::string path = committed_dir + "/" + names[i] + ".trace";
+    SCOPED_TRACE(path);
+    const std::string committed = test::ReadFile(path);
+    ASSERT_FALSE(committed.empty()) << path << " is missing; run felt trace generate";
+    EXPECT_TRUE(committed == test::ReadFile(fresh_paths[i]))
+        << path << " differs from a fresh `felt trace generate --seed " << kDefaultTraceSeed << "`";
     EXPECT_LT(committed.size(), 1000000u);
   }
+}
+
+TEST(GenerateTest, BundledFilesEqualAFreshGeneration) {
+  const std::string dir = test::ScratchDir("generate_fresh");
+  ExpectCommittedEqualsFresh(BundledTraceNames(), WriteBundledTraces(dir, kDefaultTraceSeed),
+                             FELT_SOURCE_DIR "/recordings");
+}
+
+TEST(GenerateTest, HardFilesEqualAFreshGeneration) {
+  const std::string dir = test::ScratchDir("generate_fresh_hard");
+  ExpectCommittedEqualsFresh(HardTraceNames(), WriteHardTraces(dir, kDefaultTraceSeed),
+                             FELT_SOURCE_DIR "/recordings/hard");
 }
 
 // Properties every bundled trace must have, read back from the committed files.
