@@ -198,7 +198,7 @@ std::vector<ModeSummary> Summarize(const std::vector<const TraceResult*>& result
       const VariantSummary& s = r->summaries[v];
       ++m.traces;
       rms.push_back(s.force_rms_error_N);
-      if (s.force_rms_error_N >= m.rms_worst_N) {
+      if (m.rms_worst_trace.empty() || s.force_rms_error_N > m.rms_worst_N) {
         m.rms_worst_N = s.force_rms_error_N;
         m.rms_worst_trace = r->trace->name;
       }
@@ -398,6 +398,7 @@ int Run(const Args& args) {
   const std::string command = CommandLine(args);
   const SceneDocument scene = BenchScene(args);
   const ServerSpec spec = ParseServerSpec(scene);
+  const ClothSpec written = ParseServerSpec(LoadSceneDocument(args.scene)).sim.cloth;
   const std::vector<TraceInput> traces = LoadTraces(args);
   const std::vector<LockstepVariant> variants = ModeVariants();
   LockstepOptions options;
@@ -433,8 +434,9 @@ int Run(const Args& args) {
   // Markdown: what ran, the targets, the summaries, the per-trace tables.
   const std::string host = HostLine(machine, load_end);
   std::string md = fmt::format(
-      "Scene `{}` with its cloth at {} x {} particles ({} triangles), {} device(s), {} Hz haptic "
-      "rate, in lock-step virtual time (docs/compare.md); {}. Reference: the truth (`{}`: the "
+      "Scene `{}` with its cloth at {} x {} particles ({} triangles; the file has {} x {}{}), {} "
+      "device(s), {} Hz haptic rate, in lock-step virtual time (docs/compare.md); {}. Reference: "
+      "the truth (`{}`: the "
       "cloth stepped every haptic tick, {} Hz, coupled both ways with the proxy, which renders "
       "the exact cloth of its tick in mode newest). Variants: the scene at its {} Hz frame rate "
       "with `proxy.snapshot_mode` set to each mode. Tick costs are thread CPU time of one "
@@ -443,8 +445,12 @@ int Run(const Args& args) {
       "the proxy was rendered on). Targets (issue 20): worst RMS force error <= {} N, no force "
       "more than {} N above the truth's peak, zero pop-through, no NaN, tick median <= {} us and "
       "p99 <= {} us.\n\n",
-      args.scene, spec.sim.cloth.width, spec.sim.cloth.height, triangles, spec.devices.size(),
-      FormatSceneNumber(spec.haptic.haptic_rate_hz),
+      args.scene, spec.sim.cloth.width, spec.sim.cloth.height, triangles, written.width,
+      written.height,
+      args.grid == 0 ? ""
+                     : ", resized over the same square with the same total drag: "
+                       "bench/bench_util.h's ResizedCurtain",
+      spec.devices.size(), FormatSceneNumber(spec.haptic.haptic_rate_hz),
       options.max_duration_s > 0.0
           ? "the first " + FormatSceneNumber(options.max_duration_s) + " s of each trace"
           : std::string("every trace whole"),
