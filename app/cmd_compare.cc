@@ -1,9 +1,11 @@
-// `felt compare --trace FILE --scene FILE --variants LIST [--json FILE] [--md FILE]
-// [--duration S]`: variants of a scene on the same recorded pointer motion, offline (issue 7;
-// docs/compare.md). The trace drives the real server code (compare/lockstep.h) in lock-step
-// virtual time, one variant after the other, on this thread, without DDS; the first variant is
-// the reference. Prints a Markdown table (costs per tick and per frame, force error against the
-// reference, force jumps, contacts) and writes the same per-variant fields as JSON.
+// `felt compare --trace FILE --scene FILE --variants LIST [--truth] [--json FILE] [--csv FILE]
+// [--md FILE] [--duration S]`: variants of a scene on the same recorded pointer motion, offline
+// (issues 7 and 20; docs/compare.md). The trace drives the real server code (compare/lockstep.h)
+// in lock-step virtual time, one variant after the other, on this thread, without DDS; the first
+// variant is the reference (with --truth: the truth, the cloth stepped every haptic tick, as
+// variant 0). Prints a Markdown table (costs per tick and per frame, force error against the
+// reference, force jumps and spikes, contacts, pop-through and reach into the cloth) and writes
+// the same per-variant fields as JSON and CSV.
 #include <spdlog/fmt/fmt.h>
 
 #include <CLI/CLI.hpp>
@@ -26,16 +28,20 @@ struct CompareArgs {
   std::string scene;
   std::string variants;
   std::string json;
+  std::string csv;
   std::string md;
   double duration_s = 0.0;
+  bool truth = false;
 };
 
 // The command as it can be typed again (for report headers).
 std::string CommandLine(const CompareArgs& a) {
   std::string line = "felt compare --trace " + a.trace + " --scene " + a.scene + " --variants '" +
                      a.variants + "'";
+  if (a.truth) line += " --truth";
   if (a.duration_s > 0.0) line += " --duration " + FormatSceneNumber(a.duration_s);
   if (!a.json.empty()) line += " --json " + a.json;
+  if (!a.csv.empty()) line += " --csv " + a.csv;
   if (!a.md.empty()) line += " --md " + a.md;
   return line;
 }
@@ -50,47 +56,73 @@ std::string Table(const std::vector<VariantSummary>& summaries) {
                     Fixed(s.tick_us_median, 1), Fixed(s.tick_us_p99, 1),
                     Fixed(s.frame_ms_median, 3), Fixed(s.frame_ms_p99, 3), Sig(s.force_rms_error_N),
                     Sig(s.force_max_error_N), Sig(s.max_jump_N), Sig(s.max_jump_vs_ref_N),
-                    Sig(s.peak_force_N), std::to_string(s.contacts),
-                    std::to_string(s.contact_mismatches), std::to_string(s.clamped_ticks),
+                    Sig(s.peak_force_N), Sig(s.peak_minus_ref_peak_N), std::to_string(s.contacts),
+                    std::to_string(s.contact_mismatches), std::to_string(s.pop_through),
+                    Fixed(s.max_reach_mm, 3), std::to_string(s.clamped_ticks),
                     std::to_string(s.stalled_ticks), std::to_string(s.nan_events)});
   }
   return report::MarkdownTable(
       {"variant", "overrides", "tick_us_p50", "tick_us_p99", "frame_ms_p50", "frame_ms_p99",
        "force_rms_error_N", "force_max_error_N", "max_jump_N", "max_jump_vs_ref_N", "peak_force_N",
-       "contacts", "contact_mismatches", "clamped", "stalled", "nan"},
+       "peak_minus_ref_peak_N", "contacts", "contact_mismatches", "pop_through", "max_reach_mm",
+       "clamped", "stalled", "nan"},
       {false, false, true, true, true, true, true, true, true, true, true, true, true, true, true,
-       true},
+       true, true, true, true},
       rows);
+}
+
+// One variant's figures as the JSON file (and the CSV) has them, in their order.
+Json VariantJson(const VariantSummary& s) {
+  return Json{{"name", s.name},
+              {"overrides", s.overrides},
+              {"ticks", s.ticks},
+              {"frames", s.frames},
+              {"tick_us_median", s.tick_us_median},
+              {"tick_us_p99", s.tick_us_p99},
+              {"frame_ms_median", s.frame_ms_median},
+              {"frame_ms_p99", s.frame_ms_p99},
+              {"timer_overhead_us", s.timer_overhead_us},
+              {"force_rms_error_N", s.force_rms_error_N},
+              {"force_max_error_N", s.force_max_error_N},
+              {"max_jump_N", s.max_jump_N},
+              {"max_jump_vs_ref_N", s.max_jump_vs_ref_N},
+              {"peak_force_N", s.peak_force_N},
+              {"peak_minus_ref_peak_N", s.peak_minus_ref_peak_N},
+              {"contacts", static_cast<int64_t>(s.contacts)},
+              {"contact_mismatches", static_cast<int64_t>(s.contact_mismatches)},
+              {"pop_through", static_cast<int64_t>(s.pop_through)},
+              {"max_reach_mm", s.max_reach_mm},
+              {"clamped_ticks", static_cast<int64_t>(s.clamped_ticks)},
+              {"stalled_ticks", static_cast<int64_t>(s.stalled_ticks)},
+              {"nan_events", static_cast<int64_t>(s.nan_events)}};
+}
+
+// Every per-variant field of the JSON file, one row per variant, as CSV (the JSON field names as
+// the header; numbers in shortest round-trip form).
+std::string CompareCsv(const CompareResult& result) {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  for (const VariantSummary& s : result.summaries) {
+    const Json j = VariantJson(s);
+    std::vector<std::string> row;
+    for (const auto& [key, value] : j.items()) {
+      if (rows.empty()) header.push_back(key);
+      row.push_back(value.is_string() ? value.get<std::string>() : value.dump());
+    }
+    rows.push_back(std::move(row));
+  }
+  return report::CsvTable(header, rows);
 }
 
 std::string CompareJson(const CompareArgs& args, const report::MachineInfo& machine,
                         const std::string& load_end, const CompareResult& result) {
   Json variants = Json::array();
-  for (const VariantSummary& s : result.summaries) {
-    variants.push_back(Json{{"name", s.name},
-                            {"overrides", s.overrides},
-                            {"ticks", s.ticks},
-                            {"frames", s.frames},
-                            {"tick_us_median", s.tick_us_median},
-                            {"tick_us_p99", s.tick_us_p99},
-                            {"frame_ms_median", s.frame_ms_median},
-                            {"frame_ms_p99", s.frame_ms_p99},
-                            {"timer_overhead_us", s.timer_overhead_us},
-                            {"force_rms_error_N", s.force_rms_error_N},
-                            {"force_max_error_N", s.force_max_error_N},
-                            {"max_jump_N", s.max_jump_N},
-                            {"max_jump_vs_ref_N", s.max_jump_vs_ref_N},
-                            {"peak_force_N", s.peak_force_N},
-                            {"contacts", static_cast<int64_t>(s.contacts)},
-                            {"contact_mismatches", static_cast<int64_t>(s.contact_mismatches)},
-                            {"clamped_ticks", static_cast<int64_t>(s.clamped_ticks)},
-                            {"stalled_ticks", static_cast<int64_t>(s.stalled_ticks)},
-                            {"nan_events", static_cast<int64_t>(s.nan_events)}});
-  }
+  for (const VariantSummary& s : result.summaries) variants.push_back(VariantJson(s));
   Json top{{"command", CommandLine(args)},
            {"trace", args.trace},
            {"scene", args.scene},
            {"reference", result.summaries.front().name},
+           {"truth", args.truth},
            {"devices", result.runs.front().devices},
            {"tick_dt_s", result.runs.front().tick_dt_s}};
   report::AppendMachineJson(machine, load_end, &top);
@@ -107,6 +139,7 @@ int Compare(const CompareArgs& args) {
   const std::vector<LockstepVariant> variants = ParseVariantList(args.variants);
   LockstepOptions options;
   options.max_duration_s = args.duration_s;
+  options.prepend_truth = args.truth;
 
   const CompareResult result = CompareVariants(scene, trace.samples, variants, options);
   const std::string load_end = report::LoadAverage();
@@ -124,16 +157,21 @@ int Compare(const CompareArgs& args) {
   std::fflush(stdout);
   if (!args.json.empty())
     report::WriteTextFile(args.json, CompareJson(args, machine, load_end, result));
+  if (!args.csv.empty()) report::WriteTextFile(args.csv, CompareCsv(result));
   if (!args.md.empty()) {
     const std::string header =
         report::ReportHeader("felt compare: " + args.trace, CommandLine(args), machine, load_end);
     const std::string what = fmt::format(
         "Trace `{}` on scene `{}`: {} haptic ticks ({:.3f} s of virtual time), {} sim frames, {} "
-        "device(s), in lock-step virtual time (docs/compare.md). Reference: `{}`. Costs are "
+        "device(s), in lock-step virtual time (docs/compare.md). Reference: `{}`{}. Costs are "
         "thread CPU time and vary from run to run (each includes one timer read: {:.2f} us "
         "measured between two back-to-back reads); forces are bit-identical run to run.\n\n",
         args.trace, args.scene, ref.ticks, static_cast<double>(ref.ticks) * ref.tick_dt_s,
-        ref.frames, ref.devices, ref.name, result.summaries.front().timer_overhead_us);
+        ref.frames, ref.devices, ref.name,
+        args.truth ? " (the truth: the cloth stepped every haptic tick, the proxy on the exact "
+                     "cloth)"
+                   : "",
+        result.summaries.front().timer_overhead_us);
     report::WriteTextFile(args.md, header + "\n" + what + table);
   }
   return 0;
@@ -152,9 +190,15 @@ CommandRun Setup(CLI::App& cmd) {
                  "variants separated by ';', each [NAME:] key=value[,key=value...]; the first is "
                  "the reference; keys are scene paths (proxy.max_iterations) or shorthands:" +
                      shorthands +
-                     "\n  e.g. 'newest: snapshot=newest; blend: snapshot=blend_forces'")
+                     "\n  a bare 'truth' is the variant truth=on; e.g. 'newest: snapshot=newest; "
+                     "blend: snapshot=blend_forces'")
       ->required();
+  cmd.add_flag("--truth", args->truth,
+               "run the truth first, as variant 0 and the reference: the scene with "
+               "integration.frame_rate_hz = haptic.haptic_rate_hz and snapshot=newest (the cloth "
+               "stepped every haptic tick, the proxy on the exact cloth)");
   cmd.add_option("--json", args->json, "write the per-variant figures as JSON here");
+  cmd.add_option("--csv", args->csv, "write the per-variant figures as CSV here");
   cmd.add_option("--md", args->md, "write the table with the command and machine header here");
   cmd.add_option("--duration", args->duration_s,
                  "replay at most this many seconds of the trace (default: all of it)")

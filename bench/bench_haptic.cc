@@ -1,29 +1,26 @@
-// `felt bench haptic`: the god-object proxy's snapshot modes compared (issue 4, "Report";
+// `felt bench haptic`: the god-object proxy's snapshot modes against the truth (issues 4 and 20;
 // 001_0f9f1b7fedff7723.txt §6.4 and §7: force discontinuities when the cloth changes outside the
-// haptic loop, and the remedy of rendering against two cloths).
+// haptic loop, and the remedy of rendering against two cloths; §6: every algorithm gets the same
+// input).
 //
-// For each pointer trace the cloth of a 64 x 64 curtain is known exactly at every 1 ms tick (the
-// reference: the proxy sees the exact cloth every tick) and is published to the four modes as
-// 60 Hz snapshots, as the server's sim thread would. Every mode runs on the same input; the table
-// gives, per mode, the RMS force error against the reference, the largest force jump between
-// consecutive ticks, the pop-through count, how deep the proxy sphere reached into the cloth it
-// was rendered against, and the cost per tick.
-//
-// Cloth sources:
-//  - "sim": the real cloth (sim_loop/cloth.h) stepped at 1 kHz, coupled both ways with the
-//    reference proxy (its reaction applied each millisecond); the modes replay that cloth;
-//  - "swing": a kinematic curtain swinging like a pendulum with a travelling ripple, exact at
-//    any time (positions and velocities analytic), for the swinging-cloth traces.
+// Built on `felt compare`'s engine (compare/lockstep.h): for each pointer trace, the real server
+// runs in lock-step virtual time once per variant, on this thread. The reference is the truth
+// (TruthVariant: the cloth stepped every 1 ms haptic tick, coupled both ways with the proxy, which
+// renders the exact cloth); the variants are the scene with proxy.snapshot_mode set to each mode
+// of kSnapshotModes (60 Hz frames). Per trace and mode: force error against the truth, force
+// spikes above the truth's peak, pop-through and reach into the cloth (proxy/proxy_probe.h),
+// contact mismatches, tick cost (thread CPU time), NaN events. Then a per-mode summary (error
+// against tick cost) judged against the issue's targets, and the hard traces (recordings/hard/)
+// on their own. Writes Markdown, CSV, JSON and a PNG (gnuplot on bench/haptic.gp).
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -31,429 +28,528 @@
 
 #include "app/command.h"
 #include "base/json.h"
-#include "base/report.h"
-#include "proxy/proxy.h"
-#include "proxy/proxy_scene.h"
+#include "bench/bench_util.h"
+#include "compare/lockstep.h"
+#include "proxy/proxy_spec.h"
 #include "recordings/generate.h"
 #include "recordings/trace.h"
 #include "scene/scene_file.h"
-#include "sim_loop/cloth.h"
-#include "sim_loop/cloth_scene.h"
-#include "sim_loop/snapshot.h"
+#include "server/server_spec.h"
 
 namespace felt::bench::bench_haptic {
 namespace {
 
-constexpr double kTickS = 1e-3;
-constexpr double kFrameS = 1.0 / 60.0;
-// A tick is counted deep when the proxy sphere reaches more than this fraction of its radius into
-// the cloth it was rendered against.
-constexpr double kDeepFraction = 0.1;
-constexpr SnapshotMode kModes[] = {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
-                                   SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate};
+/// The issue's targets for a snapshot mode (issue 20), each judged per mode over a set of traces.
+struct Targets {
+  double rms_error_N = 0.15;     ///< worst RMS force error against the truth over traces, N
+  double peak_excess_N = 0.5;    ///< largest peak |F| above the truth's peak, N
+  uint64_t pop_through = 0;      ///< pop-through ticks, all traces
+  uint64_t nan_events = 0;       ///< NaN events (safety and cloth), all traces
+  double tick_us_median = 10.0;  ///< median tick thread CPU time over all ticks, us
+  double tick_us_p99 = 40.0;     ///< 99th percentile of the same, us
+};
+constexpr Targets kTargets;
+
+/// Virtual seconds of each trace replayed with --quick: poke_hold's tip meets the cloth at about
+/// 1.68 s, so 2.5 s gives every bundled trace some contact.
+constexpr double kQuickDuration_s = 2.5;
 
 struct Args {
   std::string json_path;
   std::string csv_path;
   std::string md_path;
-  bool quick = false;
+  std::string scene = "scenes/curtain.toml";
+  std::string recordings = "recordings";
+  std::string gnuplot_script = "bench/haptic.gp";
+  std::vector<std::string> traces;  // --trace FILE...
   int grid = 64;
+  bool quick = false;
+  double duration_s = 0.0;
+  bool no_bundled = false;
+  bool no_plot = false;
 };
 
-// One mode's metrics over one run, or summed over several runs (Add).
-struct ModeStats {
-  double err2_sum = 0.0;
-  int64_t ticks = 0;
-  double max_jump_N = 0.0;
-  int64_t pop_through = 0;
-  double max_penetration_m = 0.0;  ///< deepest reach of the proxy sphere into its cloth, m
-  int64_t deep_ticks = 0;          ///< ticks reaching deeper than kDeepFraction of the radius
-  std::vector<double> tick_us;
-  uint64_t overflow_ticks = 0;
-  uint64_t catches = 0;
-
-  /// Adds `other`'s run: squared force errors [N^2], ticks and counts add up, the largest jump
-  /// [N] and penetration [m] stay the larger, tick times [us] are appended.
-  void Add(const ModeStats& other) {
-    err2_sum += other.err2_sum;
-    ticks += other.ticks;
-    max_jump_N = std::max(max_jump_N, other.max_jump_N);
-    pop_through += other.pop_through;
-    max_penetration_m = std::max(max_penetration_m, other.max_penetration_m);
-    deep_ticks += other.deep_ticks;
-    tick_us.insert(tick_us.end(), other.tick_us.begin(), other.tick_us.end());
-    overflow_ticks += other.overflow_ticks;
-    catches += other.catches;
-  }
-
-  double rms() const { return ticks > 0 ? std::sqrt(err2_sum / ticks) : 0.0; }
-  double median_us() const { return tick_us.empty() ? 0.0 : report::Median(tick_us); }
-  double max_us() const {
-    return tick_us.empty() ? 0.0 : *std::max_element(tick_us.begin(), tick_us.end());
-  }
+/// One pointer trace and where it came from.
+struct TraceInput {
+  std::string name;   ///< file stem ("(generated)" appended when made in place of a missing file)
+  std::string group;  ///< "bundled" (recordings/*.trace), "hard" (recordings/hard/), "user"
+  std::string path;   ///< the file read ("" when generated)
+  std::vector<TraceSample> samples;
 };
 
-struct RunResult {
-  std::string trace;
-  std::string source;
-  bool sim_healthy = true;
-  double reference_max_jump_N = 0.0;
-  double reference_max_penetration_m = 0.0;  ///< the reference proxy's, against the exact cloth
-  ModeStats modes[4];
+/// One trace's comparison: the truth's and every mode's summary, and each variant's tick times.
+struct TraceResult {
+  const TraceInput* trace = nullptr;
+  std::vector<VariantSummary> summaries;         ///< [0] the truth, then kSnapshotModes' order
+  std::vector<std::vector<double>> tick_cpu_us;  ///< per variant, every tick, us
 };
 
-// The curtain scene at grid x grid particles, same size (0.496 m square), from the scene file.
-SimSpec CurtainSpec(int grid) {
-  const SceneDocument doc = LoadSceneDocument("scenes/curtain.toml");
-  SimSpec spec = ParseSimSpec(doc);
-  spec.cloth.width = grid;
-  spec.cloth.height = grid;
-  spec.cloth.spacing_m = 0.496 / (grid - 1);
-  return spec;
-}
-
-// The kinematic swinging curtain: rest place r (top edge at y = 0.25), swung along z.
-void SwingAt(const std::vector<Vec3>& rest, double t, std::vector<Vec3>* x, std::vector<Vec3>* v) {
-  constexpr double kA = 0.06;  // pendulum amplitude at the bottom edge, m
-  constexpr double kF = 1.2;   // Hz
-  constexpr double kRipple = 0.008;
-  constexpr double kL = 0.496;
-  const double w = 2.0 * M_PI * kF;
-  for (size_t i = 0; i < rest.size(); ++i) {
-    const double d = (0.25 - rest[i].y()) / kL;  // 0 at the pinned top, 1 at the bottom
-    const double phase = 2.0 * M_PI * (rest[i].x() / 0.25 - 2.0 * t);
-    (*x)[i] = rest[i];
-    (*x)[i].z() += kA * d * d * std::sin(w * t) + kRipple * d * std::sin(phase);
-    (*v)[i] = Vec3(
-        0.0, 0.0, kA * d * d * w * std::cos(w * t) + kRipple * d * std::cos(phase) * (-4.0 * M_PI));
-  }
-}
-
-// The cloth a mode's main proxy used this tick (as ProxyTick chooses it).
-ClothView ModeView(SnapshotMode mode, const ClothSnapshot& next, const ClothSnapshot& prev,
-                   double since) {
-  switch (mode) {
-    case SnapshotMode::kInterpolate:
-      return ClothView{&prev, &next,
-                       next.frame_dt_s > 0 ? std::clamp(since / next.frame_dt_s, 0.0, 1.0) : 1.0,
-                       0.0};
-    case SnapshotMode::kExtrapolate:
-      return ClothView{&next, &next, 0.0, since};
-    default:
-      return ClothView::Of(next);
-  }
-}
-
-// Pop-through: the proxy's last contact triangle has it on the other side now, while its closest
-// point is inside that triangle (going around the cloth's border is a legitimate release).
-struct SideTracker {
-  int32_t triangle = -1;
-  int32_t side = 0;
-  bool Check(const ClothView& view, const GodObject& body) {
-    bool popped = false;
-    if (triangle >= 0) {
-      Vec3 a, b, c;
-      view.Corners(triangle, &a, &b, &c);
-      const TrianglePoint cp = ClosestPointOnTriangle(body.p_W_m, a, b, c);
-      const int32_t s = SideOfTriangle(body.p_W_m, a, b, c);
-      const bool interior = cp.barycentric.minCoeff() > 1e-6;
-      popped = interior && s != 0 && side != 0 && s != side;
-    }
-    if (body.num_contacts > 0 && body.contacts[0].triangle >= 0) {  // < 0: an obstacle
-      triangle = body.contacts[0].triangle;
-      Vec3 a, b, c;
-      view.Corners(triangle, &a, &b, &c);
-      side = SideOfTriangle(body.p_W_m, a, b, c);
-    } else {
-      triangle = -1;
-    }
-    return popped;
-  }
+/// One variant's figures over a set of traces.
+struct ModeSummary {
+  std::string name;                 ///< "truth" or the mode's name
+  int traces = 0;                   ///< traces in the set
+  double rms_worst_N = 0.0;         ///< largest force_rms_error_N over the traces, N
+  std::string rms_worst_trace;      ///< the trace it was on
+  double rms_median_N = 0.0;        ///< median force_rms_error_N over the traces, N
+  double max_error_N = 0.0;         ///< largest force_max_error_N, N
+  double peak_excess_N = 0.0;       ///< largest peak_minus_ref_peak_N, N
+  uint64_t pop_through = 0;         ///< sum of pop_through, ticks
+  double max_reach_mm = 0.0;        ///< largest max_reach_mm, mm
+  uint64_t contact_mismatches = 0;  ///< sum, ticks
+  uint64_t nan_events = 0;          ///< sum, events
+  double tick_us_median = 0.0;      ///< median over every tick of every trace, us
+  double tick_us_p99 = 0.0;         ///< 99th percentile of the same, us
+  int64_t ticks = 0;                ///< ticks pooled
 };
 
-// How deep the proxy sphere (centre p, radius r, m) reaches into the cloth `view` of `triangles`
-// triangles: r less the distance from p to the nearest triangle, 0 when no triangle is nearer than
-// r. Exact, over every triangle. The god-object keeps this at 0 up to its tolerances; a proxy that
-// went through the cloth reaches into it on the way (unless it crossed a whole sphere in one tick).
-double Penetration(const ClothView& view, size_t triangles, const Vec3& p, double r) {
-  double nearest2 = r * r;
-  for (size_t t = 0; t < triangles; ++t) {
-    Vec3 a, b, c;
-    view.Corners(static_cast<int32_t>(t), &a, &b, &c);
-    nearest2 = std::min(nearest2, ClosestPointOnTriangle(p, a, b, c).distance_sq);
-  }
-  return r - std::sqrt(nearest2);
+// The command as it can be typed again.
+std::string CommandLine(const Args& a) {
+  std::string line = "felt bench haptic";
+  if (a.quick) line += " --quick";
+  if (a.duration_s > 0.0) line += " --duration " + FormatSceneNumber(a.duration_s);
+  if (a.grid != 64) line += " --grid " + std::to_string(a.grid);
+  if (a.scene != "scenes/curtain.toml") line += " --scene " + a.scene;
+  if (a.recordings != "recordings") line += " --recordings " + a.recordings;
+  if (a.no_bundled) line += " --no-bundled";
+  for (const std::string& t : a.traces) line += " --trace " + t;
+  if (!a.json_path.empty()) line += " --json " + a.json_path;
+  if (!a.csv_path.empty()) line += " --csv " + a.csv_path;
+  if (!a.md_path.empty()) line += " --md " + a.md_path;
+  if (a.no_plot) line += " --no-plot";
+  return line;
 }
 
-RunResult RunOne(const std::string& trace_name, const std::vector<TraceSample>& samples,
-                 const std::string& source, const Args& args) {
-  RunResult res;
-  res.trace = trace_name;
-  res.source = source;
-  const SimSpec spec = CurtainSpec(args.grid);
-  const ClothModel model = BuildClothModel(spec);
-  ClothState state = MakeClothState(model);
-  std::vector<Vec3> x = state.x;
-  std::vector<Vec3> v = state.v;
-  std::vector<Vec3> normals = state.normals;
-  const std::vector<Vec3> rest = state.x;
-  const bool swing = source == "swing";
-  auto cloth_at = [&](double t) {
-    if (swing) {
-      SwingAt(rest, t, &x, &v);
-      ComputeVertexNormals(x, model.triangles, normals);
-    } else {
-      x = state.x;
-      v = state.v;
-      normals = state.normals;
+// The scene of every run: the file, its cloth resized to grid x grid over the same square
+// (bench/bench_util.h's ResizedCurtain rule) unless grid is 0.
+SceneDocument BenchScene(const Args& args) {
+  SceneDocument doc = LoadSceneDocument(args.scene);
+  ParseServerSpec(doc);  // the scene as written must be valid (errors with line and column)
+  if (args.grid == 0) return doc;
+  const SimSpec resized = ResizedCurtain(args.scene, args.grid);
+  toml::table* cloth = doc.root["cloth"].as_table();
+  if (cloth == nullptr) throw std::invalid_argument(args.scene + ": no [cloth] table to resize");
+  cloth->insert_or_assign("width", static_cast<int64_t>(resized.cloth.width));
+  cloth->insert_or_assign("height", static_cast<int64_t>(resized.cloth.height));
+  cloth->insert_or_assign("spacing_m", resized.cloth.spacing_m);
+  cloth->insert_or_assign("drag_N_s_per_m", resized.cloth.drag_N_s_per_m);
+  return doc;
+}
+
+// The *.trace files of `dir`, sorted by name (none when the folder does not exist).
+std::vector<std::string> TraceFilesIn(const std::string& dir) {
+  std::vector<std::string> files;
+  if (!std::filesystem::is_directory(dir)) return files;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.is_regular_file() && entry.path().extension() == ".trace") {
+      files.push_back(entry.path().string());
     }
-  };
-  DeviceSpec device;  // the defaults: a Touch-class device, world = 3 x device
-  ProxySpec base;
-  cloth_at(0.0);
-  auto tris = std::make_shared<const std::vector<Triangle>>(model.triangles);
-  ClothSnapshot ref_snap = MakeClothSnapshot(tris, x, base.structure);
-  // The reference's previous tick's cloth: without it ProxyTick would neither carry the proxy
-  // with the cloth nor catch it when the cloth sweeps over it.
-  ClothSnapshot ref_prev = MakeClothSnapshot(tris, x, base.structure);
-  ClothSnapshot prev = MakeClothSnapshot(tris, x, base.structure);
-  ClothSnapshot next = MakeClothSnapshot(tris, x, base.structure);
-  FillSnapshot(x, v, normals, 0, 0.0, kFrameS, &prev);
-  FillSnapshot(x, v, normals, 1, 0.0, kFrameS, &next);
-  ProxySpec ref_spec = base;
-  ref_spec.snapshot_mode = SnapshotMode::kNewest;
-  const ProxyModel ref_model = CompileProxyModel(device, ref_spec);
-  ProxyState ref_state = MakeProxyState(ref_model);
-  std::vector<ProxyModel> models;
-  std::vector<ProxyState> states;
-  for (SnapshotMode m : kModes) {
-    ProxySpec s = base;
-    s.snapshot_mode = m;
-    models.push_back(CompileProxyModel(device, s));
-    states.push_back(MakeProxyState(models.back()));
   }
-  std::vector<ExternalForce> external(512);
-  std::vector<ExternalForce> discard(512);
-  // The modes' snapshots carry the frame's motion as velocities, as the server publishes them
-  // (sim_loop/frame_motion.h): (x - x at the last publication) / the time between.
-  std::vector<Vec3> x_published = x;
-  std::vector<Vec3> v_published(x.size(), Vec3::Zero());
-  SideTracker trackers[4];
-  ClothView views[4];
-  Vec3 last_force[4];
-  Vec3 last_ref = Vec3::Zero();
-  uint64_t frame = 1;
-  double last_publish_t = 0.0;
-  int64_t next_frame_tick = 0;
-  const size_t n = args.quick ? std::min<size_t>(samples.size(), 3000) : samples.size();
-  for (size_t i = 0; i < n; ++i) {
-    const double t = static_cast<double>(i) * kTickS;
-    // The exact cloth of this tick (the sim stepped 1 ms with the reference's reaction).
-    if (!swing && i > 0) {
-      const int32_t k = ref_state.reaction.DrainInto(external);
-      StepFrame(model, std::span<const ExternalForce>(external.data(), k), kTickS, &state);
-    }
-    cloth_at(t);
-    std::swap(ref_prev, ref_snap);
-    FillSnapshot(x, v, normals, i + 1, t, kTickS, &ref_snap);
-    // A 60 Hz frame publishes this cloth to the modes.
-    if (static_cast<int64_t>(i) >= next_frame_tick) {
-      std::swap(prev, next);
-      const double dt = t - last_publish_t;
-      for (size_t p = 0; p < x.size(); ++p) {
-        v_published[p] = dt > 0 ? Vec3((x[p] - x_published[p]) / dt) : Vec3(Vec3::Zero());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// The traces: the bundled ones (generated when a file is missing), the hard ones, the user's.
+std::vector<TraceInput> LoadTraces(const Args& args) {
+  std::vector<TraceInput> traces;
+  if (!args.no_bundled) {
+    for (const std::string& name : BundledTraceNames()) {
+      const std::string path = args.recordings + "/" + name + ".trace";
+      if (std::filesystem::exists(path)) {
+        traces.push_back({name, "bundled", path, ReadTrace(path).samples});
+      } else {
+        traces.push_back(
+            {name + "(generated)", "bundled", "", GenerateTrace(name, kDefaultTraceSeed).samples});
       }
-      x_published = x;
-      FillSnapshot(x, v_published, normals, ++frame, t, dt > 0 ? dt : kFrameS, &next);
-      last_publish_t = t;
-      next_frame_tick = static_cast<int64_t>(std::llround((frame - 1) * kFrameS / kTickS));
     }
-    const double since = t - last_publish_t;
-    const DeviceSample sample{samples[i].p_D, samples[i].v_D};
-    const ProxyTickResult ref = ProxyTick(ref_model, ref_snap, i > 0 ? &ref_prev : nullptr, 0.0,
-                                          sample, kTickS, &ref_state);
-    if (i > 0)
-      res.reference_max_jump_N =
-          std::max(res.reference_max_jump_N, (ref.force_D_N - last_ref).norm());
-    last_ref = ref.force_D_N;
-    for (int m = 0; m < 4; ++m) {
-      const auto t0 = std::chrono::steady_clock::now();
-      const ProxyTickResult r =
-          ProxyTick(models[m], next, &prev, since, sample, kTickS, &states[m]);
-      const auto t1 = std::chrono::steady_clock::now();
-      states[m].reaction.DrainInto(discard);  // one-way: the modes replay the reference's cloth
-      ModeStats& ms = res.modes[m];
-      ms.tick_us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
-      ms.err2_sum += (r.force_D_N - ref.force_D_N).squaredNorm();
-      ++ms.ticks;
-      if (i > 0) ms.max_jump_N = std::max(ms.max_jump_N, (r.force_D_N - last_force[m]).norm());
-      last_force[m] = r.force_D_N;
-      const ClothView view =
-          r.on_newest ? ClothView::Of(next) : ModeView(kModes[m], next, prev, since);
-      if (trackers[m].Check(view, states[m].body)) {
-        ++ms.pop_through;
-      }
-      views[m] = view;
-    }
-    // How deep each proxy reached into its cloth, measured after every mode's tick so that the
-    // measurement's memory traffic does not land between two timed ticks.
-    res.reference_max_penetration_m =
-        std::max(res.reference_max_penetration_m,
-                 Penetration(ClothView::Of(ref_snap), model.triangles.size(), ref_state.body.p_W_m,
-                             device.radius_m));
-    for (int m = 0; m < 4; ++m) {
-      const double depth =
-          Penetration(views[m], model.triangles.size(), states[m].body.p_W_m, device.radius_m);
-      ModeStats& ms = res.modes[m];
-      ms.max_penetration_m = std::max(ms.max_penetration_m, depth);
-      if (depth > kDeepFraction * device.radius_m) ++ms.deep_ticks;
+    for (const std::string& path : TraceFilesIn(args.recordings + "/hard")) {
+      traces.push_back(
+          {std::filesystem::path(path).stem().string(), "hard", path, ReadTrace(path).samples});
     }
   }
-  for (int m = 0; m < 4; ++m) {
-    res.modes[m].overflow_ticks = states[m].counters.overflow_ticks;
-    res.modes[m].catches = states[m].counters.catches;
+  for (const std::string& path : args.traces) {
+    traces.push_back(
+        {std::filesystem::path(path).stem().string(), "user", path, ReadTrace(path).samples});
   }
-  res.sim_healthy = swing || state.counters.nan_events == 0;
-  return res;
-}
-
-// The pointer traces: the bundled recordings (or generated ones when a file is missing).
-std::vector<std::pair<std::string, std::vector<TraceSample>>> LoadTraces() {
-  std::vector<std::pair<std::string, std::vector<TraceSample>>> traces;
-  for (const std::string& name : BundledTraceNames()) {
-    const std::string path = "recordings/" + name + ".trace";
-    if (std::filesystem::exists(path)) {
-      traces.emplace_back(name, ReadTrace(path).samples);
-    } else {
-      traces.emplace_back(name + "(generated)", GenerateTrace(name, kDefaultTraceSeed).samples);
-    }
-  }
+  if (traces.empty()) throw std::invalid_argument("no traces (--no-bundled without --trace)");
   return traces;
 }
 
-std::vector<TraceSample> StillPointer(const Vec3& p_D, double seconds) {
-  std::vector<TraceSample> s;
-  for (int i = 0; i < static_cast<int>(seconds / kTickS); ++i) {
-    s.push_back(TraceSample{i * kTickS, p_D, Vec3::Zero(), 0});
+// The variants after the truth: one per snapshot mode, the scene with that mode.
+std::vector<LockstepVariant> ModeVariants() {
+  std::vector<LockstepVariant> variants;
+  for (SnapshotMode mode : kSnapshotModes) {
+    const std::string name = SnapshotModeName(mode);
+    variants.push_back(LockstepVariant{name, {{"proxy.snapshot_mode", name}}});
   }
-  return s;
+  return variants;
+}
+
+// Every variant's summary over the traces of `results` (all of one group set), variant by variant.
+std::vector<ModeSummary> Summarize(const std::vector<const TraceResult*>& results) {
+  std::vector<ModeSummary> out;
+  if (results.empty()) return out;
+  const size_t variants = results.front()->summaries.size();
+  for (size_t v = 0; v < variants; ++v) {
+    ModeSummary m;
+    m.name = results.front()->summaries[v].name;
+    std::vector<double> rms;
+    std::vector<double> ticks;
+    for (const TraceResult* r : results) {
+      const VariantSummary& s = r->summaries[v];
+      ++m.traces;
+      rms.push_back(s.force_rms_error_N);
+      if (m.rms_worst_trace.empty() || s.force_rms_error_N > m.rms_worst_N) {
+        m.rms_worst_N = s.force_rms_error_N;
+        m.rms_worst_trace = r->trace->name;
+      }
+      m.max_error_N = std::max(m.max_error_N, s.force_max_error_N);
+      m.peak_excess_N = std::max(m.peak_excess_N, s.peak_minus_ref_peak_N);
+      m.pop_through += s.pop_through;
+      m.max_reach_mm = std::max(m.max_reach_mm, s.max_reach_mm);
+      m.contact_mismatches += s.contact_mismatches;
+      m.nan_events += s.nan_events;
+      ticks.insert(ticks.end(), r->tick_cpu_us[v].begin(), r->tick_cpu_us[v].end());
+    }
+    m.rms_median_N = Median(rms);
+    m.ticks = static_cast<int64_t>(ticks.size());
+    m.tick_us_median = ticks.empty() ? 0.0 : Percentile(ticks, 50.0);
+    m.tick_us_p99 = ticks.empty() ? 0.0 : Percentile(ticks, 99.0);
+    out.push_back(std::move(m));
+  }
+  return out;
+}
+
+// One target's verdict.
+struct Verdict {
+  std::string name;  ///< e.g. "force_rms_error_N <= 0.15"
+  std::string value;
+  bool met = false;
+};
+
+// The six targets of a snapshot mode's summary.
+std::vector<Verdict> Judge(const ModeSummary& m) {
+  return {
+      {"rms_error_worst_N <= " + Sig(kTargets.rms_error_N), Sig(m.rms_worst_N),
+       m.rms_worst_N <= kTargets.rms_error_N},
+      {"peak_minus_truth_peak_N <= " + Sig(kTargets.peak_excess_N), Sig(m.peak_excess_N),
+       m.peak_excess_N <= kTargets.peak_excess_N},
+      {"pop_through == 0", std::to_string(m.pop_through), m.pop_through == kTargets.pop_through},
+      {"nan_events == 0", std::to_string(m.nan_events), m.nan_events == kTargets.nan_events},
+      {"tick_us_median <= " + Sig(kTargets.tick_us_median), Fixed(m.tick_us_median, 2),
+       m.tick_us_median <= kTargets.tick_us_median},
+      {"tick_us_p99 <= " + Sig(kTargets.tick_us_p99), Fixed(m.tick_us_p99, 2),
+       m.tick_us_p99 <= kTargets.tick_us_p99},
+  };
+}
+
+// "Host: ..." line that precedes every table.
+std::string HostLine(const MachineInfo& machine, const std::string& load_end) {
+  return fmt::format("Host: {} ({} CPUs online, affinity {}), load {} -> {}, {}.\n\n",
+                     machine.cpu_model, machine.cpus_online, machine.affinity, machine.load_average,
+                     load_end, machine.date_utc);
+}
+
+// The per-trace table of `results`: the truth's row, then each mode's.
+std::string TraceTable(const std::vector<const TraceResult*>& results) {
+  std::vector<std::vector<std::string>> rows;
+  for (const TraceResult* r : results) {
+    for (const VariantSummary& s : r->summaries) {
+      rows.push_back({r->trace->name, s.name, Sig(s.force_rms_error_N), Sig(s.force_max_error_N),
+                      Sig(s.peak_force_N), Sig(s.peak_minus_ref_peak_N), Sig(s.max_jump_N),
+                      std::to_string(s.pop_through), Fixed(s.max_reach_mm, 3),
+                      std::to_string(s.contact_mismatches), Fixed(s.tick_us_median, 2),
+                      Fixed(s.tick_us_p99, 2), std::to_string(s.nan_events)});
+    }
+  }
+  return MarkdownTable(
+      {"trace", "variant", "force_rms_error_N", "force_max_error_N", "peak_force_N",
+       "peak_minus_ref_peak_N", "max_jump_N", "pop_through", "max_reach_mm", "contact_mismatches",
+       "tick_us_median", "tick_us_p99", "nan_events"},
+      {false, false, true, true, true, true, true, true, true, true, true, true, true}, rows);
+}
+
+// The per-mode summary table (error against tick cost).
+std::string SummaryTable(const std::vector<ModeSummary>& modes) {
+  std::vector<std::vector<std::string>> rows;
+  for (const ModeSummary& m : modes) {
+    rows.push_back({m.name, std::to_string(m.traces),
+                    Sig(m.rms_worst_N) + " (" + m.rms_worst_trace + ")", Sig(m.rms_median_N),
+                    Sig(m.max_error_N), Sig(m.peak_excess_N), std::to_string(m.pop_through),
+                    Fixed(m.max_reach_mm, 3), std::to_string(m.contact_mismatches),
+                    std::to_string(m.nan_events), Fixed(m.tick_us_median, 2),
+                    Fixed(m.tick_us_p99, 2), std::to_string(m.ticks)});
+  }
+  return MarkdownTable(
+      {"variant", "traces", "rms_error_worst_N (trace)", "rms_error_median_N", "force_max_error_N",
+       "peak_minus_truth_peak_max_N", "pop_through", "max_reach_mm", "contact_mismatches",
+       "nan_events", "tick_us_median", "tick_us_p99", "ticks"},
+      {false, true, true, true, true, true, true, true, true, true, true, true, true}, rows);
+}
+
+// The targets table: one row per snapshot mode (the truth is the yardstick, not judged).
+std::string TargetTable(const std::vector<ModeSummary>& modes) {
+  std::vector<std::string> header = {"mode"};
+  for (const Verdict& v : Judge(ModeSummary{})) header.push_back(v.name);
+  header.push_back("all met");
+  std::vector<std::vector<std::string>> rows;
+  for (const ModeSummary& m : modes) {
+    if (m.name == kTruthName) continue;
+    std::vector<std::string> row = {m.name};
+    bool all = true;
+    for (const Verdict& v : Judge(m)) {
+      row.push_back(v.value + (v.met ? " met" : " **missed**"));
+      all = all && v.met;
+    }
+    row.push_back(all ? "yes" : "no");
+    rows.push_back(std::move(row));
+  }
+  return MarkdownTable(header, std::vector<bool>(header.size(), false), rows);
+}
+
+Json SummaryJson(const ModeSummary& m) {
+  Json j{{"variant", m.name},
+         {"traces", m.traces},
+         {"rms_error_worst_N", m.rms_worst_N},
+         {"rms_error_worst_trace", m.rms_worst_trace},
+         {"rms_error_median_N", m.rms_median_N},
+         {"force_max_error_N", m.max_error_N},
+         {"peak_minus_truth_peak_max_N", m.peak_excess_N},
+         {"pop_through", static_cast<int64_t>(m.pop_through)},
+         {"max_reach_mm", m.max_reach_mm},
+         {"contact_mismatches", static_cast<int64_t>(m.contact_mismatches)},
+         {"nan_events", static_cast<int64_t>(m.nan_events)},
+         {"tick_us_median", m.tick_us_median},
+         {"tick_us_p99", m.tick_us_p99},
+         {"ticks", m.ticks}};
+  if (m.name != kTruthName) {
+    Json targets = Json::object();
+    for (const Verdict& v : Judge(m)) targets[v.name] = v.met;
+    j["targets_met"] = targets;
+  }
+  return j;
+}
+
+Json VariantJson(const VariantSummary& s) {
+  return Json{{"name", s.name},
+              {"overrides", s.overrides},
+              {"ticks", s.ticks},
+              {"frames", s.frames},
+              {"force_rms_error_N", s.force_rms_error_N},
+              {"force_max_error_N", s.force_max_error_N},
+              {"peak_force_N", s.peak_force_N},
+              {"peak_minus_ref_peak_N", s.peak_minus_ref_peak_N},
+              {"max_jump_N", s.max_jump_N},
+              {"pop_through", static_cast<int64_t>(s.pop_through)},
+              {"max_reach_mm", s.max_reach_mm},
+              {"contacts", static_cast<int64_t>(s.contacts)},
+              {"contact_mismatches", static_cast<int64_t>(s.contact_mismatches)},
+              {"tick_us_median", s.tick_us_median},
+              {"tick_us_p99", s.tick_us_p99},
+              {"frame_ms_median", s.frame_ms_median},
+              {"nan_events", static_cast<int64_t>(s.nan_events)}};
+}
+
+// The CSV: one row per trace and variant, with the host (the plot reads it: bench/haptic.gp).
+std::string Csv(const std::vector<TraceResult>& results, const MachineInfo& machine) {
+  std::vector<std::vector<std::string>> rows;
+  const auto number = [](double v) { return fmt::format("{}", v); };
+  for (const TraceResult& r : results) {
+    for (const VariantSummary& s : r.summaries) {
+      rows.push_back({r.trace->group, r.trace->name, s.name, std::to_string(s.ticks),
+                      number(s.force_rms_error_N), number(s.force_max_error_N),
+                      number(s.peak_force_N), number(s.peak_minus_ref_peak_N), number(s.max_jump_N),
+                      std::to_string(s.pop_through), number(s.max_reach_mm),
+                      std::to_string(s.contact_mismatches), number(s.tick_us_median),
+                      number(s.tick_us_p99), std::to_string(s.nan_events), machine.cpu_model});
+    }
+  }
+  return CsvTable(
+      {"group", "trace", "variant", "ticks", "force_rms_error_N", "force_max_error_N",
+       "peak_force_N", "peak_minus_ref_peak_N", "max_jump_N", "pop_through", "max_reach_mm",
+       "contact_mismatches", "tick_us_median", "tick_us_p99", "nan_events", "host"},
+      rows);
+}
+
+// gnuplot on the CSV: the PNG next to it. Returns false when gnuplot failed.
+bool Plot(const Args& args, bool have_hard) {
+  const std::string png = std::filesystem::path(args.csv_path).replace_extension(".png").string();
+  std::string modes;
+  for (SnapshotMode mode : kSnapshotModes) {
+    modes += std::string(modes.empty() ? "" : " ") + SnapshotModeName(mode);
+  }
+  const std::string command = "gnuplot -e \"csv='" + args.csv_path + "'; png='" + png +
+                              "'; modes='" + modes + "'; hard=" + (have_hard ? "1" : "0") + "\" " +
+                              args.gnuplot_script;
+  if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
+    std::printf("gnuplot not found; to draw the plot run:\n  %s\n", command.c_str());
+    return true;
+  }
+  if (std::system(command.c_str()) != 0) {
+    std::fprintf(stderr, "felt bench haptic: gnuplot failed: %s\n", command.c_str());
+    return false;
+  }
+  std::printf("wrote %s\n", png.c_str());
+  return true;
 }
 
 int Run(const Args& args) {
-  std::vector<RunResult> runs;
-  // The bundled traces on the real cloth, coupled with the reference.
-  for (const auto& [name, samples] : LoadTraces()) {
-    spdlog::info("bench haptic: {} on the sim curtain", name);
-    runs.push_back(RunOne(name, samples, "sim", args));
-  }
-  // Swinging cloth: the pointer resting against the curtain, and poke-and-hold.
-  const double swing_s = args.quick ? 3.0 : 8.0;
-  runs.push_back(
-      RunOne("rest_swing", StillPointer(Vec3(0.0, -0.02, 0.002), swing_s), "swing", args));
-  runs.push_back(RunOne("poke_hold_swing", GenerateTrace("poke_hold", kDefaultTraceSeed).samples,
-                        "swing", args));
+  // Set-up: every input is checked before anything runs.
+  const MachineInfo machine = ReadMachineInfo();
+  const std::string command = CommandLine(args);
+  const SceneDocument scene = BenchScene(args);
+  const ServerSpec spec = ParseServerSpec(scene);
+  const ClothSpec written = ParseServerSpec(LoadSceneDocument(args.scene)).sim.cloth;
+  const std::vector<TraceInput> traces = LoadTraces(args);
+  const std::vector<LockstepVariant> variants = ModeVariants();
+  LockstepOptions options;
+  options.prepend_truth = true;
+  options.max_duration_s = args.duration_s > 0.0 ? args.duration_s
+                           : args.quick          ? kQuickDuration_s
+                                                 : 0.0;
+  const int32_t triangles = 2 * (spec.sim.cloth.width - 1) * (spec.sim.cloth.height - 1);
+  std::printf("%s\nload average %s\n", command.c_str(), machine.load_average.c_str());
+  std::fflush(stdout);
 
-  // Per-mode aggregates: all runs, and the swinging-cloth runs alone.
-  ModeStats all[4];
-  ModeStats swing[4];
-  for (const RunResult& r : runs) {
-    for (int m = 0; m < 4; ++m) {
-      all[m].Add(r.modes[m]);
-      if (r.source == "swing") swing[m].Add(r.modes[m]);
-    }
+  // Every trace: the truth, then every mode.
+  std::vector<TraceResult> results;
+  for (const TraceInput& trace : traces) {
+    spdlog::info("bench haptic: {} ({})", trace.name, trace.group);
+    CompareResult compared = CompareVariants(scene, trace.samples, variants, options);
+    TraceResult r;
+    r.trace = &trace;
+    r.summaries = std::move(compared.summaries);
+    for (LockstepRun& run : compared.runs) r.tick_cpu_us.push_back(std::move(run.tick_cpu_us));
+    results.push_back(std::move(r));
   }
+  const std::string load_end = LoadAverage();
 
-  // Markdown and CSV tables.
+  // The main set (bundled and user traces) and the hard traces.
+  std::vector<const TraceResult*> main_set, hard_set;
+  for (const TraceResult& r : results) {
+    (r.trace->group == "hard" ? hard_set : main_set).push_back(&r);
+  }
+  const std::vector<ModeSummary> main_modes = Summarize(main_set);
+  const std::vector<ModeSummary> hard_modes = Summarize(hard_set);
+
+  // Markdown: what ran, the targets, the summaries, the per-trace tables.
+  const std::string host = HostLine(machine, load_end);
   std::string md = fmt::format(
-      "| trace | cloth | mode | force_rms_error_N | max_force_jump_N | pop_through | "
-      "max_penetration_um | deep_ticks | tick_us_median | tick_us_max | overflow_ticks | catches "
-      "|\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-  std::string csv =
-      "trace,cloth,mode,force_rms_error_N,max_force_jump_N,pop_through,max_penetration_um,"
-      "deep_ticks,tick_us_median,tick_us_max,overflow_ticks,catches,reference_max_jump_N,"
-      "reference_max_penetration_um,sim_healthy\n";
-  for (const RunResult& r : runs) {
-    for (int m = 0; m < 4; ++m) {
-      const ModeStats& s = r.modes[m];
-      const std::string cloth = r.source + (r.sim_healthy ? "" : " (sim went non-finite)");
-      md += fmt::format(
-          "| {} | {} | {} | {:.4f} | {:.4f} | {} | {:.3f} | {} | {:.2f} | {:.1f} | {} | {} |\n",
-          r.trace, cloth, SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N, s.pop_through,
-          1e6 * s.max_penetration_m, s.deep_ticks, s.median_us(), s.max_us(), s.overflow_ticks,
-          s.catches);
-      csv +=
-          fmt::format("{},{},{},{:.6f},{:.6f},{},{:.6f},{},{:.3f},{:.3f},{},{},{:.6f},{:.6f},{}\n",
-                      r.trace, r.source, SnapshotModeName(kModes[m]), s.rms(), s.max_jump_N,
-                      s.pop_through, 1e6 * s.max_penetration_m, s.deep_ticks, s.median_us(),
-                      s.max_us(), s.overflow_ticks, s.catches, r.reference_max_jump_N,
-                      1e6 * r.reference_max_penetration_m, r.sim_healthy ? 1 : 0);
-    }
+      "Scene `{}` with its cloth at {} x {} particles ({} triangles; the file has {} x {}{}), {} "
+      "device(s), {} Hz haptic rate, in lock-step virtual time (docs/compare.md); {}. Reference: "
+      "the truth (`{}`: the "
+      "cloth stepped every haptic tick, {} Hz, coupled both ways with the proxy, which renders "
+      "the exact cloth of its tick in mode newest). Variants: the scene at its {} Hz frame rate "
+      "with `proxy.snapshot_mode` set to each mode. Tick costs are thread CPU time of one "
+      "`HapticTick` (all devices), pooled over every tick of every trace of the set for the "
+      "summaries. pop_through and max_reach_mm come from ProbeProxy after every tick (the cloth "
+      "the proxy was rendered on). Targets (issue 20): worst RMS force error <= {} N, no force "
+      "more than {} N above the truth's peak, zero pop-through, no NaN, tick median <= {} us and "
+      "p99 <= {} us.\n\n",
+      args.scene, spec.sim.cloth.width, spec.sim.cloth.height, triangles, written.width,
+      written.height,
+      args.grid == 0 ? ""
+                     : ", resized over the same square with the same total drag: "
+                       "bench/bench_util.h's ResizedCurtain",
+      spec.devices.size(), FormatSceneNumber(spec.haptic.haptic_rate_hz),
+      options.max_duration_s > 0.0
+          ? "the first " + FormatSceneNumber(options.max_duration_s) + " s of each trace"
+          : std::string("every trace whole"),
+      TruthVariant().OverridesText(), FormatSceneNumber(spec.haptic.haptic_rate_hz),
+      FormatSceneNumber(spec.sim.integration.frame_rate_hz), Sig(kTargets.rms_error_N),
+      Sig(kTargets.peak_excess_N), Sig(kTargets.tick_us_median), Sig(kTargets.tick_us_p99));
+  std::string tables;
+  if (!main_set.empty()) {
+    tables += "## Targets per mode (bundled and --trace traces)\n\n" + host +
+              TargetTable(main_modes) + "\n## Per mode: error against tick cost\n\n" + host +
+              SummaryTable(main_modes) + "\n## Per trace\n\n" + host + TraceTable(main_set);
   }
-  md +=
-      "\nPer mode over every trace (and, after the slash, over the swinging-cloth traces):\n\n"
-      "| mode | force_rms_error_N | max_force_jump_N | pop_through | max_penetration_um | "
-      "deep_ticks | tick_us_median | tick_us_max |\n|---|---|---|---|---|---|---|---|\n";
-  // One mode's figures: forces [N], penetration [um], tick times [us].
-  const auto mode_json = [](SnapshotMode mode, const ModeStats& s) {
-    return Json{{"mode", SnapshotModeName(mode)},
-                {"force_rms_error_N", RoundedJson(s.rms(), 6)},
-                {"max_force_jump_N", RoundedJson(s.max_jump_N, 6)},
-                {"pop_through", s.pop_through},
-                {"max_penetration_um", RoundedJson(1e6 * s.max_penetration_m, 6)},
-                {"deep_ticks", s.deep_ticks},
-                {"tick_us_median", RoundedJson(s.median_us(), 3)},
-                {"tick_us_max", RoundedJson(s.max_us(), 3)}};
-  };
-  Json modes = Json::array(), swing_modes = Json::array(), run_items = Json::array();
-  for (int m = 0; m < 4; ++m) {
-    modes.push_back(mode_json(kModes[m], all[m]));
-    swing_modes.push_back(mode_json(kModes[m], swing[m]));
-    md += fmt::format(
-        "| {} | {:.4f} / {:.4f} | {:.4f} / {:.4f} | {} / {} | {:.3f} / {:.3f} | {} / {} | {:.2f} | "
-        "{:.1f} |\n",
-        SnapshotModeName(kModes[m]), all[m].rms(), swing[m].rms(), all[m].max_jump_N,
-        swing[m].max_jump_N, all[m].pop_through, swing[m].pop_through,
-        1e6 * all[m].max_penetration_m, 1e6 * swing[m].max_penetration_m, all[m].deep_ticks,
-        swing[m].deep_ticks, all[m].median_us(), all[m].max_us());
+  tables += "\n## Hard traces (" + args.recordings + "/hard/)\n\n";
+  if (hard_set.empty()) {
+    tables += "None: no " + args.recordings + "/hard/*.trace" +
+              (args.no_bundled ? " read (--no-bundled)" : " found") + ".\n";
+  } else {
+    tables += host + TargetTable(hard_modes) + "\n" + host + SummaryTable(hard_modes) + "\n" +
+              host + TraceTable(hard_set);
   }
-  for (const RunResult& r : runs) {
-    Json run_modes = Json::array();
-    for (int m = 0; m < 4; ++m) run_modes.push_back(mode_json(kModes[m], r.modes[m]));
-    run_items.push_back(
-        Json{{"trace", r.trace},
-             {"cloth", r.source},
-             {"sim_healthy", r.sim_healthy},
-             {"reference_max_jump_N", RoundedJson(r.reference_max_jump_N, 6)},
-             {"reference_max_penetration_um", RoundedJson(1e6 * r.reference_max_penetration_m, 6)},
-             {"modes", run_modes}});
+  std::printf("\n%s", tables.c_str());
+  std::fflush(stdout);
+  if (!args.md_path.empty()) {
+    WriteTextFile(args.md_path,
+                  ReportHeader("`felt bench haptic`: snapshot modes against the truth", command,
+                               machine, load_end) +
+                      "\n" + md + tables);
   }
-  const std::string json = JsonText(Json{
-      {"grid", args.grid}, {"modes", modes}, {"swing_modes", swing_modes}, {"runs", run_items}});
 
-  std::fputs(md.c_str(), stdout);
-  auto write = [](const std::string& path, const std::string& text) {
-    if (path.empty()) return;
-    std::ofstream out(path);
-    out << text;
-    if (!out) throw std::runtime_error("cannot write " + path);
-  };
-  write(args.json_path, json);
-  write(args.csv_path, csv);
-  write(args.md_path, md);
+  // JSON: the set-up, the targets, every trace's variants, the summaries.
+  if (!args.json_path.empty()) {
+    Json trace_items = Json::array();
+    for (const TraceResult& r : results) {
+      Json items = Json::array();
+      for (const VariantSummary& s : r.summaries) items.push_back(VariantJson(s));
+      trace_items.push_back(Json{{"name", r.trace->name},
+                                 {"group", r.trace->group},
+                                 {"path", r.trace->path},
+                                 {"variants", items}});
+    }
+    Json main_items = Json::array(), hard_items = Json::array();
+    for (const ModeSummary& m : main_modes) main_items.push_back(SummaryJson(m));
+    for (const ModeSummary& m : hard_modes) hard_items.push_back(SummaryJson(m));
+    Json top{{"command", command}};
+    AppendMachineJson(machine, load_end, &top);
+    top["scene"] = args.scene;
+    top["grid"] = Json{spec.sim.cloth.width, spec.sim.cloth.height};
+    top["triangles"] = triangles;
+    top["duration_s"] = options.max_duration_s;
+    top["reference"] = Json{{"name", kTruthName}, {"overrides", TruthVariant().OverridesText()}};
+    top["targets"] = Json{{"rms_error_worst_N", kTargets.rms_error_N},
+                          {"peak_minus_truth_peak_N", kTargets.peak_excess_N},
+                          {"pop_through", kTargets.pop_through},
+                          {"nan_events", kTargets.nan_events},
+                          {"tick_us_median", kTargets.tick_us_median},
+                          {"tick_us_p99", kTargets.tick_us_p99}};
+    top["traces"] = trace_items;
+    top["summary"] = Json{{"main", main_items}, {"hard", hard_items}};
+    WriteTextFile(args.json_path, JsonText(top));
+  }
+  if (!args.csv_path.empty()) {
+    WriteTextFile(args.csv_path, Csv(results, machine));
+    if (!args.no_plot && !Plot(args, !hard_set.empty())) return 1;
+  }
   return 0;
 }
 
 const bool kRegistered = app::RegisterCommand(app::CommandEntry{
     "bench", "haptic",
-    "compare the proxy's snapshot modes on pointer traces against a 1 kHz reference cloth",
+    "the proxy's snapshot modes against the truth (the cloth stepped every haptic tick) on "
+    "pointer traces: force error, spikes, pop-through, tick cost",
     [](CLI::App& cmd) -> app::CommandRun {
       auto args = std::make_shared<Args>();
-      cmd.add_option("--json", args->json_path, "write per-mode results as JSON to this file");
-      cmd.add_option("--csv", args->csv_path, "write the per-trace table as CSV to this file");
-      cmd.add_option("--md", args->md_path, "write the tables as Markdown to this file");
-      cmd.add_flag("--quick", args->quick, "at most 3 s of each trace");
-      cmd.add_option("--grid", args->grid, "particles per side of the curtain (default 64)")
-          ->check(CLI::Range(8, 256));
+      cmd.add_option("--json", args->json_path, "write every figure as JSON to this file");
+      cmd.add_option("--csv", args->csv_path,
+                     "write the per-trace table as CSV to this file (and the plot next to it, "
+                     "same name .png)");
+      cmd.add_option("--md", args->md_path, "write the tables, with a header, as Markdown here");
+      cmd.add_option("--trace", args->traces,
+                     "also run these traces (felt-trace v1; repeatable, several per option)");
+      cmd.add_flag("--no-bundled", args->no_bundled,
+                   "skip the bundled and hard traces (RECORDINGS/*.trace, RECORDINGS/hard/)");
+      cmd.add_option("--recordings", args->recordings,
+                     "folder of the bundled traces; its hard/ subfolder holds the hard ones")
+          ->capture_default_str();
+      cmd.add_option("--scene", args->scene, "the scene every variant starts from")
+          ->capture_default_str();
+      cmd.add_option("--grid", args->grid,
+                     "resize the scene's cloth to GRID x GRID particles over the same square "
+                     "(0: as written)")
+          ->capture_default_str()
+          ->check(CLI::IsMember({0}) | CLI::Range(8, 256));
+      cmd.add_flag("--quick", args->quick, "only the first 2.5 s of each trace");
+      cmd.add_option("--duration", args->duration_s,
+                     "only the first S seconds of each trace (overrides --quick)")
+          ->check(CLI::NonNegativeNumber);
+      cmd.add_option("--gnuplot-script", args->gnuplot_script, "the gnuplot script for the plot")
+          ->capture_default_str();
+      cmd.add_flag("--no-plot", args->no_plot, "do not run gnuplot");
       return [args] { return Run(*args); };
     }});
 

@@ -12,7 +12,9 @@
 #include <system_error>
 
 #include "base/report.h"
+#include "haptic_loop/haptic_spec.h"
 #include "haptic_loop/pointer_source.h"
+#include "proxy/proxy_probe.h"
 #include "server/server.h"
 
 namespace felt {
@@ -29,7 +31,7 @@ struct Shorthand {
   std::string_view key;
   std::string_view scene_key;
 };
-constexpr std::array<Shorthand, 7> kShorthands = {{
+constexpr std::array<Shorthand, 8> kShorthands = {{
     {"structure", "proxy.collision_structure"},
     {"snapshot", "proxy.snapshot_mode"},
     {"shading", "proxy.force_shading"},
@@ -37,7 +39,12 @@ constexpr std::array<Shorthand, 7> kShorthands = {{
     {"integrator", "integration.integrator"},
     {"substeps", "integration.substeps"},
     {"provot", "provot.enabled"},
+    {"truth", "integration.frame_rate_hz = N x haptic.haptic_rate_hz + proxy.snapshot_mode"},
 }};
+
+// The most cloth frames per haptic tick truth=N accepts (the frame rate's own limit,
+// kMaxFrameRate_hz, is checked by the scene parser).
+constexpr int kMaxTruthFramesPerTick = 10;
 
 std::string_view Trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
@@ -176,6 +183,7 @@ void SetScenePath(toml::table* root, std::string_view path, const toml::table& l
 // The scene keys an override sets (shorthands expanded), for matching error messages.
 std::vector<std::string> SceneKeysOf(const VariantOverride& o) {
   if (o.key == "friction") return {"proxy.friction_static", "proxy.friction_dynamic"};
+  if (o.key == "truth") return {"integration.frame_rate_hz", "proxy.snapshot_mode"};
   for (const Shorthand& s : kShorthands) {
     if (s.key == o.key) return {std::string(s.scene_key)};
   }
@@ -210,6 +218,26 @@ void ApplyOverride(const VariantOverride& o, toml::table* root) {
     }
     SetScenePath(root, "proxy.friction_static", literal(mu_s));
     SetScenePath(root, "proxy.friction_dynamic", literal(mu_d));
+  } else if (o.key == "truth") {
+    // on (one frame per tick) or N frames per tick, at the haptic rate the tree has so far.
+    int frames_per_tick = 0;
+    if (v == "on") {
+      frames_per_tick = 1;
+    } else {
+      const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), frames_per_tick);
+      if (ec != std::errc() || end != v.data() + v.size() || frames_per_tick < 1 ||
+          frames_per_tick > kMaxTruthFramesPerTick) {
+        throw std::invalid_argument("expected on or an integer N in [1, " +
+                                    std::to_string(kMaxTruthFramesPerTick) +
+                                    "] (cloth frames per haptic tick), got '" + v + "'");
+      }
+    }
+    // A bad haptic rate is left for the scene parser to name.
+    const double rate_hz =
+        (*root)["haptic"]["haptic_rate_hz"].value<double>().value_or(HapticSpec{}.haptic_rate_hz);
+    SetScenePath(root, "integration.frame_rate_hz", literal(frames_per_tick * rate_hz));
+    SetScenePath(root, "proxy.snapshot_mode",
+                 literal(std::string(SnapshotModeName(SnapshotMode::kNewest))));
   } else {
     SetScenePath(root, SceneKeysOf(o)[0], LiteralTable(v));
   }
@@ -263,6 +291,16 @@ std::vector<std::pair<std::string, std::string>> VariantShorthands() {
   return list;
 }
 
+LockstepVariant TruthVariant(int frames_per_tick) {
+  if (frames_per_tick < 1) {
+    throw std::invalid_argument("TruthVariant: frames_per_tick must be >= 1, got " +
+                                std::to_string(frames_per_tick));
+  }
+  if (frames_per_tick == 1) return LockstepVariant{kTruthName, {{"truth", "on"}}};
+  const std::string n = std::to_string(frames_per_tick);
+  return LockstepVariant{std::string(kTruthName) + "_" + n + "x", {{"truth", n}}};
+}
+
 std::vector<LockstepVariant> ParseVariantList(std::string_view text) {
   if (Trim(text).empty()) throw std::invalid_argument("--variants: the list is empty");
   std::vector<LockstepVariant> variants;
@@ -286,10 +324,17 @@ std::vector<LockstepVariant> ParseVariantList(std::string_view text) {
                                     " has an empty name before ':'");
       }
     }
-    // The overrides (none for "scene" or an empty body after a name).
-    if (!body.empty() && body != "scene") {
+    // The overrides (none for "scene" or an empty body after a name; truth=on for "truth").
+    if (body == "truth") {
+      v.overrides.push_back(VariantOverride{"truth", "on"});
+      if (v.name.empty()) v.name = kTruthName;
+    } else if (!body.empty() && body != "scene") {
       for (std::string_view item : SplitTopLevel(body, ',')) {
         item = Trim(item);
+        if (item == "truth") {  // the bare word among overrides
+          v.overrides.push_back(VariantOverride{"truth", "on"});
+          continue;
+        }
         const std::string label = "--variants: " + VariantLabel(index, v.name) + ": ";
         const size_t eq = item.find('=');
         if (eq == std::string_view::npos) {
@@ -380,6 +425,9 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
   run.devices = devices;
   run.tick_dt_s = 1.0 / rate_hz;
   run.tick_cpu_us.reserve(static_cast<size_t>(ticks));
+  run.reach_m.assign(static_cast<size_t>(ticks) * devices, 0.0);
+  run.popped.assign(static_cast<size_t>(ticks) * devices, 0);
+  std::vector<ProxyProbeMemory> probe_memory(devices);
   run.frame_cpu_ms.reserve(static_cast<size_t>(span_s * frame_rate_hz) + 2);
 
   // The timer's own cost: back-to-back reads.
@@ -409,6 +457,14 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
     const int64_t begin = ThreadCpuNs();
     server.HapticTick(now_ns, run.tick_dt_s);
     run.tick_cpu_us.push_back(static_cast<double>(ThreadCpuNs() - begin) * 1e-3);
+    // Every device's proxy against the cloth it was rendered on, outside the timed call.
+    for (uint32_t d = 0; d < devices; ++d) {
+      const ProxyProbe probe = ProbeProxy(server.haptic().proxy_model(d),
+                                          server.haptic().proxy_state(d), &probe_memory[d]);
+      const size_t i = static_cast<size_t>(k - 1) * devices + d;
+      run.reach_m[i] = probe.reach_m;
+      run.popped[i] = probe.popped ? 1 : 0;
+    }
   }
   run.ticks = ticks;
   run.frames = frame - 1;
@@ -442,6 +498,13 @@ std::vector<VariantSummary> SummarizeRuns(const std::vector<LockstepRun>& runs) 
     return jump;
   };
   const double ref_jump = max_jump(ref);
+  // The largest |F| of a run, N.
+  auto peak = [](const LockstepRun& r) {
+    double p = 0.0;
+    for (const Vec3& f : r.force_D_N) p = std::max(p, f.norm());
+    return p;
+  };
+  const double ref_peak = peak(ref);
   for (const LockstepRun& r : runs) {
     if (r.ticks != ref.ticks || r.devices != ref.devices) {
       throw std::invalid_argument("variant '" + r.name + "': " + std::to_string(r.ticks) +
@@ -472,6 +535,10 @@ std::vector<VariantSummary> SummarizeRuns(const std::vector<LockstepRun>& runs) 
     }
     s.force_rms_error_N =
         r.force_D_N.empty() ? 0.0 : std::sqrt(sum2 / static_cast<double>(r.force_D_N.size()));
+    s.peak_minus_ref_peak_N = s.peak_force_N - ref_peak;
+    // What the probes saw (a run built without them has none).
+    for (uint8_t p : r.popped) s.pop_through += p;
+    for (double reach : r.reach_m) s.max_reach_mm = std::max(s.max_reach_mm, 1e3 * reach);
     s.max_jump_N = max_jump(r);
     s.max_jump_vs_ref_N = s.max_jump_N - ref_jump;
     s.clamped_ticks = r.clamped_ticks;
@@ -486,34 +553,48 @@ CompareResult CompareVariants(const SceneDocument& scene, const std::vector<Trac
                               const std::vector<LockstepVariant>& variants,
                               const LockstepOptions& options) {
   if (variants.empty()) throw std::invalid_argument("compare: no variants");
+  // The truth first (variant 0) when asked for; the given variants keep their numbers.
+  std::vector<LockstepVariant> all;
+  const int first_index = options.prepend_truth ? 0 : 1;
+  if (options.prepend_truth) {
+    all.push_back(TruthVariant());
+    for (size_t i = 0; i < variants.size(); ++i) {
+      if (variants[i].name == kTruthName) {
+        throw std::invalid_argument(VariantLabel(static_cast<int>(i) + 1, variants[i].name) +
+                                    ": the name is used twice (--truth adds the variant '" +
+                                    std::string(kTruthName) + "' as variant 0)");
+      }
+    }
+  }
+  all.insert(all.end(), variants.begin(), variants.end());
   // Every spec first, so a bad variant stops the comparison before anything runs.
   std::vector<ServerSpec> specs;
-  for (size_t i = 0; i < variants.size(); ++i) {
-    const int index = static_cast<int>(i) + 1;
-    specs.push_back(VariantSpec(scene, variants[i], index));
+  for (size_t i = 0; i < all.size(); ++i) {
+    const int index = static_cast<int>(i) + first_index;
+    specs.push_back(VariantSpec(scene, all[i], index));
     const ServerSpec& ref = specs.front();
     const ServerSpec& s = specs.back();
     if (s.haptic.haptic_rate_hz != ref.haptic.haptic_rate_hz) {
       throw std::invalid_argument(
-          VariantLabel(index, variants[i].name) + ": haptic.haptic_rate_hz " +
+          VariantLabel(index, all[i].name) + ": haptic.haptic_rate_hz " +
           FormatSceneNumber(s.haptic.haptic_rate_hz) + " differs from the reference's " +
           FormatSceneNumber(ref.haptic.haptic_rate_hz) + ": ticks cannot be paired");
     }
     if (s.devices.size() != ref.devices.size()) {
-      throw std::invalid_argument(VariantLabel(index, variants[i].name) +
+      throw std::invalid_argument(VariantLabel(index, all[i].name) +
                                   ": a different number of devices than the reference");
     }
   }
   CompareResult result;
-  for (size_t i = 0; i < variants.size(); ++i) {
+  for (size_t i = 0; i < all.size(); ++i) {
     try {
       result.runs.push_back(RunLockstep(specs[i], samples, options));
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(VariantLabel(static_cast<int>(i) + 1, variants[i].name) + ": " +
-                                  e.what());
+      throw std::invalid_argument(VariantLabel(static_cast<int>(i) + first_index, all[i].name) +
+                                  ": " + e.what());
     }
-    result.runs.back().name = variants[i].name;
-    result.runs.back().overrides = variants[i].OverridesText();
+    result.runs.back().name = all[i].name;
+    result.runs.back().overrides = all[i].OverridesText();
   }
   result.summaries = SummarizeRuns(result.runs);
   return result;

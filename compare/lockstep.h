@@ -16,7 +16,14 @@
 //  - the run ends with the tick that releases the trace's last sample (or at max_duration_s).
 // Every result is a function of the scene, the variant and the trace only: repeated runs give the
 // same forces bit for bit. Costs are thread CPU time (CLOCK_THREAD_CPUTIME_ID) of each call, so
-// they vary from run to run.
+// they vary from run to run. After every tick, outside the timed call, each device's proxy is
+// probed (proxy/proxy_probe.h: how deep it reaches into the cloth it was rendered on, and
+// pop-through).
+//
+// The truth (issue 20; docs/compare.md, "The truth"): the scene with its cloth stepped once per
+// haptic tick (frame rate = haptic rate) and the proxy in mode newest, so every tick renders the
+// exact cloth of its own time, coupled both ways at the haptic rate. It is the reference the
+// snapshot modes are judged against (`felt compare --truth`, `felt bench haptic`).
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -40,6 +47,9 @@ struct VariantOverride {
   std::string value;  ///< as written (TOML literal, or a bare word taken as a string)
 };
 
+/// The name of the truth variant (TruthVariant, `felt compare --truth`).
+inline constexpr char kTruthName[] = "truth";
+
 /// One variant of a comparison: a name and the overrides that make it from the scene.
 struct LockstepVariant {
   std::string name;                        ///< unique in the list; shown in tables
@@ -49,15 +59,24 @@ struct LockstepVariant {
 };
 
 /// Parses a --variants list (docs/compare.md): variants separated by ';', each `[NAME:]
-/// key=value[,key=value...]`; a variant without NAME is named by its overrides ("scene" when it
-/// has none). Commas and semicolons inside [...] or "..." do not split. Throws
-/// std::invalid_argument naming the variant (1-based) and the bad part: an empty list, a part
-/// without '=', an empty key or value, an unknown shorthand or section, a duplicate name.
+/// key=value[,key=value...]`, or the bare word `scene` (no override); the bare word `truth`
+/// stands for the override truth=on. A variant without NAME is named by its overrides ("scene"
+/// when it has none, "truth" for the bare word alone). Commas and semicolons inside [...] or "..."
+/// do not split. Throws std::invalid_argument naming the variant (1-based) and the bad part: an
+/// empty list, a part without '=', an empty key or value, an unknown shorthand or section, a
+/// duplicate name.
 std::vector<LockstepVariant> ParseVariantList(std::string_view text);
 
-/// The shorthand keys (structure, snapshot, shading, friction, integrator, substeps, provot) with
-/// the scene keys they set, as "shorthand -> scene key" lines, for --help and messages.
+/// The shorthand keys (structure, snapshot, shading, friction, integrator, substeps, provot,
+/// truth) with the scene keys they set, as "shorthand -> scene key" lines, for --help and messages.
 std::vector<std::pair<std::string, std::string>> VariantShorthands();
+
+/// The truth as a variant named kTruthName (file comment): the override truth=on, i.e.
+/// integration.frame_rate_hz = haptic.haptic_rate_hz (read from the scene, 1000 Hz by default)
+/// and proxy.snapshot_mode = newest. `frames_per_tick` > 1 steps the cloth that many frames per
+/// tick instead (truth=N, frame rate N x haptic rate, named "truth_Nx"), for convergence checks.
+/// Throws std::invalid_argument for frames_per_tick < 1.
+LockstepVariant TruthVariant(int frames_per_tick = 1);
 
 /// `scene` with `variant`'s overrides applied to its TOML tree, parsed into a ServerSpec
 /// (ParseServerSpec: every key checked as in a scene file). Throws std::invalid_argument
@@ -65,9 +84,12 @@ std::vector<std::pair<std::string, std::string>> VariantShorthands();
 /// them when the error names none).
 ServerSpec VariantSpec(const SceneDocument& scene, const LockstepVariant& variant, int index);
 
-/// How a lock-step run is limited.
+/// How a lock-step run is limited, and what a comparison adds to the variants it is given.
 struct LockstepOptions {
   double max_duration_s = 0.0;  ///< stop after this much virtual time, s (0: the whole trace)
+  /// CompareVariants only: run TruthVariant() first, as variant 0 and the reference, before the
+  /// variants given (which keep their numbers 1, 2, ... in messages).
+  bool prepend_truth = false;
 };
 
 /// Everything one lock-step run recorded. Arrays are indexed [tick * devices + device].
@@ -80,6 +102,8 @@ struct LockstepRun {
   int64_t frames = 0;                ///< SimFrame calls
   std::vector<Vec3> force_D_N;       ///< force sent, device frame, N (after the safety layer)
   std::vector<uint8_t> in_contact;   ///< 1 when the proxy touched the cloth at that tick
+  std::vector<double> reach_m;       ///< ProbeProxy reach after that tick, m (0: not touching)
+  std::vector<uint8_t> popped;       ///< 1 when ProbeProxy flagged pop-through at that tick
   std::vector<double> tick_cpu_us;   ///< thread CPU time of each HapticTick, us
   std::vector<double> frame_cpu_ms;  ///< thread CPU time of each SimFrame, ms
   /// Median thread CPU time between two back-to-back clock reads (1000 pairs before the run), us:
@@ -99,22 +123,26 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
 
 /// One variant's figures, against the reference (the first run). Units in the names.
 struct VariantSummary {
-  std::string name;                 ///< the variant's name
-  std::string overrides;            ///< its overrides ("" for none)
-  int64_t ticks = 0;                ///< haptic ticks
-  int64_t frames = 0;               ///< sim frames
-  double tick_us_median = 0.0;      ///< HapticTick thread CPU time, median, us
-  double tick_us_p99 = 0.0;         ///< ... 99th percentile (nearest rank), us
-  double frame_ms_median = 0.0;     ///< SimFrame thread CPU time, median, ms
-  double frame_ms_p99 = 0.0;        ///< ... 99th percentile (nearest rank), ms
-  double timer_overhead_us = 0.0;   ///< LockstepRun::timer_overhead_us, us
-  double force_rms_error_N = 0.0;   ///< sqrt(mean |F - F_ref|^2) over every tick and device, N
-  double force_max_error_N = 0.0;   ///< max |F - F_ref|, N
-  double max_jump_N = 0.0;          ///< this variant's largest |F(k) - F(k-1)|, N
-  double max_jump_vs_ref_N = 0.0;   ///< max_jump_N minus the reference's max_jump_N, N
-  double peak_force_N = 0.0;        ///< largest |F|, N
+  std::string name;                ///< the variant's name
+  std::string overrides;           ///< its overrides ("" for none)
+  int64_t ticks = 0;               ///< haptic ticks
+  int64_t frames = 0;              ///< sim frames
+  double tick_us_median = 0.0;     ///< HapticTick thread CPU time, median, us
+  double tick_us_p99 = 0.0;        ///< ... 99th percentile (nearest rank), us
+  double frame_ms_median = 0.0;    ///< SimFrame thread CPU time, median, ms
+  double frame_ms_p99 = 0.0;       ///< ... 99th percentile (nearest rank), ms
+  double timer_overhead_us = 0.0;  ///< LockstepRun::timer_overhead_us, us
+  double force_rms_error_N = 0.0;  ///< sqrt(mean |F - F_ref|^2) over every tick and device, N
+  double force_max_error_N = 0.0;  ///< max |F - F_ref|, N
+  double max_jump_N = 0.0;         ///< this variant's largest |F(k) - F(k-1)|, N
+  double max_jump_vs_ref_N = 0.0;  ///< max_jump_N minus the reference's max_jump_N, N
+  double peak_force_N = 0.0;       ///< largest |F|, N
+  /// peak_force_N minus the reference's peak_force_N, N: > 0 a spike the reference does not have
+  double peak_minus_ref_peak_N = 0.0;
   uint64_t contacts = 0;            ///< device ticks in contact
   uint64_t contact_mismatches = 0;  ///< device ticks whose contact differs from the reference
+  uint64_t pop_through = 0;         ///< device ticks ProbeProxy flagged popped (through the cloth)
+  double max_reach_mm = 0.0;        ///< deepest ProbeProxy reach into the tick's cloth, mm
   uint64_t clamped_ticks = 0;       ///< LockstepRun::clamped_ticks
   uint64_t stalled_ticks = 0;       ///< LockstepRun::stalled_ticks
   uint64_t nan_events = 0;          ///< safety plus cloth NaN events
@@ -133,7 +161,9 @@ struct CompareResult {
 
 /// Builds every variant's spec (VariantSpec) and checks they can be paired with the first (same
 /// haptic_rate_hz and number of devices) before running any, then runs each (RunLockstep) and
-/// summarises them (SummarizeRuns). Throws std::invalid_argument naming the variant.
+/// summarises them (SummarizeRuns). With options.prepend_truth the truth (TruthVariant) runs
+/// first as variant 0 and is the reference. Throws std::invalid_argument naming the variant (also
+/// for a given variant named kTruthName beside prepend_truth).
 CompareResult CompareVariants(const SceneDocument& scene, const std::vector<TraceSample>& samples,
                               const std::vector<LockstepVariant>& variants,
                               const LockstepOptions& options = {});

@@ -1,5 +1,6 @@
-// The cloth and loop benchmarks run as a user would run them (`felt bench integrators --quick`,
-// `felt bench stability --quick`, `felt bench cloth --grid 10`, `felt bench loops --seconds 1`),
+// The cloth, haptic and loop benchmarks run as a user would run them (`felt bench integrators
+// --quick`, `felt bench stability --quick`, `felt bench cloth --grid 10`, `felt bench haptic
+// --quick` on one trace, `felt bench loops --seconds 1`),
 // each into a temp folder: exit code 0 and the JSON files hold the keys the reports and the issues
 // rely on. No timing is asserted.
 #include <gtest/gtest.h>
@@ -7,12 +8,14 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "proxy/proxy_spec.h"
 #include "tests/app/felt_process.h"
 
 namespace felt::test {
@@ -109,6 +112,76 @@ TEST(BenchSmoke, ClothOneGridWritesItsFiles) {
   EXPECT_NE(text.find("\"particles\": 100,"), std::string::npos) << text;
   EXPECT_TRUE(std::filesystem::exists(dir + "/cloth.md"));
   EXPECT_TRUE(std::filesystem::exists(dir + "/cloth.csv"));
+}
+
+// `felt bench haptic --quick` on one trace (poke_hold, given with --trace, the bundled and hard
+// traces skipped) on the default curtain resized to 32 x 32: the truth and every snapshot mode
+// of kSnapshotModes (by name, never listed here) in the tables, JSON and CSV, and the plot.
+TEST(BenchSmoke, HapticQuickOnOneTraceWritesItsFiles) {
+  const std::string dir = FreshDir("felt_bench_haptic");
+  const Outcome outcome =
+      RunFelt("bench haptic --quick --no-bundled --grid 32 --trace " + kSource +
+              "/recordings/poke_hold.trace --scene " + kSource +
+              "/scenes/curtain.toml --gnuplot-script " + kSource + "/bench/haptic.gp --json " +
+              dir + "/haptic.json --csv " + dir + "/haptic.csv --md " + dir + "/haptic.md");
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  const std::string json = ReadFile(dir + "/haptic.json");
+  ExpectKeys(json, {"command",
+                    "machine",
+                    "load_average_end",
+                    "scene",
+                    "grid",
+                    "triangles",
+                    "duration_s",
+                    "reference",
+                    "targets",
+                    "traces",
+                    "summary",
+                    "main",
+                    "hard",
+                    "variants",
+                    "force_rms_error_N",
+                    "force_max_error_N",
+                    "peak_minus_ref_peak_N",
+                    "pop_through",
+                    "max_reach_mm",
+                    "contact_mismatches",
+                    "tick_us_median",
+                    "tick_us_p99",
+                    "nan_events",
+                    "rms_error_worst_N",
+                    "rms_error_median_N",
+                    "targets_met"});
+  const Json doc = Json::parse(json, nullptr, false);
+  ASSERT_TRUE(doc.is_object()) << json;
+  EXPECT_EQ(doc["duration_s"], Json(2.5));
+  EXPECT_EQ(doc["triangles"], Json(2 * 31 * 31));
+  ASSERT_EQ(doc["traces"].size(), 1u);
+  const Json& variants = doc["traces"][0]["variants"];
+  ASSERT_EQ(variants.size(), 1u + std::size(kSnapshotModes));
+  EXPECT_EQ(variants[0]["name"], Json("truth"));
+  EXPECT_EQ(variants[0]["frames"], Json(2501));  // the cloth stepped every tick
+  EXPECT_EQ(variants[0]["force_rms_error_N"], Json(0));
+  for (size_t m = 0; m < std::size(kSnapshotModes); ++m) {
+    const std::string name = SnapshotModeName(kSnapshotModes[m]);
+    EXPECT_EQ(variants[m + 1]["name"], Json(name));
+    EXPECT_EQ(variants[m + 1]["overrides"], Json("proxy.snapshot_mode=" + name));
+    EXPECT_EQ(variants[m + 1]["ticks"], Json(2501));
+    EXPECT_GT(variants[m + 1]["force_rms_error_N"].get<double>(), 0.0) << name;
+    EXPECT_NE(outcome.output.find("| " + name + " | "), std::string::npos) << name;
+  }
+  EXPECT_TRUE(doc["summary"]["hard"].empty());
+  EXPECT_NE(outcome.output.find("| poke_hold | truth | 0 | 0 |"), std::string::npos)
+      << outcome.output;
+  EXPECT_NE(outcome.output.find("Host: "), std::string::npos) << outcome.output;
+  const std::string md = ReadFile(dir + "/haptic.md");
+  EXPECT_NE(md.find("## Targets per mode"), std::string::npos) << md;
+  const std::string csv = ReadFile(dir + "/haptic.csv");
+  EXPECT_EQ(csv.rfind("group,trace,variant,ticks,force_rms_error_N,", 0), 0u) << csv;
+  EXPECT_NE(csv.find("\nuser,poke_hold,truth,2501,0,"), std::string::npos) << csv;
+  if (std::system("command -v gnuplot > /dev/null 2>&1") == 0) {
+    EXPECT_TRUE(std::filesystem::exists(dir + "/haptic.png")) << outcome.output;
+  }
 }
 
 // Issue 5's JSON: empty.lateness_us and server.lateness_us (p50, p99, p999, max), server.overruns,

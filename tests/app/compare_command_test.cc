@@ -57,11 +57,26 @@ TEST(CompareCommand, PrintsTheTableAndWritesEveryJsonField) {
             std::string::npos)
       << out.output;
   const std::string json = ReadFile(json_path);
-  for (const char* key :
-       {"ticks", "frames", "tick_us_median", "tick_us_p99", "frame_ms_median", "frame_ms_p99",
-        "timer_overhead_us", "force_rms_error_N", "force_max_error_N", "max_jump_N",
-        "max_jump_vs_ref_N", "peak_force_N", "contacts", "contact_mismatches", "clamped_ticks",
-        "stalled_ticks", "nan_events"}) {
+  for (const char* key : {"ticks",
+                          "frames",
+                          "tick_us_median",
+                          "tick_us_p99",
+                          "frame_ms_median",
+                          "frame_ms_p99",
+                          "timer_overhead_us",
+                          "force_rms_error_N",
+                          "force_max_error_N",
+                          "max_jump_N",
+                          "max_jump_vs_ref_N",
+                          "peak_force_N",
+                          "peak_minus_ref_peak_N",
+                          "contacts",
+                          "contact_mismatches",
+                          "pop_through",
+                          "max_reach_mm",
+                          "clamped_ticks",
+                          "stalled_ticks",
+                          "nan_events"}) {
     EXPECT_FALSE(VariantMember(json, "ref", key).is_null()) << key << "\n" << json;
     EXPECT_FALSE(VariantMember(json, "blend", key).is_null()) << key << "\n" << json;
   }
@@ -72,6 +87,40 @@ TEST(CompareCommand, PrintsTheTableAndWritesEveryJsonField) {
   EXPECT_EQ(VariantMember(json, "ref", "force_max_error_N"), Json(0));
   EXPECT_EQ(VariantMember(json, "ref", "stalled_ticks"), Json(0));
   std::remove(json_path.c_str());
+}
+
+// --truth: the truth runs first as variant 0 and is the reference; --csv has the JSON's fields.
+TEST(CompareCommand, TruthIsVariantZeroAndTheCsvHasEveryField) {
+  const std::string json_path = CompareTempPath("t.json");
+  const std::string csv_path = CompareTempPath("t.csv");
+  const test::Outcome out =
+      RunFelt("compare --trace " + kSource + "/recordings/fast_swipe.trace --scene " + kSource +
+              "/scenes/curtain.toml --duration 1.2 --truth --variants 'newest: snapshot=newest' "
+              "--json " +
+              json_path + " --csv " + csv_path);
+  ASSERT_EQ(out.exit_code, 0) << out.output;
+  EXPECT_NE(out.output.find("reference 'truth'"), std::string::npos) << out.output;
+  EXPECT_NE(out.output.find("| truth | truth=on |"), std::string::npos) << out.output;
+  const std::string json = ReadFile(json_path);
+  EXPECT_NE(json.find("\"reference\": \"truth\""), std::string::npos) << json;
+  EXPECT_EQ(VariantMember(json, "truth", "frames"), Json(1201));  // a frame every tick
+  EXPECT_EQ(VariantMember(json, "truth", "force_rms_error_N"), Json(0));
+  EXPECT_EQ(VariantMember(json, "truth", "peak_minus_ref_peak_N"), Json(0));
+  EXPECT_EQ(VariantMember(json, "newest", "pop_through"), Json(0));
+  // newest's peak above the truth's, as the JSON has both peaks.
+  const Json peak = VariantMember(json, "newest", "peak_force_N");
+  const Json truth_peak = VariantMember(json, "truth", "peak_force_N");
+  ASSERT_TRUE(peak.is_number() && truth_peak.is_number()) << json;
+  EXPECT_DOUBLE_EQ(VariantMember(json, "newest", "peak_minus_ref_peak_N").get<double>(),
+                   peak.get<double>() - truth_peak.get<double>());
+  const std::string csv = ReadFile(csv_path);
+  EXPECT_EQ(csv.rfind("name,overrides,ticks,frames,tick_us_median,", 0), 0u) << csv;
+  EXPECT_NE(csv.find(",peak_minus_ref_peak_N,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find(",pop_through,max_reach_mm,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\ntruth,truth=on,1201,1201,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\nnewest,snapshot=newest,1201,72,"), std::string::npos) << csv;
+  std::remove(json_path.c_str());
+  std::remove(csv_path.c_str());
 }
 
 TEST(CompareCommand, TwoProcessesGiveTheSameForces) {
