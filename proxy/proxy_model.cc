@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -82,7 +83,7 @@ ProxyModel CompileProxyModel(const DeviceSpec& device, const ProxySpec& proxy) {
   m.obstacles = proxy.obstacles;
   m.snapshot_mode = proxy.snapshot_mode;
   m.candidate_capacity = proxy.candidate_capacity;
-  m.predict_hand = proxy.snapshot_mode == SnapshotMode::kPatch;
+  m.predict_hand = proxy.snapshot_mode == SnapshotMode::kPatch && !std::getenv("FELT_NOPRED");  // SCRATCH
   return m;
 }
 

@@ -223,11 +223,10 @@ void ClothPatch::ComputeAccelerations() {
   for (size_t k = 0; k < window_count_; ++k) {
     const PatchWindow& win = windows_[k];
     for (const SpringFamily& fam : model_.spring_families) {
-      const int32_t c_lo = std::max(win.col0, win.col0 - fam.dc);
-      const int32_t c_hi = std::min(win.col1, win.col1 - fam.dc);
+      const PatchWindow range = PairRange(win, fam.dc, fam.dr);
       const int32_t offset = fam.dr * w + fam.dc;
-      for (int32_t r = win.row0; r <= win.row1 - fam.dr; ++r) {
-        for (int32_t c = c_lo; c <= c_hi; ++c) {
+      for (int32_t r = range.row0; r <= range.row1; ++r) {
+        for (int32_t c = range.col0; c <= range.col1; ++c) {
           const int32_t i = r * w + c, j = i + offset;
           if (role_[i] != PatchRole::kFree && role_[j] != PatchRole::kFree) continue;
           const Vec3 d = x_[j] - x_[i];
@@ -282,42 +281,68 @@ void ClothPatch::Integrate(double h) {
   h_last_s_ = h;
 }
 
+PatchWindow ClothPatch::PairRange(const PatchWindow& win, int32_t dc, int32_t dr) const {
+  // The free particles of a window lie in its interior rectangle: the window less its driven
+  // rings, except along the cloth's own edge (pins inside are checked pair by pair). The pairs
+  // (c, r)-(c + dc, r + dr) with an end in it and both in the window start in this range.
+  const int32_t w = model_.width, h = model_.height;
+  const int32_t fc0 = win.col0 > 0 ? win.col0 + 2 : win.col0;
+  const int32_t fc1 = win.col1 < w - 1 ? win.col1 - 2 : win.col1;
+  const int32_t fr0 = win.row0 > 0 ? win.row0 + 2 : win.row0;
+  const int32_t fr1 = win.row1 < h - 1 ? win.row1 - 2 : win.row1;
+  PatchWindow out;
+  out.col0 = std::max({win.col0, win.col0 - dc, std::min(fc0, fc0 - dc)});
+  out.col1 = std::min({win.col1, win.col1 - dc, std::max(fc1, fc1 - dc)});
+  out.row0 = std::max(win.row0, fr0 - dr);
+  out.row1 = std::min(win.row1 - dr, fr1);
+  return out;
+}
+
 void ClothPatch::ApplyProvotToWindows(double h) {
   // Provot 1995 (000 slide 9): a pair longer than its limit is shortened to it, both ends moving
-  // by equal shares, a driven end not at all (as a pin); the velocity follows the move / h.
+  // by equal shares, a driven end not at all (as a pin), sweeps until none was more than 1e-3 over
+  // its limit (as ApplyProvot); the velocity follows the particle's whole move / h.
   const int32_t w = model_.width;
-  const double inv_h = 1.0 / h;
+  ForEachParticle([&](int32_t p) { a_[p] = x_[p]; });  // a_ is free scratch after Integrate
   for (int32_t it = 0; it < model_.provot_iterations; ++it) {
+    bool loose = false;
     for (size_t k = 0; k < window_count_; ++k) {
-      const PatchWindow& win = windows_[k];
       for (int32_t index : level1_) {
         const ProvotFamily& fam = model_.provot_families[static_cast<size_t>(index)];
         const double max2 = fam.max_length_m * fam.max_length_m;
-        const int32_t c_lo = std::max(win.col0, win.col0 - fam.dc);
-        const int32_t c_hi = std::min(win.col1, win.col1 - fam.dc);
+        const double loose2 = (1.0 + 1e-3) * (1.0 + 1e-3) * max2;
+        const PatchWindow range = PairRange(windows_[k], fam.dc, fam.dr);
         const int32_t offset = fam.dr * w + fam.dc;
-        for (int32_t r = win.row0; r <= win.row1 - fam.dr; ++r) {
-          for (int32_t c = c_lo; c <= c_hi; ++c) {
+        for (int32_t r = range.row0; r <= range.row1; ++r) {
+          for (int32_t c = range.col0; c <= range.col1; ++c) {
             const int32_t i = r * w + c, j = i + offset;
-            const bool free_i = role_[i] == PatchRole::kFree;
-            const bool free_j = role_[j] == PatchRole::kFree;
-            if (!free_i && !free_j) continue;
             const Vec3 d = x_[j] - x_[i];
             const double len2 = d.squaredNorm();
             if (!(len2 > max2)) continue;
+            const bool free_i = role_[i] == PatchRole::kFree;
+            const bool free_j = role_[j] == PatchRole::kFree;
+            if (!free_i && !free_j) continue;
+            loose = loose || len2 > loose2;
             const double len = std::sqrt(len2);
             const Vec3 corr = ((len - fam.max_length_m) / len) * d;  // moves i toward j
-            const double share_i = free_i && free_j ? 0.5 : (free_i ? 1.0 : 0.0);
-            const double share_j = free_i && free_j ? 0.5 : (free_j ? 1.0 : 0.0);
-            x_[i] += share_i * corr;
-            v_[i] += (share_i * inv_h) * corr;
-            x_[j] -= share_j * corr;
-            v_[j] -= (share_j * inv_h) * corr;
+            if (free_i && free_j) {
+              x_[i] += 0.5 * corr;
+              x_[j] -= 0.5 * corr;
+            } else if (free_i) {
+              x_[i] += corr;
+            } else {
+              x_[j] -= corr;
+            }
           }
         }
       }
     }
+    if (!loose) break;
   }
+  const double inv_h = 1.0 / h;
+  ForEachParticle([&](int32_t p) {
+    if (role_[p] == PatchRole::kFree) v_[p] += inv_h * (x_[p] - a_[p]);
+  });
 }
 
 void ClothPatch::ApplyObstaclesToWindows() {
@@ -382,7 +407,6 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   if (window_count_ == 0 || !(dt_s > 0.0)) return out;
   ++counters_.steps;
   ForEachParticle([&](int32_t p) { x_before_[p] = x_[p]; });
-  SetDriven(drive, tau_s, dt_s);
 
   // Substeps no longer than the patch's nominal one, shortened for a stiff contact spring
   // (CouplingSubsteps: Colgate, Stanley & Brown 1995).
@@ -401,8 +425,11 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   const bool provot = model_.provot_enabled && !level1_.empty();
   for (int32_t s = 0; s < substeps; ++s) {
     if (s > 0) AdvanceCouplingSprings(s * h, &springs_);
+    // Forces at the substep's start (the driven particles where they are), then the driven
+    // particles to the substep's end, where the constraints see them.
     ComputeAccelerations();
     Integrate(h);
+    SetDriven(drive, tau_s - dt_s + (s + 1) * h, h);
     if (provot) ApplyProvotToWindows(h);
     if (!model_.obstacles.empty()) ApplyObstaclesToWindows();
   }

@@ -158,6 +158,7 @@ class ClothPatch {
  private:
   void MarkRoles(std::span<const PatchWindow> windows, PatchRole* roles) const;
   bool SpringInside(const ExternalForce& e) const;
+  PatchWindow PairRange(const PatchWindow& window, int32_t dc, int32_t dr) const;
   void SetDriven(const ClothSnapshot& drive, double tau_s, double dt_s);
   double DriftFromDrive(const PatchWindow& window, const ClothSnapshot& drive, double tau_s) const;
   void ComputeAccelerations();

@@ -1,0 +1,228 @@
+// The local patch (sim_loop/cloth_patch.h) on closed-form cases: windows, roles and merging; a
+// cloth moving rigidly is followed exactly; a patch with no contact on a cloth at rest stays at
+// rest; a contact spring pushes the free particles away from the hand while the rings stay with
+// the drive; lingering and release; hand-back; no allocation.
+#include "sim_loop/cloth_patch.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "cloth_test_util.h"
+#include "collision/collision_structure.h"
+#include "tests/alloc_counter.h"
+
+namespace felt {
+namespace {
+
+using cloth_test::Curtain;
+
+// A 21 x 21 curtain without gravity (its rest state is an equilibrium), Provot on.
+ClothModel RestingSheet() {
+  SimSpec spec = Curtain(21);
+  spec.cloth.gravity_m_per_s2 = Vec3::Zero();
+  return BuildClothModel(spec);
+}
+
+ClothSnapshot SnapshotOf(const ClothModel& model, const ClothState& state) {
+  return MakeClothSnapshot(model, state, CollisionStructureSpec{});
+}
+
+int32_t At(const ClothModel& m, int32_t col, int32_t row) { return row * m.width + col; }
+
+TEST(ClothPatchTest, AWindowHasTwoDrivenRingsExceptAlongTheClothsEdge) {
+  const ClothModel model = RestingSheet();
+  const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
+  ClothPatch patch(model, 4, 1);
+  const std::vector<int32_t> centre = {At(model, 10, 10)};
+  patch.Place(centre, s, 0.0, 1e-3);
+  ASSERT_EQ(patch.windows().size(), 1u);
+  const PatchWindow w = patch.windows()[0];
+  EXPECT_EQ(w.col0, 6);
+  EXPECT_EQ(w.col1, 14);
+  EXPECT_EQ(patch.roles()[At(model, 6, 10)], PatchRole::kDriven);
+  EXPECT_EQ(patch.roles()[At(model, 7, 10)], PatchRole::kDriven);
+  EXPECT_EQ(patch.roles()[At(model, 8, 10)], PatchRole::kFree);
+  EXPECT_EQ(patch.roles()[At(model, 5, 10)], PatchRole::kOutside);
+  // At the cloth's left edge the window is clipped and its edge columns are free.
+  const std::vector<int32_t> edge = {At(model, 1, 10)};
+  patch.Place(edge, s, 0.0, 1e-3);
+  EXPECT_EQ(patch.windows()[0].col0, 0);
+  EXPECT_EQ(patch.roles()[At(model, 0, 10)], PatchRole::kFree);
+  EXPECT_EQ(patch.roles()[At(model, 5, 10)], PatchRole::kDriven);
+  EXPECT_EQ(patch.roles()[At(model, 10, 10)], PatchRole::kOutside);
+}
+
+TEST(ClothPatchTest, WindowsThatMeetMergeAndFarOnesStayApart) {
+  const ClothModel model = RestingSheet();
+  const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
+  ClothPatch patch(model, 3, 2);
+  // 8 columns apart: windows 7 wide, columns 8 and 10 joined by a bend spring across column 9.
+  std::vector<int32_t> centres = {At(model, 5, 10), At(model, 13, 10)};
+  patch.Place(centres, s, 0.0, 1e-3);
+  EXPECT_EQ(patch.windows().size(), 1u);
+  EXPECT_EQ(patch.counters().merges, 1u);
+  // 10 apart: separate.
+  ClothPatch apart(model, 3, 2);
+  centres = {At(model, 4, 10), At(model, 15, 10)};
+  apart.Place(centres, s, 0.0, 1e-3);
+  EXPECT_EQ(apart.windows().size(), 2u);
+}
+
+TEST(ClothPatchTest, ARigidlyMovingClothIsFollowedExactly) {
+  // The drive moves every particle at one velocity, springs at rest length, no gravity or drag:
+  // the free particles must move with it (to rounding) and the patch must not invent motion.
+  SimSpec spec = Curtain(21);
+  spec.cloth.gravity_m_per_s2 = Vec3::Zero();
+  spec.cloth.drag_N_s_per_m = 0.0;
+  spec.cloth.pins.clear();
+  const ClothModel model = BuildClothModel(spec);
+  ClothState state = MakeClothState(model);
+  const Vec3 velocity(0.3, -0.2, 0.5);
+  for (Vec3& v : state.v) v = velocity;
+  ClothSnapshot s = SnapshotOf(model, state);
+  FillSnapshot(model, state, 1, 1.0 / 60.0, &s);  // with the velocities
+  ClothPatch patch(model, 5, 1);
+  const std::vector<int32_t> centre = {At(model, 10, 10)};
+  double tau = 0.0;
+  patch.Place(centre, s, tau, 1e-3);
+  for (int k = 0; k < 15; ++k) {
+    tau += 1e-3;
+    patch.Step({}, 1e-3, s, tau);
+  }
+  double worst = 0.0;
+  for (int32_t p = 0; p < model.num_particles(); ++p) {
+    if (patch.roles()[p] != PatchRole::kFree) continue;
+    worst = std::max(worst, (patch.x()[p] - (s.x[p] + tau * velocity)).norm());
+    EXPECT_LT((patch.v()[p] - velocity).norm(), 1e-12);
+  }
+  EXPECT_LT(worst, 1e-12);
+  EXPECT_LT(patch.MaxDistanceFrom(s), tau * velocity.norm() + 1e-12);
+}
+
+TEST(ClothPatchTest, AContactSpringPushesTheFreeParticlesAndTheRingsStayWithTheDrive) {
+  const ClothModel model = RestingSheet();
+  const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
+  ClothPatch patch(model, 4, 1);
+  const int32_t centre = At(model, 10, 10);
+  const std::vector<int32_t> centres = {centre};
+  patch.Place(centres, s, 0.0, 1e-3);
+  // A hand 2 cm behind the centre particle pressing from the +z side (world), sphere radius 4 mm.
+  int32_t tri = -1;
+  for (size_t t = 0; t < model.triangles.size(); ++t) {
+    if (model.triangles[t][0] == centre) tri = static_cast<int32_t>(t);
+  }
+  ASSERT_GE(tri, 0);
+  ExternalForce e;
+  e.triangle = tri;
+  e.stiffness_N_per_m = 44.0;
+  e.normal = Vec3::UnitZ();
+  e.radius_m = 0.004;
+  e.anchor_m = model.rest_position_m[centre] - Vec3(0, 0, 0.02) - e.radius_m * e.normal;
+  e.max_force_N = 1.1;
+  const std::vector<ExternalForce> springs = {e};
+  for (int k = 0; k < 100; ++k) {
+    const PatchStepResult r = patch.Step(springs, 1e-3, s, 0.0);
+    ASSERT_EQ(r.springs, 1);
+    ASSERT_FALSE(r.recovered);
+  }
+  // Pushed away from the hand (-z) at the contact, to about the far side of the hand's sphere
+  // (centre 2 cm behind, radius 4 mm), give or take the ringing of 0.1 s.
+  EXPECT_LT(patch.x()[centre].z(), -0.015);
+  EXPECT_GT(patch.x()[centre].z(), -0.03);
+  // The rings are the drive's (at rest).
+  for (int32_t p = 0; p < model.num_particles(); ++p) {
+    if (patch.roles()[p] == PatchRole::kDriven) {
+      EXPECT_EQ(patch.x()[p], s.x[p]) << p;
+    }
+  }
+  // Provot's limit holds between free particles (10 % over rest, the sweeps' tolerance).
+  const double limit = 1.1 * model.spacing_m * (1.0 + 2e-3);
+  EXPECT_LE((patch.x()[centre] - patch.x()[At(model, 11, 10)]).norm(), limit);
+}
+
+TEST(ClothPatchTest, AWindowWithoutItsCentreLingersUntilItIsBackOnTheDrive) {
+  const ClothModel model = RestingSheet();
+  const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
+  ClothPatch patch(model, 4, 1);
+  const int32_t centre = At(model, 10, 10);
+  std::vector<int32_t> centres = {centre};
+  patch.Place(centres, s, 0.0, 1e-3);
+  // At rest on the drive: released at once when its centre goes.
+  centres = {-1};
+  patch.Place(centres, s, 0.0, 1e-3);
+  EXPECT_FALSE(patch.active());
+  // Displaced by a push: it lingers (the drive is at rest, so it is pulled back), at most
+  // kPatchMaxLinger_s.
+  centres = {centre};
+  patch.Place(centres, s, 0.0, 1e-3);
+  ExternalForce e;
+  e.triangle = 2 * ((10 * (model.width - 1)) + 10);
+  e.stiffness_N_per_m = 44.0;
+  e.normal = Vec3::UnitZ();
+  e.radius_m = 0.004;
+  e.anchor_m = model.rest_position_m[centre] - Vec3(0, 0, 0.02) - e.radius_m * e.normal;
+  e.max_force_N = 1.1;
+  const std::vector<ExternalForce> springs = {e};
+  for (int k = 0; k < 50; ++k) patch.Step(springs, 1e-3, s, 0.0);
+  centres = {-1};
+  int ticks = 0;
+  while (ticks < 1000) {
+    patch.Place(centres, s, 0.0, 1e-3);
+    if (!patch.active()) break;
+    patch.Step({}, 1e-3, s, 0.0);
+    ++ticks;
+  }
+  EXPECT_GT(ticks, 0);
+  EXPECT_LE(ticks, static_cast<int>(kPatchMaxLinger_s / 1e-3) + 1);
+}
+
+TEST(ClothPatchTest, HandBackListsTheFreeParticlesAndCountsWhatDoesNotFit) {
+  const ClothModel model = RestingSheet();
+  const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
+  ClothPatch patch(model, 4, 1);
+  const std::vector<int32_t> centres = {At(model, 10, 10)};
+  patch.Place(centres, s, 0.0, 1e-3);
+  std::vector<ParticleState> out(100);
+  EXPECT_EQ(patch.HandBack(out, true), 25);  // 5 x 5 free particles
+  for (int i = 0; i < 25; ++i) {
+    EXPECT_EQ(patch.roles()[out[static_cast<size_t>(i)].particle], PatchRole::kFree);
+    EXPECT_TRUE(out[static_cast<size_t>(i)].set_velocity);
+  }
+  std::vector<ParticleState> small(10);
+  EXPECT_EQ(patch.HandBack(small, false), 10);
+  EXPECT_FALSE(small[0].set_velocity);
+  EXPECT_EQ(patch.counters().handback_overflows, 15u);
+}
+
+TEST(ClothPatchTest, PlaceStepAndHandBackNeverAllocate) {
+  const ClothModel model = RestingSheet();
+  ClothState state = MakeClothState(model);
+  const ClothSnapshot s = SnapshotOf(model, state);
+  ClothPatch patch(model, 6, 2);
+  std::vector<ParticleState> out(2048);
+  ExternalForce e;
+  e.triangle = 2 * ((10 * (model.width - 1)) + 10);
+  e.stiffness_N_per_m = 44.0;
+  e.normal = Vec3::UnitZ();
+  e.radius_m = 0.004;
+  e.anchor_m = model.rest_position_m[At(model, 10, 10)] - Vec3(0, 0, 0.02);
+  e.max_force_N = 1.1;
+  const std::vector<ExternalForce> springs = {e};
+  AllocationGuard guard;
+  for (int k = 0; k < 200; ++k) {
+    // Two centres that wander, meet, part and vanish.
+    const int32_t a = At(model, 5 + (k / 20) % 10, 10);
+    const int32_t b = k % 50 < 40 ? At(model, 15, 5 + (k / 10) % 10) : -1;
+    const int32_t centres[2] = {a, b};
+    patch.Place(std::span<const int32_t>(centres, 2), s, 0.0, 1e-3);
+    patch.Step(springs, 1e-3, s, 0.0);
+    patch.HandBack(out, k % 2 == 0);
+    patch.MaxDistanceFrom(s);
+  }
+  EXPECT_EQ(guard.allocations(), 0u);
+  EXPECT_EQ(patch.counters().nan_events, 0u);
+}
+
+}  // namespace
+}  // namespace felt
