@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -83,7 +82,7 @@ ProxyModel CompileProxyModel(const DeviceSpec& device, const ProxySpec& proxy) {
   m.obstacles = proxy.obstacles;
   m.snapshot_mode = proxy.snapshot_mode;
   m.candidate_capacity = proxy.candidate_capacity;
-  m.predict_hand = proxy.snapshot_mode == SnapshotMode::kPatch && !std::getenv("FELT_NOPRED");  // SCRATCH
+  m.predict_hand = proxy.snapshot_mode == SnapshotMode::kPatch;
   return m;
 }
 
