@@ -50,7 +50,6 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
     }
     const auto n_devices = static_cast<int32_t>(devices.size());
     patch_ = std::make_unique<ClothPatch>(cloth, proxy.patch_radius, n_devices);
-    patch_handback_ = proxy.patch_handback;
     overlay_.roles = patch_->roles();
     overlay_.x = patch_->x();
     overlay_.x_before = patch_->x_before();
@@ -64,7 +63,7 @@ void HapticLoop::Tick(int64_t now_ns, double dt_s) {
   Bump(counters_.ticks);
   bool arrived = false;
   const TickCloth cloth = TakeNewestSnapshot(now_ns, &arrived);
-  // Mode patch: the patch to this tick, before its state is handed back and the proxies run.
+  // Mode patch: the patch to this tick, before the proxies run on it.
   if (patch_ != nullptr) StepPatch(cloth, dt_s);
   // A new snapshot: hand the reactions of the frame that ended to the sim (or retry a batch that
   // found the queue full).
@@ -134,12 +133,6 @@ void HapticLoop::StageReactions() {
       // force x duration is the impulse (devices that ran for part of the batch count less).
       for (int32_t i = 0; i < n; ++i) batch.forces[batch.count + i].force_N *= t / duration_s;
       batch.count += n;
-    }
-    // Mode patch: the patch's free particles as they are now (after this tick's step).
-    batch.patch_count = 0;
-    if (patch_ != nullptr && patch_handback_ != PatchHandBack::kReactions) {
-      batch.patch_count = patch_->HandBack(std::span<ParticleState>(batch.patch),
-                                           patch_handback_ == PatchHandBack::kStates);
     }
     staged_pending_ = true;
   }

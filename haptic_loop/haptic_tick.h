@@ -18,8 +18,9 @@
 // local patch's windows around each device's last contact (or the cloth point its free proxy still
 // presses: ProxyState::hand_seed) and steps the patch by the tick with the contact springs of the
 // last tick (sim_loop/cloth_patch.h); the proxies then render the patch where it is and the newest
-// snapshot extrapolated elsewhere. A staged batch carries the patch's free particles to the sim,
-// which continues from them (OverrideParticles), so the push is neither missed nor counted twice.
+// snapshot extrapolated elsewhere. The sim receives the reactions as in every mode (the push once,
+// with the hand's predicted velocity); the patch's own state stays local (sim_loop/cloth_patch.h,
+// "Hand-back").
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -159,7 +160,6 @@ class HapticLoop {
 
   // Mode patch: the local patch, the overlay the proxies read, and the tick's scratch.
   std::unique_ptr<ClothPatch> patch_;
-  PatchHandBack patch_handback_ = PatchHandBack::kReactions;
   PatchOverlay overlay_;
   std::vector<int32_t> patch_centres_;       // [devices]
   std::vector<ExternalForce> patch_springs_;  // [devices]

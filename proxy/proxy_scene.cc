@@ -18,12 +18,6 @@ constexpr std::array<NamedValue<SnapshotMode>, 5> kSnapshotModeNames = {{
     {"patch", SnapshotMode::kPatch},
 }};
 
-constexpr std::array<NamedValue<PatchHandBack>, 3> kPatchHandBackNames = {{
-    {"reactions", PatchHandBack::kReactions},
-    {"positions", PatchHandBack::kPositions},
-    {"states", PatchHandBack::kStates},
-}};
-
 // Every structure spec a scene can name, with its full name (CollisionStructureName).
 std::vector<CollisionStructureSpec> AllStructureSpecs() {
   std::vector<CollisionStructureSpec> specs;
@@ -118,13 +112,6 @@ const char* SnapshotModeName(SnapshotMode mode) {
   return "?";
 }
 
-const char* PatchHandBackName(PatchHandBack handback) {
-  for (const auto& m : kPatchHandBackNames) {
-    if (m.value == handback) return m.name.data();
-  }
-  return "?";
-}
-
 bool CollisionStructureFromName(const std::string& name, CollisionStructureSpec* spec) {
   for (const CollisionStructureSpec& s : AllStructureSpecs()) {
     if (name == CollisionStructureName(s) || name == ShortName(s)) {
@@ -172,7 +159,7 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
   if (!table) return p;
   table->ExpectKeys({"force_shading", "friction_static", "friction_dynamic", "snapshot_mode",
                      "max_iterations", "candidate_capacity", "collision_structure",
-                     "patch_radius", "patch_handback"});
+                     "patch_radius"});
   p.force_shading = table->Bool("force_shading", p.force_shading);
   p.friction_static = table->Number("friction_static", p.friction_static, NonNegative());
   p.friction_dynamic = table->Number("friction_dynamic", p.friction_dynamic, NonNegative());
@@ -185,8 +172,6 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
                                                 kSnapshotModeNames);
   p.patch_radius =
       table->Integer("patch_radius", p.patch_radius, InRange(kMinPatchRadius, kMaxPatchRadius));
-  p.patch_handback =
-      table->Choice<PatchHandBack>("patch_handback", p.patch_handback, kPatchHandBackNames);
   p.max_iterations =
       table->Integer("max_iterations", p.max_iterations, InRange(1, kMaxProxyIterations));
   p.candidate_capacity = table->Integer("candidate_capacity", p.candidate_capacity,

@@ -67,16 +67,6 @@ enum class SnapshotMode : uint8_t {
                  ///<     tick (sim_loop/cloth_patch.h), the rest extrapolated as (d)
 };
 
-/// Mode patch: what of the local patch reaches the 60 Hz cloth (issue 20; sim_loop/cloth_patch.h).
-enum class PatchHandBack : uint8_t {
-  kReactions,  ///< the proxy's reactions only (as every mode): the patch's own state stays local
-  kPositions,  ///< also its free particles' positions each frame (the cloth keeps its velocities)
-  kStates,     ///< also their positions and velocities each frame
-};
-
-/// The scene-file name of a hand-back: "reactions", "positions", "states".
-const char* PatchHandBackName(PatchHandBack handback);
-
 /// Every snapshot mode, in the order tables list them.
 inline constexpr SnapshotMode kSnapshotModes[] = {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
                                                   SnapshotMode::kInterpolate,
@@ -100,8 +90,6 @@ struct ProxySpec {
   /// Mode patch: the local patch's windows reach this many particles each way from a contact
   /// (sim_loop/cloth_patch.h), in [kMinPatchRadius, kMaxPatchRadius]; unused by the other modes.
   int32_t patch_radius = 4;
-  /// Mode patch: what of the patch reaches the 60 Hz cloth besides the reactions.
-  PatchHandBack patch_handback = PatchHandBack::kReactions;
   int32_t max_iterations = 10;  ///< sweep/solve rounds per pass within one tick, >= 1
   /// Triangles near the proxy gathered per tick (sized once in the proxy state), >= 16. A tick
   /// that finds more is counted (ProxyCounters::overflow_ticks) and uses the first ones found.

@@ -274,23 +274,6 @@ Vec3 PinOffset(const PinMotionSpec& motion, double t_s);
 /// Time derivative [m/s] of PinOffset at `t_s`.
 Vec3 PinVelocity(const PinMotionSpec& motion, double t_s);
 
-/// One particle's state, handed from the haptic thread's local patch to the cloth
-/// (sim_loop/cloth_patch.h, OverrideParticles). World frame, SI units.
-struct ParticleState {
-  int32_t particle = -1;              ///< index into the cloth's particles
-  Vec3 x_m = Vec3::Zero();            ///< position, world, m
-  Vec3 v_m_per_s = Vec3::Zero();      ///< velocity, world, m/s
-  bool set_velocity = true;           ///< false: the position only (the cloth keeps its velocity)
-};
-
-/// Sets the position (and velocity, when set_velocity) of each listed free particle of `state` and
-/// restarts its integrator history (as after a constraint replaced its velocity: leapfrog restarts
-/// it from v, basic Verlet re-derives its previous position). Entries naming a pinned or
-/// out-of-range particle, or holding non-finite values, are skipped and counted in
-/// counters.invalid_external_forces. Returns how many were applied. Real-time safe.
-int32_t OverrideParticles(const ClothModel& model, std::span<const ParticleState> states,
-                          ClothState* state);
-
 /// Forgets the integrator's history (leapfrog's last acceleration, basic Verlet's previous
 /// positions); the next StepFrame restarts it from state->x and state->v. Call it after editing
 /// x or v by hand between frames. Real-time safe.

@@ -445,19 +445,6 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   return out;
 }
 
-int32_t ClothPatch::HandBack(std::span<ParticleState> out, bool velocities) {
-  size_t count = 0;
-  ForEachParticle([&](int32_t p) {
-    if (role_[p] != PatchRole::kFree) return;
-    if (count >= out.size()) {
-      ++counters_.handback_overflows;
-      return;
-    }
-    out[count++] = {p, x_[p], v_[p], velocities};
-  });
-  return static_cast<int32_t>(count);
-}
-
 double ClothPatch::MaxDistanceFrom(const ClothSnapshot& s) const {
   double max2 = 0.0;
   ForEachParticle([&](int32_t p) {

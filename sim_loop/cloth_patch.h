@@ -22,14 +22,16 @@
 // into their bounding rectangle: two devices on one cloth share one simulation where their patches
 // meet, and each feels the other's push at once.
 //
-// Hand-back (HandBack): the free particles' states go to the sim with the frame's reactions
-// (sim_loop/sim_frame.h), which sets them before its next frame (OverrideParticles): the global
-// cloth continues from the patch's motion instead of integrating the push a second time, and still
-// receives the contact spring, so the cloth around the patch follows it.
+// Hand-back: what reaches the 60 Hz cloth is the proxy's reaction, as in every mode (the contact
+// spring the sim integrates at its substeps, moving with the hand's predicted velocity in this
+// mode: ProxyModel::predict_hand), so the global cloth gets the push once. The patch's own state
+// stays local: it is a finer model of the same cloth near the hand, driven by the global one at
+// its rings. Handing its positions (or positions and velocities) back to the sim each frame was
+// measured and made the held press oscillate (docs/proxy.md, mode patch).
 //
 // Arrays are the cloth's size, indexed by particle, so a window is addressed like the cloth (rows
 // of a window are contiguous) and the coupling kernels run unchanged; only window particles are
-// ever touched. Sized once; Place, Step and HandBack are real-time safe.
+// ever touched. Sized once; Place and Step are real-time safe.
 
 #include <cstdint>
 #include <span>
@@ -96,7 +98,6 @@ struct PatchCounters {
   uint64_t merges = 0;                 ///< windows merged with another
   uint64_t nan_events = 0;             ///< steps that restarted from the drive
   uint64_t springs_outside = 0;        ///< contact springs too near a window's edge, not applied
-  uint64_t handback_overflows = 0;     ///< free particles that did not fit a hand-back
   ClothCounters coupling;              ///< AddCouplingSpring's counts (invalid, reduced, dropped)
 };
 
@@ -125,11 +126,6 @@ class ClothPatch {
   /// the start of the step (x_before). Real-time safe.
   PatchStepResult Step(std::span<const ExternalForce> external, double dt_s,
                        const ClothSnapshot& drive, double tau_s);
-
-  /// Writes the free particles' states into `out` (as many as fit; the rest are counted in
-  /// counters().handback_overflows), with their velocities when `velocities` (else marked
-  /// position only), and returns how many. Real-time safe.
-  int32_t HandBack(std::span<ParticleState> out, bool velocities);
 
   /// Largest distance [m] of a window particle's position, now or at the start of the last step,
   /// from `s`'s position of it (0 without windows). Real-time safe; O(window particles).

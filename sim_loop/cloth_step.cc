@@ -107,24 +107,4 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   return result;
 }
 
-int32_t OverrideParticles(const ClothModel& model, std::span<const ParticleState> states,
-                          ClothState* state) {
-  const int32_t n = model.num_particles();
-  const double h = state->scratch->history_valid ? state->scratch->history_h_s
-                                                 : 1.0 / (model.frame_rate_hz * model.substeps);
-  int32_t applied = 0;
-  for (const ParticleState& ps : states) {
-    if (ps.particle < 0 || ps.particle >= n || model.inv_mass_per_kg[ps.particle] == 0.0 ||
-        !ps.x_m.allFinite() || (ps.set_velocity && !ps.v_m_per_s.allFinite())) {
-      ++state->counters.invalid_external_forces;
-      continue;
-    }
-    state->x[ps.particle] = ps.x_m;
-    if (ps.set_velocity) state->v[ps.particle] = ps.v_m_per_s;
-    SyncVerletHistory(model, ps.particle, h, state);
-    ++applied;
-  }
-  return applied;
-}
-
 }  // namespace felt

@@ -43,14 +43,6 @@ size_t SimLoop::TakeQueuedReactions() {
       ++count;
     }
     total_s += popped_->duration_s;
-    // The local patch's particles continue from where the haptic thread moved them (mode patch;
-    // sim_loop/cloth_patch.h); later batches overwrite earlier ones.
-    if (popped_->patch_count > 0) {
-      const int32_t applied = OverrideParticles(
-          model_, std::span<const ParticleState>(popped_->patch.data(), popped_->patch_count),
-          &cloth_);
-      AddTo(counters_.patch_particles_applied, static_cast<uint64_t>(applied));
-    }
     Bump(counters_.reaction_batches_applied);
   }
   for (size_t i = 0; i < count; ++i) external_[i].force_N /= total_s;

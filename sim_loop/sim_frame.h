@@ -37,22 +37,15 @@ inline constexpr size_t kMaxHeldContactSprings = 16;
 /// Reaction batches (sim frames) in flight haptic -> sim.
 inline constexpr size_t kReactionQueueCapacity = 8;
 
-/// The most particle states one batch hands back from the local patch (sim_loop/cloth_patch.h).
-inline constexpr int32_t kMaxPatchParticles = 2048;
-
-/// The reactions of all devices over one sim frame, haptic -> sim, and the local patch's particles
-/// (mode patch). Fixed-size data; copies copy only the entries in use.
+/// The reactions of all devices over one sim frame, haptic -> sim. Fixed-size data; copies copy
+/// only the entries in use.
 struct ReactionBatch {
   int32_t count = 0;      ///< entries used in `forces`
   double duration_s = 0;  ///< haptic time the forces are averaged over, s
   std::array<ExternalForce, kMaxReactionForces> forces;  ///< world frame, N (time averages)
-  int32_t patch_count = 0;  ///< entries used in `patch`
-  /// The local patch's free particles when the batch was staged (world, SI): the sim sets them
-  /// before its next frame (OverrideParticles).
-  std::array<ParticleState, kMaxPatchParticles> patch;
 
   ReactionBatch() = default;
-  /// Copies the entries in use (a whole batch is ~250 kB; its used part is usually a few hundred
+  /// Copies the entries in use (a whole batch is ~150 kB; its used part is usually a few hundred
   /// bytes, and the haptic tick copies one into the queue per frame).
   ReactionBatch(const ReactionBatch& other) { *this = other; }
   /// As the copy constructor.
@@ -60,8 +53,6 @@ struct ReactionBatch {
     count = other.count;
     duration_s = other.duration_s;
     std::copy_n(other.forces.begin(), count, forces.begin());
-    patch_count = other.patch_count;
-    std::copy_n(other.patch.begin(), patch_count, patch.begin());
     return *this;
   }
 };
@@ -84,7 +75,6 @@ struct SimCounters {
   std::atomic<uint64_t> reaction_batches_applied{0};  ///< batches the sim applied
   std::atomic<uint64_t> cloth_nan_events{0};     ///< frames that recovered from non-finite values
   std::atomic<double> applied_impulse_N_s{0.0};  ///< sum of |reaction impulse| applied, N s
-  std::atomic<uint64_t> patch_particles_applied{0};  ///< local patch states set (mode patch)
 };
 
 /// The sim loop: the cloth, both handoffs and the frame. Construction is set-up (allocates,

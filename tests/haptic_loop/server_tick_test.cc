@@ -56,9 +56,9 @@ ForceOutput Newest(CapturingForceSink& sink, uint32_t device = 0) {
 }
 
 TEST(ServerTick, HapticTickNeverAllocates) {
-  // Every snapshot mode: those that keep the previous snapshot copy it each frame.
-  for (SnapshotMode mode : {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
-                            SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate}) {
+  // Every snapshot mode: those that keep the previous snapshot copy it each frame; mode patch
+  // places and steps its windows.
+  for (SnapshotMode mode : kSnapshotModes) {
     ServerSpec spec =
         SmallCurtain({DeviceAt("left", Vec3(-0.1, 0, 0)), DeviceAt("right", Vec3(0.1, 0, 0))});
     spec.proxy.snapshot_mode = mode;
@@ -89,6 +89,41 @@ TEST(ServerTick, HapticTickNeverAllocates) {
     const std::unique_ptr<ServerReport> report = server.Report();
     EXPECT_GT(report->contacts, 0u) << SnapshotModeName(mode);
     EXPECT_GT(report->reaction_batches, 0u) << SnapshotModeName(mode);
+    if (mode == SnapshotMode::kPatch) {
+      EXPECT_GT(server.haptic().counters().patch_ticks.load(), 1000u);
+    }
+  }
+}
+
+TEST(ServerTick, TwoDevicesInModePatchShareOneWindowWhereTheyMeet) {
+  // Two hands 3 cm apart on the small curtain (16 x 16, 33 mm spacing): their windows merge into
+  // one simulation; 36 cm apart: two windows (radius 3). Both hands feel the cloth either way.
+  for (double half_gap : {0.015, 0.18}) {
+    ServerSpec spec = QuickRamp({DeviceAt("left", Vec3(-half_gap, 0.0, 0.0)),
+                                 DeviceAt("right", Vec3(half_gap, 0.0, 0.0))});
+    spec.proxy.snapshot_mode = SnapshotMode::kPatch;
+    spec.proxy.patch_radius = 3;
+    LatestPointerSource source(2);
+    CapturingForceSink sink(2);
+    Server server(spec, &source, &sink, Quiet());
+    Driver driver(&server, &source);
+    ASSERT_TRUE(PressUntilForce(&driver, &sink, 2, 0.2)) << half_gap;
+    for (uint32_t d = 0; d < 2; ++d) {
+      const ForceOutput force = Newest(sink, d);
+      EXPECT_TRUE(force.in_contact) << d;
+      EXPECT_GT(force.force_D_N.z(), 0.2) << d;
+    }
+    const ClothPatch* patch = server.haptic().patch();
+    ASSERT_NE(patch, nullptr);
+    std::string windows;
+    for (const PatchWindow& w : patch->windows()) {
+      windows += " [" + std::to_string(w.col0) + "," + std::to_string(w.row0) + " - " +
+                 std::to_string(w.col1) + "," + std::to_string(w.row1) + "]";
+    }
+    EXPECT_EQ(patch->windows().size(), half_gap < 0.05 ? 1u : 2u) << half_gap << windows;
+    if (half_gap < 0.05) {
+      EXPECT_GT(patch->counters().merges, 0u);
+    }
   }
 }
 

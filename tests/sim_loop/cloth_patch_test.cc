@@ -1,7 +1,7 @@
 // The local patch (sim_loop/cloth_patch.h) on closed-form cases: windows, roles and merging; a
 // cloth moving rigidly is followed exactly; a patch with no contact on a cloth at rest stays at
 // rest; a contact spring pushes the free particles away from the hand while the rings stay with
-// the drive; lingering and release; hand-back; no allocation.
+// the drive; lingering and release; no allocation.
 #include "sim_loop/cloth_patch.h"
 
 #include <gtest/gtest.h>
@@ -177,30 +177,11 @@ TEST(ClothPatchTest, AWindowWithoutItsCentreLingersUntilItIsBackOnTheDrive) {
   EXPECT_LE(ticks, static_cast<int>(kPatchMaxLinger_s / 1e-3) + 1);
 }
 
-TEST(ClothPatchTest, HandBackListsTheFreeParticlesAndCountsWhatDoesNotFit) {
-  const ClothModel model = RestingSheet();
-  const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
-  ClothPatch patch(model, 4, 1);
-  const std::vector<int32_t> centres = {At(model, 10, 10)};
-  patch.Place(centres, s, 0.0, 1e-3);
-  std::vector<ParticleState> out(100);
-  EXPECT_EQ(patch.HandBack(out, true), 25);  // 5 x 5 free particles
-  for (int i = 0; i < 25; ++i) {
-    EXPECT_EQ(patch.roles()[out[static_cast<size_t>(i)].particle], PatchRole::kFree);
-    EXPECT_TRUE(out[static_cast<size_t>(i)].set_velocity);
-  }
-  std::vector<ParticleState> small(10);
-  EXPECT_EQ(patch.HandBack(small, false), 10);
-  EXPECT_FALSE(small[0].set_velocity);
-  EXPECT_EQ(patch.counters().handback_overflows, 15u);
-}
-
-TEST(ClothPatchTest, PlaceStepAndHandBackNeverAllocate) {
+TEST(ClothPatchTest, PlaceAndStepNeverAllocate) {
   const ClothModel model = RestingSheet();
   ClothState state = MakeClothState(model);
   const ClothSnapshot s = SnapshotOf(model, state);
   ClothPatch patch(model, 6, 2);
-  std::vector<ParticleState> out(2048);
   ExternalForce e;
   e.triangle = 2 * ((10 * (model.width - 1)) + 10);
   e.stiffness_N_per_m = 44.0;
@@ -217,7 +198,6 @@ TEST(ClothPatchTest, PlaceStepAndHandBackNeverAllocate) {
     const int32_t centres[2] = {a, b};
     patch.Place(std::span<const int32_t>(centres, 2), s, 0.0, 1e-3);
     patch.Step(springs, 1e-3, s, 0.0);
-    patch.HandBack(out, k % 2 == 0);
     patch.MaxDistanceFrom(s);
   }
   EXPECT_EQ(guard.allocations(), 0u);
