@@ -53,7 +53,7 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
     overlay_.roles = patch_->roles();
     overlay_.x = patch_->x();
     overlay_.x_before = patch_->x_before();
-    overlay_.normals = patch_->normals();
+    overlay_.patch = patch_.get();
     patch_centres_.assign(devices.size(), -1);
     patch_springs_.resize(devices.size());
   }

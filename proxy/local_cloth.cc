@@ -34,7 +34,7 @@ void Keep(int32_t tri, const SweepContact& sc, SweepHit* best) {
 }  // namespace
 
 Vec3 ClothView::Normal(int32_t i) const {
-  if (patch_role != nullptr && patch_role[i] == PatchRole::kFree) return patch_normals[i];
+  if (patch_role != nullptr && patch_role[i] == PatchRole::kFree) return patch->NormalAt(i);
   const Vec3 n = from->normals[i] + alpha * (to->normals[i] - from->normals[i]);
   const double len = n.norm();
   return len > 0.0 ? Vec3(n / len) : Vec3::Zero();

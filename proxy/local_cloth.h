@@ -33,7 +33,7 @@ struct ClothView {
   double tau_s = 0.0;                   ///< extrapolation time, s
   const PatchRole* patch_role = nullptr;  ///< mode patch: each particle's role (null: no patch)
   const Vec3* patch_x = nullptr;          ///< the patch's positions [m] (its particles only)
-  const Vec3* patch_normals = nullptr;    ///< the patch's unit normals (its free particles only)
+  const ClothPatch* patch = nullptr;      ///< the patch, for its free particles' normals
 
   /// The cloth `s` itself.
   static ClothView Of(const ClothSnapshot& s) { return {&s, &s, 0.0, 0.0}; }

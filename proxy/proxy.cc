@@ -892,10 +892,10 @@ TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
   if (cloth.mode == SnapshotMode::kPatch && patch != nullptr && patch->roles != nullptr) {
     cloth.now.patch_role = patch->roles;
     cloth.now.patch_x = patch->x;
-    cloth.now.patch_normals = patch->normals;
+    cloth.now.patch = patch->patch;
     cloth.before.patch_role = patch->roles;
     cloth.before.patch_x = patch->x_before;
-    cloth.before.patch_normals = patch->normals;
+    cloth.before.patch = patch->patch;
     cloth.moved = !cloth.first;
     cloth.inflation_m = std::max(cloth.inflation_m, patch->offset_m);
   }

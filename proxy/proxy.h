@@ -122,7 +122,7 @@ struct PatchOverlay {
   const PatchRole* roles = nullptr;  ///< each particle's role [cloth's particles]
   const Vec3* x = nullptr;           ///< the patch's positions now [m, world]
   const Vec3* x_before = nullptr;    ///< its positions at the previous tick [m, world]
-  const Vec3* normals = nullptr;     ///< unit normals of its free particles [world]
+  const ClothPatch* patch = nullptr;  ///< the patch (its free particles' normals, NormalAt)
   double offset_m = 0.0;  ///< bound on |patch x - newest x| over its particles, now and before, m
 };
 

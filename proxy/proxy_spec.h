@@ -89,7 +89,7 @@ struct ProxySpec {
   SnapshotMode snapshot_mode = SnapshotMode::kInterpolate;
   /// Mode patch: the local patch's windows reach this many particles each way from a contact
   /// (sim_loop/cloth_patch.h), in [kMinPatchRadius, kMaxPatchRadius]; unused by the other modes.
-  int32_t patch_radius = 4;
+  int32_t patch_radius = 8;
   int32_t max_iterations = 10;  ///< sweep/solve rounds per pass within one tick, >= 1
   /// Triangles near the proxy gathered per tick (sized once in the proxy state), >= 16. A tick
   /// that finds more is counted (ProxyCounters::overflow_ticks) and uses the first ones found.

@@ -55,7 +55,21 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
   linger_s_.assign(static_cast<size_t>(max_windows), 0.0);
   role_.assign(n, PatchRole::kOutside);
   next_role_.assign(n, PatchRole::kOutside);
-  for (std::vector<Vec3>* a : {&x_, &v_, &x_before_, &a_, &a_last_, &normals_}) a->assign(n, Vec3::Zero());
+  for (std::vector<Vec3>* a : {&x_, &v_, &x_before_, &a_, &a_last_}) a->assign(n, Vec3::Zero());
+  // The triangles around each particle (for NormalAt), compressed rows.
+  vertex_tri_start_.assign(n + 1, 0);
+  for (const Triangle& t : model.triangles) {
+    for (int32_t corner : t) ++vertex_tri_start_[static_cast<size_t>(corner) + 1];
+  }
+  for (size_t p = 0; p < n; ++p) vertex_tri_start_[p + 1] += vertex_tri_start_[p];
+  vertex_tris_.resize(static_cast<size_t>(vertex_tri_start_[n]));
+  std::vector<int32_t> fill(vertex_tri_start_.begin(), vertex_tri_start_.end() - 1);
+  for (size_t t = 0; t < model.triangles.size(); ++t) {
+    for (int32_t corner : model.triangles[t]) {
+      vertex_tris_[static_cast<size_t>(fill[static_cast<size_t>(corner)]++)] =
+          static_cast<int32_t>(t);
+    }
+  }
   f_.assign(3 * n, 0.0);
   restart_.assign(n, 1);
   for (size_t i = 0; i < model.provot_families.size(); ++i) {
@@ -164,7 +178,6 @@ void ClothPatch::Place(std::span<const int32_t> centres, const ClothSnapshot& dr
           x_[p] = drive.x[p] + tau_s * drive.v[p];
           v_[p] = drive.v[p];
           x_before_[p] = x_[p];
-          normals_[p] = drive.normals[p];
           restart_[p] = 1;
         } else if (next_role_[p] == PatchRole::kFree && role_[p] != PatchRole::kFree) {
           restart_[p] = 1;
@@ -378,27 +391,14 @@ void ClothPatch::RestartFromDrive(const ClothSnapshot& drive, double tau_s) {
   });
 }
 
-void ClothPatch::ComputeNormals() {
-  // Area-weighted face normals summed into their corners (ComputeVertexNormals), over each
-  // window's cells; only the free particles' sums are whole.
-  ForEachParticle([&](int32_t p) { normals_[p].setZero(); });
-  const int32_t cells_per_row = model_.width - 1;
-  for (size_t k = 0; k < window_count_; ++k) {
-    const PatchWindow& win = windows_[k];
-    for (int32_t r = win.row0; r < win.row1; ++r) {
-      for (int32_t c = win.col0; c < win.col1; ++c) {
-        for (int32_t half = 0; half < 2; ++half) {
-          const Triangle& t = model_.triangles[2 * (r * cells_per_row + c) + half];
-          const Vec3 face = (x_[t[1]] - x_[t[0]]).cross(x_[t[2]] - x_[t[0]]);
-          for (int32_t corner : t) normals_[corner] += face;
-        }
-      }
-    }
+Vec3 ClothPatch::NormalAt(int32_t p) const {
+  Vec3 n = Vec3::Zero();
+  for (int32_t k = vertex_tri_start_[p]; k < vertex_tri_start_[p + 1]; ++k) {
+    const Triangle& t = model_.triangles[static_cast<size_t>(vertex_tris_[k])];
+    n += (x_[t[1]] - x_[t[0]]).cross(x_[t[2]] - x_[t[0]]);
   }
-  ForEachParticle([&](int32_t p) {
-    const double len = normals_[p].norm();
-    if (len > 0.0) normals_[p] /= len;
-  });
+  const double len = n.norm();
+  return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
 }
 
 PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double dt_s,
@@ -438,7 +438,6 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
     RestartFromDrive(drive, tau_s);
     out.recovered = true;
   }
-  ComputeNormals();
   out.substeps = substeps;
   out.springs = springs_.count;
   ForEachParticle([&](int32_t p) { out.free_particles += role_[p] == PatchRole::kFree ? 1 : 0; });

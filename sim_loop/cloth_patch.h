@@ -137,9 +137,11 @@ class ClothPatch {
   const Vec3* x() const { return x_.data(); }
   /// Positions at the start of the last step [m, world; meaningful in the windows].
   const Vec3* x_before() const { return x_before_.data(); }
-  /// Unit area-weighted vertex normals of the free particles (as ComputeVertexNormals; every
-  /// triangle around a free particle lies in its window) [world; meaningful for free particles].
-  const Vec3* normals() const { return normals_.data(); }
+  /// Unit area-weighted vertex normal of particle p at the patch's positions (as
+  /// ComputeVertexNormals; every triangle around a free particle lies in its window), computed on
+  /// demand (the proxy shades with a few per tick) [world; meaningful for free particles; zero if
+  /// degenerate]. Real-time safe.
+  Vec3 NormalAt(int32_t p) const;
   /// Velocities [m/s, world; meaningful in the windows].
   const Vec3* v() const { return v_.data(); }
   /// The windows now.
@@ -163,7 +165,6 @@ class ClothPatch {
   void ApplyObstaclesToWindows();
   bool AllFinite() const;
   void RestartFromDrive(const ClothSnapshot& drive, double tau_s);
-  void ComputeNormals();
   template <typename Visit>
   void ForEachParticle(Visit&& visit) const;
 
@@ -177,7 +178,9 @@ class ClothPatch {
   size_t window_count_ = 0;
   std::vector<PatchRole> role_;       // [n]
   std::vector<PatchRole> next_role_;  // [n], scratch of Place
-  std::vector<Vec3> x_, v_, x_before_, a_, a_last_, normals_;  // [n] each
+  std::vector<Vec3> x_, v_, x_before_, a_, a_last_;  // [n] each
+  std::vector<int32_t> vertex_tri_start_;  // [n + 1] CSR: triangles around each particle
+  std::vector<int32_t> vertex_tris_;
   std::vector<double> f_;                           // [3 n] forces, packed xyz
   std::vector<uint8_t> restart_;                    // [n] leapfrog restarts from v
   std::vector<int32_t> level1_;  // indices of model_.provot_families with level 1
