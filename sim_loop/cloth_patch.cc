@@ -27,6 +27,73 @@ bool SameWindow(const PatchWindow& a, const PatchWindow& b) {
   return a.col0 == b.col0 && a.row0 == b.row0 && a.col1 == b.col1 && a.row1 == b.row1;
 }
 
+// One row of a spring family's pairs i = 0..count-1 (i ends at xi.., j ends at xj..), window
+// arrays in single precision: the force on each i end into t (f_j = -f_i), Hooke plus the dashpot
+// along the spring (001 §2). Branch-free, so the compiler vectorises it; a spring shorter than
+// 1e-10 m exerts nothing.
+void RowSpringForces(
+    int32_t count, const float* __restrict xi, const float* __restrict yi,
+    const float* __restrict zi, const float* __restrict xj, const float* __restrict yj,
+    const float* __restrict zj, const float* __restrict vxi, const float* __restrict vyi,
+    const float* __restrict vzi, const float* __restrict vxj, const float* __restrict vyj,
+    const float* __restrict vzj, float stiffness, float damping, float rest,
+    float* __restrict tx, float* __restrict ty, float* __restrict tz) {
+  for (int32_t c = 0; c < count; ++c) {
+    const float dx = xj[c] - xi[c], dy = yj[c] - yi[c], dz = zj[c] - zi[c];
+    const float len2 = dx * dx + dy * dy + dz * dz;
+    const float len = std::sqrt(len2);
+    const float live = len2 > 1e-20f ? 1.0f : 0.0f;
+    const float inv = live / std::max(len, 1e-10f);
+    const float rel =
+        ((vxj[c] - vxi[c]) * dx + (vyj[c] - vyi[c]) * dy + (vzj[c] - vzi[c]) * dz) * inv;
+    const float scale = (stiffness * (len - rest) + damping * rel) * inv;
+    tx[c] = scale * dx;
+    ty[c] = scale * dy;
+    tz[c] = scale * dz;
+  }
+}
+
+// a[c] += sign * t[c] for c < count, per coordinate (a row of pair forces onto their ends).
+void AddRow(int32_t count, float sign, const float* __restrict tx, const float* __restrict ty,
+            const float* __restrict tz, float* __restrict ax, float* __restrict ay,
+            float* __restrict az) {
+  for (int32_t c = 0; c < count; ++c) {
+    ax[c] += sign * tx[c];
+    ay[c] += sign * ty[c];
+    az[c] += sign * tz[c];
+  }
+}
+
+// One row of a Provot family's independent pairs (i ends at xi.., j ends at xj..): each pair
+// longer than max_len shortened to it, moving each end by its share of the cut (movability m: 1
+// free, 0 driven; shares m_i / (m_i + m_j)). Returns how many pairs with a free end were more
+// than `loose_ratio` (squared length over squared limit) over. Branch-free.
+int32_t RowProvot(int32_t count, float* __restrict xi, float* __restrict yi, float* __restrict zi,
+                  float* __restrict xj, float* __restrict yj, float* __restrict zj,
+                  const float* __restrict mi, const float* __restrict mj, float max_len,
+                  float inv_max2, float loose_ratio) {
+  int32_t loose = 0;
+  for (int32_t c = 0; c < count; ++c) {
+    const float dx = xj[c] - xi[c], dy = yj[c] - yi[c], dz = zj[c] - zi[c];
+    const float len2 = dx * dx + dy * dy + dz * dz;
+    const float both = mi[c] + mj[c];
+    const float ratio = len2 * inv_max2;
+    const bool moves = both > 0.0f;
+    const float over = static_cast<float>((ratio > 1.0f) & moves);
+    loose += static_cast<int32_t>((ratio > loose_ratio) & moves);
+    const float len = std::sqrt(len2);
+    const float cut = over * (len - max_len) / (std::max(len, 1e-10f) * std::max(both, 1.0f));
+    const float si = cut * mi[c], sj = cut * mj[c];
+    xi[c] += si * dx;
+    yi[c] += si * dy;
+    zi[c] += si * dz;
+    xj[c] -= sj * dx;
+    yj[c] -= sj * dy;
+    zj[c] -= sj * dz;
+  }
+  return loose;
+}
+
 }  // namespace
 
 ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows)
@@ -71,6 +138,10 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
     }
   }
   f_.assign(3 * n, 0.0);
+  // The structure-of-arrays block: 13 arrays (position, velocity, movability, force, one row of
+  // pair forces) of the largest window, the whole cloth (merged windows may grow to it).
+  soa_stride_ = (n + 15) / 16 * 16 + 16;
+  soa_.assign(13 * soa_stride_, 0.0f);
   restart_.assign(n, 1);
   for (size_t i = 0; i < model.provot_families.size(); ++i) {
     if (model.provot_families[i].level == 1) level1_.push_back(static_cast<int32_t>(i));
@@ -223,38 +294,95 @@ bool ClothPatch::SpringInside(const ExternalForce& e) const {
   return true;
 }
 
+void ClothPatch::Gather(const PatchWindow& win, bool velocities) {
+  // The window into the structure-of-arrays block, single precision, metres from its first
+  // particle (as ApplyProvot's arrays, ~1e-9 m over a window), with each particle's movability
+  // (1 free, 0 driven) for the constraint kernel.
+  const int32_t w = model_.width;
+  const int32_t cols = win.col1 - win.col0 + 1;
+  origin_ = x_[win.row0 * w + win.col0];
+  float* __restrict px = soa_.data();
+  float* __restrict py = px + soa_stride_;
+  float* __restrict pz = py + soa_stride_;
+  float* __restrict vx = pz + soa_stride_;
+  float* __restrict vy = vx + soa_stride_;
+  float* __restrict vz = vy + soa_stride_;
+  float* __restrict mv = vz + soa_stride_;
+  for (int32_t r = win.row0; r <= win.row1; ++r) {
+    const int32_t l0 = (r - win.row0) * cols;
+    for (int32_t c = win.col0; c <= win.col1; ++c) {
+      const int32_t p = r * w + c, l = l0 + (c - win.col0);
+      px[l] = static_cast<float>(x_[p].x() - origin_.x());
+      py[l] = static_cast<float>(x_[p].y() - origin_.y());
+      pz[l] = static_cast<float>(x_[p].z() - origin_.z());
+      mv[l] = role_[p] == PatchRole::kFree ? 1.0f : 0.0f;
+      if (velocities) {
+        vx[l] = static_cast<float>(v_[p].x());
+        vy[l] = static_cast<float>(v_[p].y());
+        vz[l] = static_cast<float>(v_[p].z());
+      }
+    }
+  }
+}
+
 void ClothPatch::ComputeAccelerations() {
   ForEachParticle([&](int32_t p) {
     f_[3 * p] = 0.0;
     f_[3 * p + 1] = 0.0;
     f_[3 * p + 2] = 0.0;
   });
-  // Springs with an end free: Hooke plus the dashpot along the unit direction u from i to j,
-  // f_i = (k (l - L) + c (v_j - v_i) . u) u, f_j = -f_i (001 §2), as AddSpringForces.
+  // Springs: Hooke plus the dashpot along the unit direction u from i to j,
+  // f_i = (k (l - L) + c (v_j - v_i) . u) u, f_j = -f_i (001 §2), as AddSpringForces. Per window,
+  // family and row: every pair's force into one row of scratch, then added to its i ends and
+  // subtracted from its j ends in two passes (loops the compiler vectorises; the pairs with no
+  // free end in the range compute forces nobody reads).
   const int32_t w = model_.width;
-  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
+  const size_t stride = soa_stride_;
   for (size_t k = 0; k < window_count_; ++k) {
     const PatchWindow& win = windows_[k];
+    Gather(win, true);
+    const int32_t cols = win.col1 - win.col0 + 1;
+    const float* __restrict px = soa_.data();
+    const float* __restrict py = px + stride;
+    const float* __restrict pz = py + stride;
+    const float* __restrict vx = pz + stride;
+    const float* __restrict vy = vx + stride;
+    const float* __restrict vz = vy + stride;
+    float* __restrict fx = soa_.data() + 7 * stride;
+    float* __restrict fy = fx + stride;
+    float* __restrict fz = fy + stride;
+    float* __restrict tx = fz + stride;
+    float* __restrict ty = tx + stride;
+    float* __restrict tz = ty + stride;
+    const size_t size = static_cast<size_t>(win.size());
+    std::fill(fx, fx + size, 0.0f);
+    std::fill(fy, fy + size, 0.0f);
+    std::fill(fz, fz + size, 0.0f);
     for (const SpringFamily& fam : model_.spring_families) {
       const PatchWindow range = PairRange(win, fam.dc, fam.dr);
-      const int32_t offset = fam.dr * w + fam.dc;
+      if (range.empty()) continue;
+      const auto stiffness = static_cast<float>(fam.stiffness_N_per_m);
+      const auto damping = static_cast<float>(fam.damping_N_s_per_m);
+      const auto rest = static_cast<float>(fam.rest_length_m);
+      const int32_t offset = fam.dr * cols + fam.dc;
+      const int32_t count = range.col1 - range.col0 + 1;
       for (int32_t r = range.row0; r <= range.row1; ++r) {
-        for (int32_t c = range.col0; c <= range.col1; ++c) {
-          const int32_t i = r * w + c, j = i + offset;
-          if (role_[i] != PatchRole::kFree && role_[j] != PatchRole::kFree) continue;
-          const Vec3 d = x_[j] - x_[i];
-          const double len2 = d.squaredNorm();
-          if (!(len2 > kMinLength2)) continue;
-          const double len = std::sqrt(len2);
-          const double rel_speed = (v_[j] - v_[i]).dot(d) / len;
-          const double scale = (fam.stiffness_N_per_m * (len - fam.rest_length_m) +
-                                fam.damping_N_s_per_m * rel_speed) /
-                               len;
-          for (int a = 0; a < 3; ++a) {
-            f_[3 * i + a] += scale * d[a];
-            f_[3 * j + a] -= scale * d[a];
-          }
-        }
+        const int32_t li = (r - win.row0) * cols + (range.col0 - win.col0);
+        const int32_t lj = li + offset;
+        RowSpringForces(count, px + li, py + li, pz + li, px + lj, py + lj, pz + lj, vx + li,
+                        vy + li, vz + li, vx + lj, vy + lj, vz + lj, stiffness, damping, rest, tx,
+                        ty, tz);
+        AddRow(count, 1.0f, tx, ty, tz, fx + li, fy + li, fz + li);
+        AddRow(count, -1.0f, tx, ty, tz, fx + lj, fy + lj, fz + lj);
+      }
+    }
+    for (int32_t r = win.row0; r <= win.row1; ++r) {
+      const int32_t l0 = (r - win.row0) * cols;
+      for (int32_t c = win.col0; c <= win.col1; ++c) {
+        const int32_t p = r * w + c, l = l0 + (c - win.col0);
+        f_[3 * p] += static_cast<double>(fx[l]);
+        f_[3 * p + 1] += static_cast<double>(fy[l]);
+        f_[3 * p + 2] += static_cast<double>(fz[l]);
       }
     }
   }
@@ -314,48 +442,85 @@ PatchWindow ClothPatch::PairRange(const PatchWindow& win, int32_t dc, int32_t dr
 void ClothPatch::ApplyProvotToWindows(double h) {
   // Provot 1995 (000 slide 9): a pair longer than its limit is shortened to it, both ends moving
   // by equal shares, a driven end not at all (as a pin), sweeps until none was more than 1e-3 over
-  // its limit (as ApplyProvot); the velocity follows the particle's whole move / h.
+  // its limit (as ApplyProvot, in single precision like it); the velocity follows the particle's
+  // whole move / h. Per window in the structure-of-arrays block: the pairs of a family along a row
+  // share no particle except for the horizontal families, which are swept in two colours (even,
+  // then odd columns), so every loop is a loop over independent pairs.
   const int32_t w = model_.width;
-  ForEachParticle([&](int32_t p) { a_[p] = x_[p]; });  // a_ is free scratch after Integrate
-  for (int32_t it = 0; it < model_.provot_iterations; ++it) {
-    bool loose = false;
-    for (size_t k = 0; k < window_count_; ++k) {
+  const size_t stride = soa_stride_;
+  const double inv_h = 1.0 / h;
+  for (size_t k = 0; k < window_count_; ++k) {
+    const PatchWindow& win = windows_[k];
+    Gather(win, false);
+    const int32_t cols = win.col1 - win.col0 + 1;
+    float* __restrict px = soa_.data();
+    float* __restrict py = px + stride;
+    float* __restrict pz = py + stride;
+    const float* __restrict mv = soa_.data() + 6 * stride;
+    for (int32_t it = 0; it < model_.provot_iterations; ++it) {
+      // Pairs with a free end left more than 1e-3 over their limit by this sweep.
+      constexpr float kLoose = (1.0f + 1e-3f) * (1.0f + 1e-3f);
+      int32_t loose = 0;
       for (int32_t index : level1_) {
         const ProvotFamily& fam = model_.provot_families[static_cast<size_t>(index)];
-        const double max2 = fam.max_length_m * fam.max_length_m;
-        const double loose2 = (1.0 + 1e-3) * (1.0 + 1e-3) * max2;
-        const PatchWindow range = PairRange(windows_[k], fam.dc, fam.dr);
-        const int32_t offset = fam.dr * w + fam.dc;
+        const PatchWindow range = PairRange(win, fam.dc, fam.dr);
+        if (range.empty()) continue;
+        const auto max_len = static_cast<float>(fam.max_length_m);
+        const float inv_max2 = 1.0f / (max_len * max_len);
+        const int32_t offset = fam.dr * cols + fam.dc;
+        const int32_t count = range.col1 - range.col0 + 1;
+        const int32_t step = fam.dr == 0 ? 2 : 1;
         for (int32_t r = range.row0; r <= range.row1; ++r) {
-          for (int32_t c = range.col0; c <= range.col1; ++c) {
-            const int32_t i = r * w + c, j = i + offset;
-            const Vec3 d = x_[j] - x_[i];
-            const double len2 = d.squaredNorm();
-            if (!(len2 > max2)) continue;
-            const bool free_i = role_[i] == PatchRole::kFree;
-            const bool free_j = role_[j] == PatchRole::kFree;
-            if (!free_i && !free_j) continue;
-            loose = loose || len2 > loose2;
-            const double len = std::sqrt(len2);
-            const Vec3 corr = ((len - fam.max_length_m) / len) * d;  // moves i toward j
-            if (free_i && free_j) {
-              x_[i] += 0.5 * corr;
-              x_[j] -= 0.5 * corr;
-            } else if (free_i) {
-              x_[i] += corr;
-            } else {
-              x_[j] -= corr;
+          const int32_t li = (r - win.row0) * cols + (range.col0 - win.col0);
+          if (step == 1) {
+            loose += RowProvot(count, px + li, py + li, pz + li, px + li + offset, py + li + offset,
+                               pz + li + offset, mv + li, mv + li + offset, max_len, inv_max2,
+                               kLoose);
+            continue;
+          }
+          // A horizontal family (dc = 1): its pairs share ends along the row, so it is swept in
+          // two colours, even then odd columns, each over independent pairs.
+          for (int32_t colour = 0; colour < 2; ++colour) {
+            for (int32_t c = colour; c < count; c += 2) {
+              const float dx = px[li + c + 1] - px[li + c];
+              const float dy = py[li + c + 1] - py[li + c];
+              const float dz = pz[li + c + 1] - pz[li + c];
+              const float len2 = dx * dx + dy * dy + dz * dz;
+              const float mi = mv[li + c], mj = mv[li + c + 1];
+              const float ratio = len2 * inv_max2;
+              if (!(ratio > 1.0f) || mi + mj == 0.0f) continue;
+              loose += ratio > kLoose ? 1 : 0;
+              const float len = std::sqrt(len2);
+              const float cut = (len - max_len) / (len * (mi + mj));
+              px[li + c] += cut * mi * dx;
+              py[li + c] += cut * mi * dy;
+              pz[li + c] += cut * mi * dz;
+              px[li + c + 1] -= cut * mj * dx;
+              py[li + c + 1] -= cut * mj * dy;
+              pz[li + c + 1] -= cut * mj * dz;
             }
           }
         }
       }
+      if (loose == 0) break;
     }
-    if (!loose) break;
+    // Back as each free particle's move (exact in double; nothing for one not moved).
+    for (int32_t r = win.row0; r <= win.row1; ++r) {
+      const int32_t l0 = (r - win.row0) * cols;
+      for (int32_t c = win.col0; c <= win.col1; ++c) {
+        const int32_t p = r * w + c, l = l0 + (c - win.col0);
+        if (role_[p] != PatchRole::kFree) continue;
+        // The move in single precision from where Gather put the particle, exactly.
+        const auto from = [&](int a) {
+          return static_cast<double>(static_cast<float>(x_[p][a] - origin_[a]));
+        };
+        const Vec3 move(static_cast<double>(px[l]) - from(0), static_cast<double>(py[l]) - from(1),
+                        static_cast<double>(pz[l]) - from(2));
+        x_[p] += move;
+        v_[p] += inv_h * move;
+      }
+    }
   }
-  const double inv_h = 1.0 / h;
-  ForEachParticle([&](int32_t p) {
-    if (role_[p] == PatchRole::kFree) v_[p] += inv_h * (x_[p] - a_[p]);
-  });
 }
 
 void ClothPatch::ApplyObstaclesToWindows() {

@@ -159,6 +159,7 @@ class ClothPatch {
   PatchWindow PairRange(const PatchWindow& window, int32_t dc, int32_t dr) const;
   void SetDriven(const ClothSnapshot& drive, double tau_s, double dt_s);
   double DriftFromDrive(const PatchWindow& window, const ClothSnapshot& drive, double tau_s) const;
+  void Gather(const PatchWindow& window, bool velocities);
   void ComputeAccelerations();
   void Integrate(double h);
   void ApplyProvotToWindows(double h);
@@ -183,6 +184,9 @@ class ClothPatch {
   std::vector<int32_t> vertex_tris_;
   std::vector<double> f_;                           // [3 n] forces, packed xyz
   std::vector<uint8_t> restart_;                    // [n] leapfrog restarts from v
+  std::vector<float> soa_;  // [13 soa_stride_] a window's structure of arrays (Gather)
+  size_t soa_stride_ = 0;
+  Vec3 origin_ = Vec3::Zero();  // the gathered window's first particle, m
   std::vector<int32_t> level1_;  // indices of model_.provot_families with level 1
   double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
   CouplingSprings springs_;

@@ -94,10 +94,14 @@ TEST(ClothPatchTest, ARigidlyMovingClothIsFollowedExactly) {
   for (int32_t p = 0; p < model.num_particles(); ++p) {
     if (patch.roles()[p] != PatchRole::kFree) continue;
     worst = std::max(worst, (patch.x()[p] - (s.x[p] + tau * velocity)).norm());
-    EXPECT_LT((patch.v()[p] - velocity).norm(), 1e-12);
+    // The spring and constraint kernels work in single precision relative to the window (as the
+    // sim's Provot does): a spring at rest length reads a length off by ~1e-9 m, a force of
+    // ~1e-9 N on a 0.1 g particle, ~1e-7 m/s over the 15 ms. (The driven rings once stood a step
+    // ahead of the free particles in the force evaluation: 0.02 m/s here.)
+    EXPECT_LT((patch.v()[p] - velocity).norm(), 1e-6);
   }
-  EXPECT_LT(worst, 1e-12);
-  EXPECT_LT(patch.MaxDistanceFrom(s), tau * velocity.norm() + 1e-12);
+  EXPECT_LT(worst, 1e-8);
+  EXPECT_LT(patch.MaxDistanceFrom(s), tau * velocity.norm() + 1e-8);
 }
 
 TEST(ClothPatchTest, AContactSpringPushesTheFreeParticlesAndTheRingsStayWithTheDrive) {
