@@ -86,7 +86,9 @@ struct ProxySpec {
   bool force_shading = true;      ///< Morgenbesser & Srinivasan 1996, Ruspini 1997's two passes
   double friction_static = 0.0;   ///< static friction coefficient mu_s >= 0 (0: frictionless)
   double friction_dynamic = 0.0;  ///< dynamic friction coefficient, 0 <= mu_d <= mu_s
-  SnapshotMode snapshot_mode = SnapshotMode::kInterpolate;
+  /// Which cloth the proxy renders between sim frames (docs/proxy.md, "Snapshot modes"); patch
+  /// by measurement (bench/results/haptic.md, issue 20).
+  SnapshotMode snapshot_mode = SnapshotMode::kPatch;
   /// Mode patch: the local patch's windows reach this many particles each way from a contact
   /// (sim_loop/cloth_patch.h), in [kMinPatchRadius, kMaxPatchRadius]; unused by the other modes.
   int32_t patch_radius = 8;

@@ -133,7 +133,7 @@ TEST(LockstepVariants, TruthIsABareWordAShorthandAndAFunction) {
 TEST(LockstepVariants, OverridesReachTheParsedSpec) {
   const SceneDocument scene = SmallCurtainScene();
   const ServerSpec base = VariantSpec(scene, LockstepVariant{"scene", {}}, 1);
-  EXPECT_EQ(base.proxy.snapshot_mode, SnapshotMode::kInterpolate);  // the scene's default
+  EXPECT_EQ(base.proxy.snapshot_mode, SnapshotMode::kPatch);  // the default (issue 20)
   const LockstepVariant v = ParseVariantList(
       "v: snapshot=extrapolate, structure=bvh-aabb-2, shading=off, friction=0.4/0.3, "
       "integrator=rk4, substeps=6, provot=off, proxy.max_iterations=4, device.radius_m=0.006")[0];
@@ -308,7 +308,8 @@ TEST(Lockstep, AHeldPressWithTremorStaysInContactInEverySnapshotMode) {
   const CompareResult result = CompareVariants(
       scene, samples,
       ParseVariantList("interpolate: snapshot=interpolate; newest: snapshot=newest; "
-                       "blend: snapshot=blend_forces; extrapolate: snapshot=extrapolate"));
+                       "blend: snapshot=blend_forces; extrapolate: snapshot=extrapolate; "
+                       "patch: snapshot=patch"));
   const VariantSummary& ref = result.summaries[0];
   ASSERT_GT(ref.contacts, 2000u);
   for (const VariantSummary& s : result.summaries) {
