@@ -65,6 +65,7 @@ size_t SimLoop::HoldContactSprings(bool any_batch, size_t count, double frame_dt
   }
   if (held_count_ == 0 || held_frames_ >= kMaxHeldSpringFrames) return 0;
   ++held_frames_;
+  Bump(counters_.held_spring_frames);
   // Each held hand has moved on by the previous frame's length since its frame started.
   for (size_t i = 0; i < held_count_; ++i) {
     held_[i].anchor_m += held_elapsed_s_ * held_[i].anchor_velocity_m_per_s;

@@ -96,3 +96,43 @@ TEST(HapticTick, ANonFiniteSampleIsCountedAndGivesZeroForce) {
 
 }  // namespace
 }  // namespace felt
+
+namespace felt {
+namespace {
+
+// A frame that receives no batch (the sim running ahead of the haptic loop: two frames per tick,
+// or a late tick) keeps the hand's contact spring of the last batch, at most kMaxHeldSpringFrames
+// frames; a batch without a spring (a brief touch) is not held.
+TEST(SimFrameHold, AContactSpringIsHeldOverFramesWithoutABatchThenLetGo) {
+  const ServerSpec spec = SmallCurtain();
+  SimLoop sim(spec.sim, spec.proxy.structure);
+  sim.PublishInitialSnapshot(kT0Ns);
+  const int32_t centre = (sim.model().height / 2) * sim.model().width + sim.model().width / 2;
+  int32_t tri = -1;
+  for (size_t t = 0; t < sim.model().triangles.size(); ++t) {
+    if (sim.model().triangles[t][0] == centre) tri = static_cast<int32_t>(t);
+  }
+  ASSERT_GE(tri, 0);
+  ReactionBatch batch;
+  batch.count = 1;
+  batch.duration_s = 1.0 / 60.0;
+  ExternalForce& e = batch.forces[0];
+  e.triangle = tri;
+  e.stiffness_N_per_m = 44.0;
+  e.normal = Vec3::UnitZ();
+  e.radius_m = 0.004;
+  e.anchor_m = sim.model().rest_position_m[centre] - Vec3(0, 0, 0.02);
+  e.max_force_N = 1.1;
+  ASSERT_TRUE(sim.reactions().TryPush(batch));
+  for (int f = 1; f <= kMaxHeldSpringFrames + 3; ++f) sim.Frame(1.0 / 60.0, kT0Ns + f);
+  EXPECT_EQ(sim.counters().held_spring_frames.load(), static_cast<uint64_t>(kMaxHeldSpringFrames));
+  // A plain force (no spring) is applied once and not held.
+  batch.forces[0].stiffness_N_per_m = 0.0;
+  batch.forces[0].force_N = Vec3(0, 0, -0.01);
+  ASSERT_TRUE(sim.reactions().TryPush(batch));
+  for (int f = 0; f < 3; ++f) sim.Frame(1.0 / 60.0, kT0Ns + 100 + f);
+  EXPECT_EQ(sim.counters().held_spring_frames.load(), static_cast<uint64_t>(kMaxHeldSpringFrames));
+}
+
+}  // namespace
+}  // namespace felt
