@@ -97,7 +97,7 @@ int32_t RowProvot(int32_t count, float* __restrict xi, float* __restrict yi, flo
 }  // namespace
 
 ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows)
-    : model_(model), radius_(radius) {
+    : model_(model), radius_(radius), recentre_(std::max(2, radius / kPatchRecentreFraction)) {
   if (radius < kMinPatchRadius || radius > kMaxPatchRadius) {
     throw std::invalid_argument("proxy.patch_radius: must be in [" +
                                 std::to_string(kMinPatchRadius) + ", " +
@@ -214,8 +214,8 @@ void ClothPatch::Place(std::span<const int32_t> centres, const ClothSnapshot& dr
       }
     } else {
       linger_s_[s] = 0.0;
-      const bool keep = a >= 0 && std::abs(a % w - c % w) < kPatchRecentreDistance &&
-                        std::abs(a / w - c / w) < kPatchRecentreDistance;
+      const bool keep = a >= 0 && std::abs(a % w - c % w) < recentre_ &&
+                        std::abs(a / w - c / w) < recentre_;
       if (!keep) anchors_[s] = c;
     }
     next_windows_[count++] = window_of(anchors_[s]);

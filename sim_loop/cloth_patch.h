@@ -66,10 +66,11 @@ enum class PatchRole : uint8_t {
 inline constexpr int32_t kMinPatchRadius = 3;
 /// The largest window radius, particles.
 inline constexpr int32_t kMaxPatchRadius = 32;
-/// A window follows its centre once the centre is this many particles (Chebyshev) from the
-/// window's own centre: hysteresis, so a contact hopping between neighbouring particles does not
-/// move the window back and forth.
-inline constexpr int32_t kPatchRecentreDistance = 2;
+/// A window follows its centre once the centre is radius / kPatchRecentreFraction particles
+/// (Chebyshev; at least 2) from the window's own centre: hysteresis, so a contact hopping between
+/// nearby particles (a proxy in a crease, a fast swipe) does not move the window back and forth,
+/// each move turning particles from free to driven and back.
+inline constexpr int32_t kPatchRecentreFraction = 2;
 
 /// Driven particles approach the drive with this time constant [s] (first order, on top of the
 /// drive's own motion): a particle that was free and turns driven, or a ring the drive's newest
@@ -112,7 +113,7 @@ class ClothPatch {
 
   /// The windows of this tick: one around each particle index of `centres` (slot k: device k;
   /// negative entries: no centre), a window kept where it is while its centre stays within
-  /// kPatchRecentreDistance of it, then merged where they meet (file comment). A slot whose centre
+  /// radius / kPatchRecentreFraction of it, then merged where they meet (file comment). A slot whose centre
   /// is gone keeps its window while it lingers (kPatchReleaseDistance_m, kPatchMaxLinger_s; dt_s
   /// [s] is the tick). Particles that enter take the drive's state at tau_s [s]: x = drive.x +
   /// tau_s drive.v, v = drive.v; particles that leave are forgotten. Real-time safe.
@@ -172,6 +173,7 @@ class ClothPatch {
   const ClothModel& model_;
   int32_t radius_;
   double h_max_s_;  // the patch's longest substep, s
+  int32_t recentre_;  // a window follows its centre this many particles away
   std::vector<PatchWindow> windows_;       // [max_windows]
   std::vector<PatchWindow> next_windows_;  // [max_windows], scratch of Place
   std::vector<int32_t> anchors_;           // [max_windows] each slot's window centre (-1: none)
