@@ -19,7 +19,6 @@
 
 #include "collision/collision_structure.h"
 #include "collision/mesh.h"
-#include "sim_loop/cloth_patch.h"
 #include "sim_loop/cloth_spec.h"
 
 namespace felt {
@@ -90,7 +89,8 @@ struct ProxySpec {
   /// by measurement (bench/results/haptic.md, issue 20).
   SnapshotMode snapshot_mode = SnapshotMode::kPatch;
   /// Mode patch: the local patch's windows reach this many particles each way from a contact
-  /// (sim_loop/cloth_patch.h), in [kMinPatchRadius, kMaxPatchRadius]; unused by the other modes.
+  /// (sim_loop/cloth_patch.h), in [kMinPatchRadius, kMaxPatchRadius] (sim_loop/cloth_spec.h);
+  /// unused by the other modes.
   int32_t patch_radius = 8;
   int32_t max_iterations = 10;  ///< sweep/solve rounds per pass within one tick, >= 1
   /// Triangles near the proxy gathered per tick (sized once in the proxy state), >= 16. A tick

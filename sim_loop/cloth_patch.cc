@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "sim_loop/cloth_coupling.h"
 #include "sim_loop/cloth_internal.h"
 
 namespace felt {
@@ -97,7 +98,10 @@ int32_t RowProvot(int32_t count, float* __restrict xi, float* __restrict yi, flo
 }  // namespace
 
 ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows)
-    : model_(model), radius_(radius), recentre_(std::max(2, radius / kPatchRecentreFraction)) {
+    : model_(model),
+      radius_(radius),
+      recentre_(std::max(2, radius / kPatchRecentreFraction)),
+      springs_(std::make_unique<CouplingSprings>()) {
   if (radius < kMinPatchRadius || radius > kMaxPatchRadius) {
     throw std::invalid_argument("proxy.patch_radius: must be in [" +
                                 std::to_string(kMinPatchRadius) + ", " +
@@ -147,6 +151,8 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
     if (model.provot_families[i].level == 1) level1_.push_back(static_cast<int32_t>(i));
   }
 }
+
+ClothPatch::~ClothPatch() = default;
 
 template <typename Visit>
 void ClothPatch::ForEachParticle(Visit&& visit) const {
@@ -387,7 +393,7 @@ void ClothPatch::ComputeAccelerations() {
     }
   }
   // The contact springs (sim_loop/cloth_coupling.h), then gravity and drag (001 §6.1).
-  AddCouplingForces(springs_, x_, 1.0, f_.data());
+  AddCouplingForces(*springs_, x_, 1.0, f_.data());
   const double drag = model_.drag_N_s_per_m;
   const Vec3 g = model_.gravity_m_per_s2;
   ForEachParticle([&](int32_t p) {
@@ -578,18 +584,18 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   const int32_t plain = std::max(1, static_cast<int32_t>(std::ceil(dt_s / h_max_s_ - 1e-9)));
   const int32_t substeps = CouplingSubsteps(model_, external, dt_s, plain);
   const double h = dt_s / substeps;
-  BeginCouplingFrame(&springs_);
+  BeginCouplingFrame(springs_.get());
   for (const ExternalForce& e : external) {
     if (!(e.stiffness_N_per_m > 0.0)) continue;
     if (!SpringInside(e)) {
       ++counters_.springs_outside;
       continue;
     }
-    AddCouplingSpring(model_, e, h, x_, &springs_, &counters_.coupling);
+    AddCouplingSpring(model_, e, h, x_, springs_.get(), &counters_.coupling);
   }
   const bool provot = model_.provot_enabled && !level1_.empty();
   for (int32_t s = 0; s < substeps; ++s) {
-    if (s > 0) AdvanceCouplingSprings(s * h, &springs_);
+    if (s > 0) AdvanceCouplingSprings(s * h, springs_.get());
     // Forces at the substep's start (the driven particles where they are), then the driven
     // particles to the substep's end, where the constraints see them.
     ComputeAccelerations();
@@ -604,7 +610,7 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
     out.recovered = true;
   }
   out.substeps = substeps;
-  out.springs = springs_.count;
+  out.springs = springs_->count;
   ForEachParticle([&](int32_t p) { out.free_particles += role_[p] == PatchRole::kFree ? 1 : 0; });
   return out;
 }

@@ -37,11 +37,14 @@
 #include <span>
 #include <vector>
 
+#include <memory>
+
 #include "sim_loop/cloth.h"
-#include "sim_loop/cloth_coupling.h"
 #include "sim_loop/snapshot.h"
 
 namespace felt {
+
+struct CouplingSprings;  // sim_loop/cloth_coupling.h (internal to sim_loop)
 
 /// A rectangle of the cloth's grid, columns col0..col1 and rows row0..row1 inclusive.
 struct PatchWindow {
@@ -62,10 +65,6 @@ enum class PatchRole : uint8_t {
   kFree = 2,     ///< integrated by the patch
 };
 
-/// The smallest window radius, particles (two driven rings around at least one free particle).
-inline constexpr int32_t kMinPatchRadius = 3;
-/// The largest window radius, particles.
-inline constexpr int32_t kMaxPatchRadius = 32;
 /// A window follows its centre once the centre is radius / kPatchRecentreFraction particles
 /// (Chebyshev; at least 2) from the window's own centre: hysteresis, so a contact hopping between
 /// nearby particles (a proxy in a crease, a fast swipe) does not move the window back and forth,
@@ -99,7 +98,7 @@ struct PatchCounters {
   uint64_t merges = 0;                 ///< windows merged with another
   uint64_t nan_events = 0;             ///< steps that restarted from the drive
   uint64_t springs_outside = 0;        ///< contact springs too near a window's edge, not applied
-  ClothCounters coupling;              ///< AddCouplingSpring's counts (invalid, reduced, dropped)
+  ClothCounters coupling;  ///< AddCouplingSpring's counts (invalid, reduced, dropped)
 };
 
 /// The local patch (file comment). Owned by the haptic thread.
@@ -110,6 +109,9 @@ class ClothPatch {
   /// `max_windows` >= 1 of them. Allocates (set-up time); throws std::invalid_argument naming the
   /// bad value.
   ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows);
+  ~ClothPatch();
+  ClothPatch(const ClothPatch&) = delete;
+  ClothPatch& operator=(const ClothPatch&) = delete;
 
   /// The windows of this tick: one around each particle index of `centres` (slot k: device k;
   /// negative entries: no centre), a window kept where it is while its centre stays within
@@ -191,7 +193,7 @@ class ClothPatch {
   Vec3 origin_ = Vec3::Zero();  // the gathered window's first particle, m
   std::vector<int32_t> level1_;  // indices of model_.provot_families with level 1
   double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
-  CouplingSprings springs_;
+  std::unique_ptr<CouplingSprings> springs_;  // the contact springs of the step
   PatchCounters counters_;
 };
 

@@ -121,6 +121,12 @@ inline constexpr int64_t kMaxParticles = int64_t{1} << 22;  ///< width * height 
 inline constexpr double kMaxFrameRate_hz = 10000.0;         ///< integration.frame_rate_hz
 inline constexpr int32_t kMaxProvotIterations = 10000;      ///< provot.iterations
 
+/// The smallest local patch radius, particles (proxy.patch_radius; two driven rings around at
+/// least one free particle: sim_loop/cloth_patch.h).
+inline constexpr int32_t kMinPatchRadius = 3;
+/// The largest local patch radius, particles (proxy.patch_radius).
+inline constexpr int32_t kMaxPatchRadius = 32;
+
 /// The most substeps one nominal frame may take, explicit or auto (one rule for the scene parser
 /// and BuildClothModel).
 inline constexpr int32_t kMaxSubstepsPerFrame = 100000;

@@ -95,13 +95,15 @@ TEST(ClothPatchTest, ARigidlyMovingClothIsFollowedExactly) {
     if (patch.roles()[p] != PatchRole::kFree) continue;
     worst = std::max(worst, (patch.x()[p] - (s.x[p] + tau * velocity)).norm());
     // The spring and constraint kernels work in single precision relative to the window (as the
-    // sim's Provot does): a spring at rest length reads a length off by ~1e-9 m, a force of
-    // ~1e-9 N on a 0.1 g particle, ~1e-7 m/s over the 15 ms. (The driven rings once stood a step
-    // ahead of the free particles in the force evaluation: 0.02 m/s here.)
-    EXPECT_LT((patch.v()[p] - velocity).norm(), 1e-6);
+    // sim's Provot does): a spring at rest length reads its length off by up to ~1e-8 m (6e-8 of
+    // the 0.125 m the window spans), a force of ~1e-8 N on a 0.23 g particle, ~1e-6 m/s over the
+    // 15 ms (measured: 0.5e-7 m/s in the release build, 1.05e-6 m/s in the ASan build at -O1).
+    // The bound is 1e-5 m/s; the driven rings once stood a step ahead of the free particles in
+    // the force evaluation: 0.02 m/s here.
+    EXPECT_LT((patch.v()[p] - velocity).norm(), 1e-5);
   }
-  EXPECT_LT(worst, 1e-8);
-  EXPECT_LT(patch.MaxDistanceFrom(s), tau * velocity.norm() + 1e-8);
+  EXPECT_LT(worst, 1e-7);
+  EXPECT_LT(patch.MaxDistanceFrom(s), tau * velocity.norm() + 1e-7);
 }
 
 TEST(ClothPatchTest, AContactSpringPushesTheFreeParticlesAndTheRingsStayWithTheDrive) {
