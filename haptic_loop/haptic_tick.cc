@@ -145,24 +145,38 @@ void HapticLoop::StageReactions() {
 }
 
 void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
-  // Each device's window centre: the cloth particle nearest its last contact point (the corner
-  // with the largest barycentric weight), or nearest where its free proxy still presses the cloth
-  // for the sim (hand_seed); none for a device without fresh input or away from the cloth.
+  // Each device's window centre: the cloth particle nearest one of its last contact points (the
+  // corner with the largest barycentric weight), or nearest where its free proxy still presses
+  // the cloth for the sim (hand_seed); none for a device without fresh input or away from the
+  // cloth. Of several contacts (a crease, a fold's two layers) the one nearest the window the
+  // device has now (in grid steps) is taken, so a proxy between layers does not pull its window
+  // back and forth across the fold each tick (on curtain_128 that let the cloth under the proxy
+  // jump as particles left the window, and the proxy went through).
   const std::vector<Triangle>& tris = *cloth.newest->triangles;
+  const int32_t width = patch_->width();
   int32_t springs = 0;
   for (size_t i = 0; i < devices_.size(); ++i) {
     const Device& d = devices_[i];
     const ProxyState& ps = d.proxy;
-    const ProxyContact* contact = nullptr;
-    for (int32_t k = 0; k < ps.body.num_contacts && contact == nullptr; ++k) {
-      if (ps.body.contacts[k].triangle >= 0) contact = &ps.body.contacts[k];
-    }
-    if (contact == nullptr && ps.hand_seed.triangle >= 0) contact = &ps.hand_seed;
+    const int32_t anchor = patch_->anchor(i);
     int32_t centre = -1;
-    if (d.fresh && contact != nullptr && contact->triangle < static_cast<int32_t>(tris.size())) {
+    int32_t best = 0;
+    const auto consider = [&](const ProxyContact& c) {
+      if (c.triangle < 0 || c.triangle >= static_cast<int32_t>(tris.size())) return;
       Eigen::Index corner = 0;
-      contact->barycentric.maxCoeff(&corner);
-      centre = tris[contact->triangle][corner];
+      c.barycentric.maxCoeff(&corner);
+      const int32_t p = tris[c.triangle][corner];
+      const int32_t dist = anchor < 0 ? 0
+                                      : std::max(std::abs(p % width - anchor % width),
+                                                 std::abs(p / width - anchor / width));
+      if (centre < 0 || dist < best) {
+        centre = p;
+        best = dist;
+      }
+    };
+    if (d.fresh) {
+      for (int32_t k = 0; k < ps.body.num_contacts; ++k) consider(ps.body.contacts[k]);
+      if (centre < 0) consider(ps.hand_seed);
     }
     patch_centres_[i] = centre;
     if (d.fresh && ps.reaction.has_contact_spring()) {

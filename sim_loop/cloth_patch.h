@@ -151,6 +151,10 @@ class ClothPatch {
   std::span<const PatchWindow> windows() const { return {windows_.data(), window_count_}; }
   /// True when at least one window is held.
   bool active() const { return window_count_ > 0; }
+  /// The centre particle of slot `slot`'s window (-1: none), as Place left it.
+  int32_t anchor(size_t slot) const { return slot < anchors_.size() ? anchors_[slot] : -1; }
+  /// The cloth's grid width, particles (particle p is at column p % width, row p / width).
+  int32_t width() const { return model_.width; }
   /// The window radius, particles.
   int32_t radius() const { return radius_; }
   /// Counters since construction.
