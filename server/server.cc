@@ -157,6 +157,9 @@ std::unique_ptr<ServerReport> Server::Report() const {
   r->reaction_queue_full = h.reaction_queue_full.load();
   r->reaction_batches_applied = sim_.counters().reaction_batches_applied.load();
   r->cloth_nan_events = sim_.counters().cloth_nan_events.load();
+  r->held_spring_frames = sim_.counters().held_spring_frames.load();
+  r->patch_ticks = h.patch_ticks.load();
+  r->patch_nan_events = h.patch_nan_events.load();
   for (uint32_t i = 0; i < haptic_.device_count(); ++i) {
     r->devices.push_back(ReportDevice(haptic_.device_spec(i), haptic_.device_counters(i)));
     const DeviceReport& dr = r->devices.back();
@@ -223,7 +226,10 @@ std::string Server::ReportJson(const ServerReport& r) {
   const Json reactions{{"batches", r.reaction_batches},
                        {"batches_applied", r.reaction_batches_applied},
                        {"queue_full_retries", r.reaction_queue_full},
-                       {"cloth_nan_events", r.cloth_nan_events}};
+                       {"cloth_nan_events", r.cloth_nan_events},
+                       {"held_spring_frames", r.held_spring_frames},
+                       {"patch_ticks", r.patch_ticks},
+                       {"patch_nan_events", r.patch_nan_events}};
   return JsonText(Json{{"realtime", r.realtime},
                        {"sim_realtime", r.sim_realtime},
                        {"cpu_dma_latency_zero", r.cpu_dma_latency_zero},

@@ -69,6 +69,9 @@ struct ServerReport {
   uint64_t reaction_queue_full = 0;       ///< ticks a staged batch waited for room (not lost)
   uint64_t reaction_overflows = 0;        ///< accumulator entries merged for lack of room
   uint64_t cloth_nan_events = 0;          ///< sim frames that recovered from non-finite values
+  uint64_t held_spring_frames = 0;        ///< sim frames that reused the last batch's springs
+  uint64_t patch_ticks = 0;               ///< mode patch: ticks that stepped a window
+  uint64_t patch_nan_events = 0;          ///< mode patch: steps restarted from the 60 Hz cloth
   uint64_t contacts = 0;                  ///< device ticks in contact, all devices
   double peak_force_N = 0;                ///< largest |force| sent, all devices, N
   uint64_t nan_events = 0;                ///< safety NaN events, all devices
