@@ -71,39 +71,13 @@ std::string Table(const std::vector<VariantSummary>& summaries) {
       rows);
 }
 
-// One variant's figures as the JSON file (and the CSV) has them, in their order.
-Json VariantJson(const VariantSummary& s) {
-  return Json{{"name", s.name},
-              {"overrides", s.overrides},
-              {"ticks", s.ticks},
-              {"frames", s.frames},
-              {"tick_us_median", s.tick_us_median},
-              {"tick_us_p99", s.tick_us_p99},
-              {"frame_ms_median", s.frame_ms_median},
-              {"frame_ms_p99", s.frame_ms_p99},
-              {"timer_overhead_us", s.timer_overhead_us},
-              {"force_rms_error_N", s.force_rms_error_N},
-              {"force_max_error_N", s.force_max_error_N},
-              {"max_jump_N", s.max_jump_N},
-              {"max_jump_vs_ref_N", s.max_jump_vs_ref_N},
-              {"peak_force_N", s.peak_force_N},
-              {"peak_minus_ref_peak_N", s.peak_minus_ref_peak_N},
-              {"contacts", static_cast<int64_t>(s.contacts)},
-              {"contact_mismatches", static_cast<int64_t>(s.contact_mismatches)},
-              {"pop_through", static_cast<int64_t>(s.pop_through)},
-              {"max_reach_mm", s.max_reach_mm},
-              {"clamped_ticks", static_cast<int64_t>(s.clamped_ticks)},
-              {"stalled_ticks", static_cast<int64_t>(s.stalled_ticks)},
-              {"nan_events", static_cast<int64_t>(s.nan_events)}};
-}
-
 // Every per-variant field of the JSON file, one row per variant, as CSV (the JSON field names as
 // the header; numbers in shortest round-trip form).
 std::string CompareCsv(const CompareResult& result) {
   std::vector<std::string> header;
   std::vector<std::vector<std::string>> rows;
   for (const VariantSummary& s : result.summaries) {
-    const Json j = VariantJson(s);
+    const Json j = VariantSummaryJson(s);
     std::vector<std::string> row;
     for (const auto& [key, value] : j.items()) {
       if (rows.empty()) header.push_back(key);
@@ -117,7 +91,7 @@ std::string CompareCsv(const CompareResult& result) {
 std::string CompareJson(const CompareArgs& args, const report::MachineInfo& machine,
                         const std::string& load_end, const CompareResult& result) {
   Json variants = Json::array();
-  for (const VariantSummary& s : result.summaries) variants.push_back(VariantJson(s));
+  for (const VariantSummary& s : result.summaries) variants.push_back(VariantSummaryJson(s));
   Json top{{"command", CommandLine(args)},
            {"trace", args.trace},
            {"scene", args.scene},

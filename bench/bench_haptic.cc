@@ -329,25 +329,6 @@ Json SummaryJson(const ModeSummary& m) {
   return j;
 }
 
-Json VariantJson(const VariantSummary& s) {
-  return Json{{"name", s.name},
-              {"overrides", s.overrides},
-              {"ticks", s.ticks},
-              {"frames", s.frames},
-              {"force_rms_error_N", s.force_rms_error_N},
-              {"force_max_error_N", s.force_max_error_N},
-              {"peak_force_N", s.peak_force_N},
-              {"peak_minus_ref_peak_N", s.peak_minus_ref_peak_N},
-              {"max_jump_N", s.max_jump_N},
-              {"pop_through", static_cast<int64_t>(s.pop_through)},
-              {"max_reach_mm", s.max_reach_mm},
-              {"contacts", static_cast<int64_t>(s.contacts)},
-              {"contact_mismatches", static_cast<int64_t>(s.contact_mismatches)},
-              {"tick_us_median", s.tick_us_median},
-              {"tick_us_p99", s.tick_us_p99},
-              {"frame_ms_median", s.frame_ms_median},
-              {"nan_events", static_cast<int64_t>(s.nan_events)}};
-}
 
 // The CSV: one row per trace and variant, with the host (the plot reads it: bench/haptic.gp).
 std::string Csv(const std::vector<TraceResult>& results, const MachineInfo& machine) {
@@ -485,7 +466,7 @@ int Run(const Args& args) {
     Json trace_items = Json::array();
     for (const TraceResult& r : results) {
       Json items = Json::array();
-      for (const VariantSummary& s : r.summaries) items.push_back(VariantJson(s));
+      for (const VariantSummary& s : r.summaries) items.push_back(VariantSummaryJson(s));
       trace_items.push_back(Json{{"name", r.trace->name},
                                  {"group", r.trace->group},
                                  {"path", r.trace->path},

@@ -600,4 +600,30 @@ CompareResult CompareVariants(const SceneDocument& scene, const std::vector<Trac
   return result;
 }
 
+Json VariantSummaryJson(const VariantSummary& s) {
+  return Json{{"name", s.name},
+              {"overrides", s.overrides},
+              {"ticks", s.ticks},
+              {"frames", s.frames},
+              {"tick_us_median", s.tick_us_median},
+              {"tick_us_p99", s.tick_us_p99},
+              {"frame_ms_median", s.frame_ms_median},
+              {"frame_ms_p99", s.frame_ms_p99},
+              {"timer_overhead_us", s.timer_overhead_us},
+              {"force_rms_error_N", s.force_rms_error_N},
+              {"force_max_error_N", s.force_max_error_N},
+              {"max_jump_N", s.max_jump_N},
+              {"max_jump_vs_ref_N", s.max_jump_vs_ref_N},
+              {"peak_force_N", s.peak_force_N},
+              {"peak_minus_ref_peak_N", s.peak_minus_ref_peak_N},
+              {"contacts", static_cast<int64_t>(s.contacts)},
+              {"contact_mismatches", static_cast<int64_t>(s.contact_mismatches)},
+              {"pop_through", static_cast<int64_t>(s.pop_through)},
+              {"max_reach_mm", s.max_reach_mm},
+              {"clamped_ticks", static_cast<int64_t>(s.clamped_ticks)},
+              {"stalled_ticks", static_cast<int64_t>(s.stalled_ticks)},
+              {"nan_events", static_cast<int64_t>(s.nan_events)}};
+}
+
+
 }  // namespace felt

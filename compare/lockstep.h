@@ -30,6 +30,7 @@
 #include <utility>
 #include <vector>
 
+#include "base/json.h"
 #include "collision/mesh.h"
 #include "recordings/trace.h"
 #include "scene/scene_file.h"
@@ -152,6 +153,10 @@ struct VariantSummary {
 /// itself). Throws std::invalid_argument when a run's ticks or devices differ from the reference
 /// (the forces cannot be paired tick by tick).
 std::vector<VariantSummary> SummarizeRuns(const std::vector<LockstepRun>& runs);
+
+/// One variant's figures as `felt compare --json` and `felt bench haptic --json` write them, every
+/// field of VariantSummary under its own name, in its order (the CSV columns follow it).
+Json VariantSummaryJson(const VariantSummary& s);
 
 /// A whole comparison: every variant's run and summary, in the order given.
 struct CompareResult {

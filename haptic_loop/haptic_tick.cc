@@ -50,9 +50,6 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
     }
     const auto n_devices = static_cast<int32_t>(devices.size());
     patch_ = std::make_unique<ClothPatch>(cloth, proxy.patch_radius, n_devices);
-    overlay_.roles = patch_->roles();
-    overlay_.x = patch_->x();
-    overlay_.x_before = patch_->x_before();
     overlay_.patch = patch_.get();
     patch_centres_.assign(devices.size(), -1);
     patch_springs_.resize(devices.size());
@@ -192,8 +189,6 @@ void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
       *cloth.newest, tau_s);
   overlay_.offset_m = patch_->MaxDistanceFrom(*cloth.newest);
   Bump(counters_.patch_ticks);
-  counters_.patch_particles.store(static_cast<uint64_t>(step.free_particles),
-                                  std::memory_order_relaxed);
   if (step.recovered) Bump(counters_.patch_nan_events);
 }
 

@@ -61,7 +61,6 @@ struct HapticCounters {
   std::atomic<uint64_t> reaction_batches{0};     ///< batches pushed haptic -> sim
   std::atomic<uint64_t> reaction_queue_full{0};  ///< ticks a staged batch waited for room
   std::atomic<uint64_t> patch_ticks{0};          ///< mode patch: ticks that stepped a window
-  std::atomic<uint64_t> patch_particles{0};      ///< mode patch: free particles at the last step
   std::atomic<uint64_t> patch_nan_events{0};     ///< mode patch: steps restarted from the drive
 };
 

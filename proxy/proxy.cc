@@ -889,13 +889,14 @@ TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
   cloth.tau_s = std::max(0.0, since_newest_s);
   ViewsForMode(newest, *state, &cloth);
   // Mode patch: the local patch's particles in both cloths (extrapolated elsewhere).
-  if (cloth.mode == SnapshotMode::kPatch && patch != nullptr && patch->roles != nullptr) {
-    cloth.now.patch_role = patch->roles;
-    cloth.now.patch_x = patch->x;
-    cloth.now.patch = patch->patch;
-    cloth.before.patch_role = patch->roles;
-    cloth.before.patch_x = patch->x_before;
-    cloth.before.patch = patch->patch;
+  if (cloth.mode == SnapshotMode::kPatch && patch != nullptr && patch->patch != nullptr) {
+    const ClothPatch& p = *patch->patch;
+    cloth.now.patch_role = p.roles();
+    cloth.now.patch_x = p.x();
+    cloth.now.patch = &p;
+    cloth.before.patch_role = p.roles();
+    cloth.before.patch_x = p.x_before();
+    cloth.before.patch = &p;
     cloth.moved = !cloth.first;
     cloth.inflation_m = std::max(cloth.inflation_m, patch->offset_m);
   }

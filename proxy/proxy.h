@@ -119,10 +119,7 @@ struct ProxyTickResult {
 /// The local patch a tick in mode patch renders (sim_loop/cloth_patch.h; the haptic loop steps it
 /// before the proxies). Its particles replace the extrapolated cloth's in the tick's cloth.
 struct PatchOverlay {
-  const PatchRole* roles = nullptr;  ///< each particle's role [cloth's particles]
-  const Vec3* x = nullptr;           ///< the patch's positions now [m, world]
-  const Vec3* x_before = nullptr;    ///< its positions at the previous tick [m, world]
-  const ClothPatch* patch = nullptr;  ///< the patch (its free particles' normals, NormalAt)
+  const ClothPatch* patch = nullptr;  ///< the patch: roles, positions now and before, normals
   double offset_m = 0.0;  ///< bound on |patch x - newest x| over its particles, now and before, m
 };
 

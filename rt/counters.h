@@ -11,11 +11,6 @@ inline void Bump(std::atomic<uint64_t>& counter) {
   counter.store(counter.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
 }
 
-/// Adds `delta` to a counter only the calling thread writes. Real-time safe.
-inline void AddTo(std::atomic<uint64_t>& counter, uint64_t delta) {
-  counter.store(counter.load(std::memory_order_relaxed) + delta, std::memory_order_relaxed);
-}
-
 /// Adds `delta` to a value only the calling thread writes. Real-time safe.
 inline void AddTo(std::atomic<double>& value, double delta) {
   value.store(value.load(std::memory_order_relaxed) + delta, std::memory_order_relaxed);

@@ -611,7 +611,6 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   }
   out.substeps = substeps;
   out.springs = springs_->count;
-  ForEachParticle([&](int32_t p) { out.free_particles += role_[p] == PatchRole::kFree ? 1 : 0; });
   return out;
 }
 

@@ -86,7 +86,6 @@ inline constexpr double kPatchMaxLinger_s = 0.25;
 /// What one Step did.
 struct PatchStepResult {
   int32_t substeps = 0;        ///< substeps integrated (0: no window)
-  int32_t free_particles = 0;  ///< particles integrated
   int32_t springs = 0;         ///< contact springs applied
   bool recovered = false;      ///< non-finite values appeared: the windows restarted from the drive
 };

@@ -31,8 +31,9 @@ void SimLoop::PublishInitialSnapshot(int64_t publish_ns) {
   snapshots_->Publish();
 }
 
-size_t SimLoop::TakeQueuedReactions() {
+size_t SimLoop::TakeQueuedReactions(bool* any_batch) {
   // Each batch's forces as impulses, then divided by the total time: batches weigh by duration.
+  *any_batch = false;
   size_t count = 0;
   double total_s = 0.0;
   while (count + kMaxReactionForces <= external_.size() && reactions_->TryPop(popped_.get())) {
@@ -43,6 +44,7 @@ size_t SimLoop::TakeQueuedReactions() {
       ++count;
     }
     total_s += popped_->duration_s;
+    *any_batch = true;
     Bump(counters_.reaction_batches_applied);
   }
   for (size_t i = 0; i < count; ++i) external_[i].force_N /= total_s;
@@ -76,11 +78,9 @@ size_t SimLoop::HoldContactSprings(bool any_batch, size_t count, double frame_dt
 }
 
 void SimLoop::Frame(double frame_dt_s, int64_t publish_ns) {
-  const uint64_t batches_before = counters_.reaction_batches_applied.load(std::memory_order_relaxed);
-  size_t count = TakeQueuedReactions();
-  const bool any_batch =
-      counters_.reaction_batches_applied.load(std::memory_order_relaxed) != batches_before;
-  count = HoldContactSprings(any_batch, count, frame_dt_s);
+  bool any_batch = false;
+  const size_t queued = TakeQueuedReactions(&any_batch);
+  const size_t count = HoldContactSprings(any_batch, queued, frame_dt_s);
 
   // Step, repair, publish with the frame's motion as the velocities (sim_loop/frame_motion.h).
   std::copy(cloth_.x.begin(), cloth_.x.end(), frame_start_x_.begin());

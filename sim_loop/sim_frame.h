@@ -109,8 +109,8 @@ class SimLoop {
 
  private:
   // The reactions queued since the last frame into external_, weighted by their durations
-  // (impulse kept); returns how many forces.
-  size_t TakeQueuedReactions();
+  // (impulse kept); returns how many forces, `*any_batch` whether a batch arrived at all.
+  size_t TakeQueuedReactions(bool* any_batch);
   // Keeps the contact springs of a frame that received a batch (`any_batch`, `count` forces), or
   // puts the held ones into external_ for a frame without (see kMaxHeldSpringFrames); returns the
   // frame's force count.

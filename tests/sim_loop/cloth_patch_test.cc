@@ -30,6 +30,20 @@ ClothSnapshot SnapshotOf(const ClothModel& model, const ClothState& state) {
 
 int32_t At(const ClothModel& m, int32_t col, int32_t row) { return row * m.width + col; }
 
+// The hand's contact spring on `triangle`, pressing from the +z side with a 4 mm sphere whose
+// centre is 2 cm behind the rest place of particle `centre` (k and the clamp of the default
+// device in the world).
+ExternalForce PressBehind(const ClothModel& model, int32_t triangle, int32_t centre) {
+  ExternalForce e;
+  e.triangle = triangle;
+  e.stiffness_N_per_m = 44.0;
+  e.normal = Vec3::UnitZ();
+  e.radius_m = 0.004;
+  e.anchor_m = model.rest_position_m[centre] - Vec3(0, 0, 0.02) - e.radius_m * e.normal;
+  e.max_force_N = 1.1;
+  return e;
+}
+
 TEST(ClothPatchTest, AWindowHasTwoDrivenRingsExceptAlongTheClothsEdge) {
   const ClothModel model = RestingSheet();
   const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
@@ -119,14 +133,7 @@ TEST(ClothPatchTest, AContactSpringPushesTheFreeParticlesAndTheRingsStayWithTheD
     if (model.triangles[t][0] == centre) tri = static_cast<int32_t>(t);
   }
   ASSERT_GE(tri, 0);
-  ExternalForce e;
-  e.triangle = tri;
-  e.stiffness_N_per_m = 44.0;
-  e.normal = Vec3::UnitZ();
-  e.radius_m = 0.004;
-  e.anchor_m = model.rest_position_m[centre] - Vec3(0, 0, 0.02) - e.radius_m * e.normal;
-  e.max_force_N = 1.1;
-  const std::vector<ExternalForce> springs = {e};
+  const std::vector<ExternalForce> springs = {PressBehind(model, tri, centre)};
   for (int k = 0; k < 100; ++k) {
     const PatchStepResult r = patch.Step(springs, 1e-3, s, 0.0);
     ASSERT_EQ(r.springs, 1);
@@ -162,14 +169,8 @@ TEST(ClothPatchTest, AWindowWithoutItsCentreLingersUntilItIsBackOnTheDrive) {
   // kPatchMaxLinger_s.
   centres = {centre};
   patch.Place(centres, s, 0.0, 1e-3);
-  ExternalForce e;
-  e.triangle = 2 * ((10 * (model.width - 1)) + 10);
-  e.stiffness_N_per_m = 44.0;
-  e.normal = Vec3::UnitZ();
-  e.radius_m = 0.004;
-  e.anchor_m = model.rest_position_m[centre] - Vec3(0, 0, 0.02) - e.radius_m * e.normal;
-  e.max_force_N = 1.1;
-  const std::vector<ExternalForce> springs = {e};
+  const std::vector<ExternalForce> springs = {
+      PressBehind(model, 2 * ((10 * (model.width - 1)) + 10), centre)};
   for (int k = 0; k < 50; ++k) patch.Step(springs, 1e-3, s, 0.0);
   centres = {-1};
   int ticks = 0;
@@ -188,13 +189,8 @@ TEST(ClothPatchTest, PlaceAndStepNeverAllocate) {
   ClothState state = MakeClothState(model);
   const ClothSnapshot s = SnapshotOf(model, state);
   ClothPatch patch(model, 6, 2);
-  ExternalForce e;
-  e.triangle = 2 * ((10 * (model.width - 1)) + 10);
-  e.stiffness_N_per_m = 44.0;
-  e.normal = Vec3::UnitZ();
-  e.radius_m = 0.004;
+  ExternalForce e = PressBehind(model, 2 * ((10 * (model.width - 1)) + 10), At(model, 10, 10));
   e.anchor_m = model.rest_position_m[At(model, 10, 10)] - Vec3(0, 0, 0.02);
-  e.max_force_N = 1.1;
   const std::vector<ExternalForce> springs = {e};
   AllocationGuard guard;
   for (int k = 0; k < 200; ++k) {
