@@ -1,12 +1,15 @@
 #include "sim_loop/cloth_patch.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
 #include "sim_loop/cloth_coupling.h"
 #include "sim_loop/cloth_internal.h"
+#include "base/simd.h"
 
 namespace felt {
 namespace {
@@ -28,23 +31,66 @@ bool SameWindow(const PatchWindow& a, const PatchWindow& b) {
   return a.col0 == b.col0 && a.row0 == b.row0 && a.col1 == b.col1 && a.row1 == b.row1;
 }
 
-// One row of a spring family's pairs i = 0..count-1 (i ends at xi.., j ends at xj..), window
-// arrays in single precision: the force on each i end into t (f_j = -f_i), Hooke plus the dashpot
-// along the spring (001 §2). Branch-free, so the compiler vectorises it; a spring shorter than
-// 1e-10 m exerts nothing.
-void RowSpringForces(
+// The dense arrays (ClothPatch::dense_, double), stride_ entries each.
+enum DenseArray : int32_t {
+  kX = 0,        // positions x, y, z, m (3 arrays)
+  kV = 3,        // velocities, m/s (3)
+  kALast = 6,    // the last substep's accelerations, m/s^2 (3)
+  kDriveX = 9,   // the drive's positions, m (3)
+  kDriveV = 12,  // the drive's velocities, m/s (3)
+  kInvMass = 15, // 1 / mass, 1/kg
+  kFree = 16,    // 1 free, 0 driven
+  kRestart = 17, // 1: leapfrog restarts from v
+  kDenseArrays = 18,
+};
+// The single-precision arrays (ClothPatch::single_), stride_ entries each.
+enum SingleArray : int32_t {
+  kP = 0,         // positions, m from the window's first particle (3)
+  kU = 3,         // velocities, m/s (3)
+  kF = 6,         // forces, N (3)
+  kT = 9,         // one family's pair forces (3)
+  kMovable = 12,  // 1 free, 0 driven
+  kMask = 13,     // 5 arrays, dc = -2..2: 1 where column c + dc lies in the window
+  kSingleArrays = 18,
+};
+
+// One window's single-precision arrays at its first local index (the kernels' view).
+struct WindowSoa {
+  float* p[3];
+  const float* u[3];
+  float* f[3];
+  float* t[3];
+  const float* movable;
+  const float* mask[5];   // by dc + 2
+  int32_t count = 0;     // particles
+  int32_t pitch = 0;     // entries per row: its particles, and one of padding if they are odd
+};
+
+// A spring family's pairs in a window: end i at local l in [l0, l1), end j at l + off.
+struct SpringPass {
+  int32_t l0, l1, off, dc;
+  float stiffness, damping, rest;
+};
+
+// Per pair c < count of one spring family (i ends at xi.., j ends at xj.., single precision): the
+// force on the i end into t (f_j = -f_i), Hooke plus the dashpot along the unit direction u from
+// i to j, f_i = (k (l - L) + c (v_j - v_i) . u) u (001 §2, as AddSpringForces), times the pair's
+// mask m (0 for a pair that would wrap from a row's end to the next row). A spring shorter than
+// 1e-10 m exerts nothing. Branch-free, so the compiler vectorises it (GCC honours __restrict on
+// parameters, which inlining keeps).
+[[gnu::always_inline]] inline void SpringRun(
     int32_t count, const float* __restrict xi, const float* __restrict yi,
     const float* __restrict zi, const float* __restrict xj, const float* __restrict yj,
     const float* __restrict zj, const float* __restrict vxi, const float* __restrict vyi,
     const float* __restrict vzi, const float* __restrict vxj, const float* __restrict vyj,
-    const float* __restrict vzj, float stiffness, float damping, float rest,
-    float* __restrict tx, float* __restrict ty, float* __restrict tz) {
+    const float* __restrict vzj, const float* __restrict m, float stiffness, float damping,
+    float rest, float* __restrict tx, float* __restrict ty, float* __restrict tz) {
   for (int32_t c = 0; c < count; ++c) {
     const float dx = xj[c] - xi[c], dy = yj[c] - yi[c], dz = zj[c] - zi[c];
     const float len2 = dx * dx + dy * dy + dz * dz;
     const float len = std::sqrt(len2);
     const float live = len2 > 1e-20f ? 1.0f : 0.0f;
-    const float inv = live / std::max(len, 1e-10f);
+    const float inv = live * m[c] / std::max(len, 1e-10f);
     const float rel =
         ((vxj[c] - vxi[c]) * dx + (vyj[c] - vyi[c]) * dy + (vzj[c] - vzi[c]) * dz) * inv;
     const float scale = (stiffness * (len - rest) + damping * rel) * inv;
@@ -54,10 +100,11 @@ void RowSpringForces(
   }
 }
 
-// a[c] += sign * t[c] for c < count, per coordinate (a row of pair forces onto their ends).
-void AddRow(int32_t count, float sign, const float* __restrict tx, const float* __restrict ty,
-            const float* __restrict tz, float* __restrict ax, float* __restrict ay,
-            float* __restrict az) {
+// a[c] += sign * t[c] for c < count, per coordinate (a run of pair forces onto their ends).
+[[gnu::always_inline]] inline void AddRun(int32_t count, float sign, const float* __restrict tx,
+                                          const float* __restrict ty, const float* __restrict tz,
+                                          float* __restrict ax, float* __restrict ay,
+                                          float* __restrict az) {
   for (int32_t c = 0; c < count; ++c) {
     ax[c] += sign * tx[c];
     ay[c] += sign * ty[c];
@@ -65,26 +112,97 @@ void AddRow(int32_t count, float sign, const float* __restrict tx, const float* 
   }
 }
 
-// One row of a Provot family's independent pairs (i ends at xi.., j ends at xj..): each pair
-// longer than max_len shortened to it, moving each end by its share of the cut (movability m: 1
-// free, 0 driven; shares m_i / (m_i + m_j)). Returns how many pairs with a free end were more
-// than `loose_ratio` (squared length over squared limit) over. Branch-free.
-int32_t RowProvot(int32_t count, float* __restrict xi, float* __restrict yi, float* __restrict zi,
-                  float* __restrict xj, float* __restrict yj, float* __restrict zj,
-                  const float* __restrict mi, const float* __restrict mj, float max_len,
-                  float inv_max2, float loose_ratio) {
+// Every spring family's forces on one window into w.f (cleared first): each family's pair forces
+// (SpringRun) into w.t over the window's rows as one flat run, then added to the i ends and
+// subtracted from the j ends.
+[[gnu::always_inline]] inline void SpringForcesBody(const WindowSoa& w, const SpringPass* passes,
+                                                    int32_t num_passes) {
+  std::fill(w.f[0], w.f[0] + w.count, 0.0f);
+  std::fill(w.f[1], w.f[1] + w.count, 0.0f);
+  std::fill(w.f[2], w.f[2] + w.count, 0.0f);
+  for (int32_t k = 0; k < num_passes; ++k) {
+    const SpringPass s = passes[k];
+    const int32_t i = s.l0, j = s.l0 + s.off, count = s.l1 - s.l0;
+    SpringRun(count, w.p[0] + i, w.p[1] + i, w.p[2] + i, w.p[0] + j, w.p[1] + j, w.p[2] + j,
+              w.u[0] + i, w.u[1] + i, w.u[2] + i, w.u[0] + j, w.u[1] + j, w.u[2] + j,
+              w.mask[s.dc + 2] + i, s.stiffness, s.damping, s.rest, w.t[0], w.t[1], w.t[2]);
+    AddRun(count, 1.0f, w.t[0], w.t[1], w.t[2], w.f[0] + i, w.f[1] + i, w.f[2] + i);
+    AddRun(count, -1.0f, w.t[0], w.t[1], w.t[2], w.f[0] + j, w.f[1] + j, w.f[2] + j);
+  }
+}
+
+// A Provot family's pairs in a window: i ends in local rows [row0, row1] and columns [col0, col1],
+// j ends dr rows and dc columns on.
+struct ProvotPass {
+  int32_t row0, row1, col0, col1, dc, dr;
+  float max_len, inv_max2;
+};
+
+// Pairs longer than their limit left more than 1e-3 over it by a sweep count as loose.
+constexpr float kLoose = (1.0f + 1e-3f) * (1.0f + 1e-3f);
+
+// Provot 1995 (000 slide 9) over independent pairs c < count, end i of pair c at index
+// c * stride of xi.., end j at c * stride of xj..: a pair longer than max_len is shortened to it,
+// each end moving by its share of the cut (movabilities m_i, m_j: 1 free, 0 driven, times the
+// pair's mask; shares m_i / (m_i + m_j)). Returns the pairs with a free end left more than 1e-3
+// over (kLoose). Branch-free.
+template <int32_t kStride>
+[[gnu::always_inline]] inline int32_t ProvotRun(
+    int32_t count, float* __restrict xi, float* __restrict yi, float* __restrict zi,
+    float* __restrict xj, float* __restrict yj, float* __restrict zj,
+    const float* __restrict movable_i, const float* __restrict movable_j,
+    const float* __restrict mask, float max_len, float inv_max2) {
   int32_t loose = 0;
   for (int32_t c = 0; c < count; ++c) {
-    const float dx = xj[c] - xi[c], dy = yj[c] - yi[c], dz = zj[c] - zi[c];
+    const int32_t k = c * kStride;
+    const float mi = mask[k] * movable_i[k], mj = mask[k] * movable_j[k];
+    const float dx = xj[k] - xi[k], dy = yj[k] - yi[k], dz = zj[k] - zi[k];
     const float len2 = dx * dx + dy * dy + dz * dz;
-    const float both = mi[c] + mj[c];
+    const float both = mi + mj;
     const float ratio = len2 * inv_max2;
     const bool moves = both > 0.0f;
     const float over = static_cast<float>((ratio > 1.0f) & moves);
-    loose += static_cast<int32_t>((ratio > loose_ratio) & moves);
+    loose += static_cast<int32_t>((ratio > kLoose) & moves);
     const float len = std::sqrt(len2);
     const float cut = over * (len - max_len) / (std::max(len, 1e-10f) * std::max(both, 1.0f));
-    const float si = cut * mi[c], sj = cut * mj[c];
+    const float si = cut * mi, sj = cut * mj;
+    xi[k] += si * dx;
+    yi[k] += si * dy;
+    zi[k] += si * dz;
+    xj[k] -= sj * dx;
+    yj[k] -= sj * dy;
+    zj[k] -= sj * dz;
+  }
+  return loose;
+}
+
+// The lanes of ProvotBlock.
+constexpr int32_t kBlock = 16;
+
+// ProvotRun over one block of kBlock pairs of which the first `count` are real: a loop of
+// constant length, which the compiler turns into whole vectors with no scalar remainder (one
+// AVX-512 vector, two AVX2 ones); the lanes past `count` get movability 0 and write back what
+// they read. The arrays must be readable kBlock entries on (ClothPatch pads them), and the i and
+// j blocks must not overlap (a row offset of at least kBlock).
+[[gnu::always_inline]] inline int32_t ProvotBlock(
+    int32_t count, float* __restrict xi, float* __restrict yi, float* __restrict zi,
+    float* __restrict xj, float* __restrict yj, float* __restrict zj,
+    const float* __restrict movable_i, const float* __restrict movable_j,
+    const float* __restrict mask, float max_len, float inv_max2) {
+  int32_t loose = 0;
+  for (int32_t c = 0; c < kBlock; ++c) {
+    const float lane = mask[c] * static_cast<float>(c < count);
+    const float mi = lane * movable_i[c], mj = lane * movable_j[c];
+    const float dx = xj[c] - xi[c], dy = yj[c] - yi[c], dz = zj[c] - zi[c];
+    const float len2 = dx * dx + dy * dy + dz * dz;
+    const float both = mi + mj;
+    const float ratio = len2 * inv_max2;
+    const bool moves = both > 0.0f;
+    const float over = static_cast<float>((ratio > 1.0f) & moves);
+    loose += static_cast<int32_t>((ratio > kLoose) & moves);
+    const float len = std::sqrt(len2);
+    const float cut = over * (len - max_len) / (std::max(len, 1e-10f) * std::max(both, 1.0f));
+    const float si = cut * mi, sj = cut * mj;
     xi[c] += si * dx;
     yi[c] += si * dy;
     zi[c] += si * dz;
@@ -93,6 +211,200 @@ int32_t RowProvot(int32_t count, float* __restrict xi, float* __restrict yi, flo
     zj[c] -= sj * dz;
   }
   return loose;
+}
+
+// One Gauss-Seidel sweep of Provot's limits over a window's families; returns the pairs left
+// loose (ProvotRun). A family across rows (dr > 0) is swept row by row, in order (a correction
+// travels down the window within one sweep, as the sim's sweeps): the pairs of one row share no
+// particle, in blocks of kBlock (ProvotBlock) where the window is wide enough, else one loop. The
+// structural family along a row (dr = 0, dc = 1) is swept in two colours over the window's rows
+// as one flat run, the pairs (l, l + 1) with l - l0 even, then odd: each colour's pairs share no
+// particle, and a pair that would wrap past a row's end has mask 0. Every loop is a loop over
+// independent pairs, which the compiler vectorises; any other family is swept pair by pair.
+[[gnu::always_inline]] inline int32_t ProvotBody(const WindowSoa& w, const ProvotPass* passes,
+                                                 int32_t num_passes) {
+  float* const px = w.p[0];
+  float* const py = w.p[1];
+  float* const pz = w.p[2];
+  const float* const mv = w.movable;
+  int32_t loose = 0;
+  for (int32_t k = 0; k < num_passes; ++k) {
+    const ProvotPass s = passes[k];
+    const float* const mask = w.mask[s.dc + 2];
+    if (s.dr == 0 && s.dc == 1) {
+      // An even pitch keeps each colour to one column parity on every row.
+      const int32_t l0 = s.row0 * w.pitch + s.col0, l1 = s.row1 * w.pitch + s.col1 + 1;
+      for (int32_t colour = 0; colour < 2; ++colour) {
+        const int32_t i = l0 + colour, pairs = (l1 - i + 1) / 2;
+        loose += ProvotRun<2>(pairs, px + i, py + i, pz + i, px + i + 1, py + i + 1, pz + i + 1,
+                              mv + i, mv + i + 1, mask + i, s.max_len, s.inv_max2);
+      }
+      continue;
+    }
+    const int32_t off = s.dr * w.pitch + s.dc;
+    if (s.dr == 0) {  // another family along a row (not a level-1 family): pair by pair
+      for (int32_t r = s.row0; r <= s.row1; ++r) {
+        for (int32_t i = r * w.pitch + s.col0; i <= r * w.pitch + s.col1; ++i) {
+          const int32_t j = i + off;
+          loose += ProvotRun<1>(1, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i, mv + j,
+                                mask + i, s.max_len, s.inv_max2);
+        }
+      }
+      continue;
+    }
+    const int32_t count = s.col1 - s.col0 + 1;
+    for (int32_t r = s.row0; r <= s.row1; ++r) {
+      const int32_t first = r * w.pitch + s.col0;
+      if (off < kBlock) {
+        const int32_t i = first, j = first + off;
+        loose += ProvotRun<1>(count, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i,
+                              mv + j, mask + i, s.max_len, s.inv_max2);
+        continue;
+      }
+      for (int32_t c = 0; c < count; c += kBlock) {
+        const int32_t i = first + c, j = i + off;
+        loose += ProvotBlock(count - c, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i,
+                             mv + j, mask + i, s.max_len, s.inv_max2);
+      }
+    }
+  }
+  return loose;
+}
+
+// One substep's integration of every window particle (IntegrateBody).
+struct IntegrateArgs {
+  double* x[3];
+  double* v[3];
+  double* a_last[3];
+  const double* drive_x[3];
+  const double* drive_v[3];
+  const double* inv_mass;
+  const float* f[3];
+  const double* movable;  // 1 free, 0 driven
+  double* restart;        // 1: restarts from v
+  int32_t count;
+  double h, h_old;      // this substep and the last one, s
+  double drive_tau_s;   // the drive's time at the substep's end, s after its snapshot
+  double beta;          // the driven particles' easing fraction
+  double drag;          // N s / m
+  double g[3];          // m/s^2
+};
+
+// One coordinate of IntegrateBody.
+[[gnu::always_inline]] inline void IntegrateAxis(
+    int32_t count, double* __restrict x, double* __restrict v, double* __restrict al,
+    const double* __restrict dx, const double* __restrict dv, const float* __restrict f,
+    const double* __restrict im, const double* __restrict mv, const double* __restrict rs,
+    double h, double kick, double back, double tau, double beta, double drag, double g) {
+  const double half = 0.5 * h;
+  for (int32_t l = 0; l < count; ++l) {
+    const double acc = im[l] * (static_cast<double>(f[l]) - drag * v[l]) + g;
+    const double v_half = rs[l] > 0.0 ? v[l] + half * acc : v[l] + (kick * acc - back * al[l]);
+    const double moved = x[l] + h * dv[l];
+    const double target = dx[l] + tau * dv[l];
+    const bool free = mv[l] > 0.0;
+    x[l] = free ? x[l] + h * v_half : moved + beta * (target - moved);
+    v[l] = free ? v_half + half * acc : dv[l];
+    al[l] = free ? acc : al[l];
+  }
+}
+
+// Free particles: leapfrog Verlet, kick-drift-kick with variable steps, as sim_loop's
+// LeapfrogVerlet (001 §3.5): a = (f - drag v) / m + g, v_{n+1/2} = v_{n-1/2} + (h_old + h)/2 a_n,
+// x_{n+1} = x_n + h v_{n+1/2}, the state keeping v_{n+1} = v_{n+1/2} + h/2 a_n; a particle
+// restarts from v (v + h/2 a). Driven particles move with the drive's velocity and close the
+// fraction beta of their distance to the drive at drive_tau_s (ClothPatch::Step). Branch-free.
+[[gnu::always_inline]] inline void IntegrateBody(const IntegrateArgs& a) {
+  const double kick = 0.5 * (a.h_old + a.h), back = 0.5 * a.h_old;
+  for (int32_t axis = 0; axis < 3; ++axis) {
+    IntegrateAxis(a.count, a.x[axis], a.v[axis], a.a_last[axis], a.drive_x[axis],
+                  a.drive_v[axis], a.f[axis], a.inv_mass, a.movable, a.restart, a.h, kick, back,
+                  a.drive_tau_s, a.beta, a.drag, a.g[axis]);
+  }
+  double* const rs = a.restart;
+  for (int32_t l = 0; l < a.count; ++l) rs[l] *= 1.0 - a.movable[l];
+}
+
+// The kernels at each vector level (base/simd.h): the same source compiled for the level's
+// instruction set, so every level gives the same bits (no contraction: -ffp-contract=off).
+struct PatchKernels {
+  void (*spring_forces)(const WindowSoa&, const SpringPass*, int32_t);
+  int32_t (*provot)(const WindowSoa&, const ProvotPass*, int32_t);
+  void (*integrate)(const IntegrateArgs&);
+};
+
+#define FELT_PATCH_KERNELS(SUFFIX, ATTRIBUTE)                                                  \
+  ATTRIBUTE void SpringForces##SUFFIX(const WindowSoa& w, const SpringPass* p, int32_t n) {   \
+    SpringForcesBody(w, p, n);                                                               \
+  }                                                                                          \
+  ATTRIBUTE int32_t Provot##SUFFIX(const WindowSoa& w, const ProvotPass* p, int32_t n) {      \
+    return ProvotBody(w, p, n);                                                              \
+  }                                                                                          \
+  ATTRIBUTE void Integrate##SUFFIX(const IntegrateArgs& a) { IntegrateBody(a); }
+
+FELT_PATCH_KERNELS(Portable, )
+#if defined(__x86_64__)
+FELT_PATCH_KERNELS(Avx2, __attribute__((target("avx2"))))
+FELT_PATCH_KERNELS(Avx512, __attribute__((target("avx512f,prefer-vector-width=512"))))
+constexpr SimdTable<PatchKernels> kPatchKernels{
+    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable},
+    PatchKernels{SpringForcesAvx2, ProvotAvx2, IntegrateAvx2},
+    PatchKernels{SpringForcesAvx512, ProvotAvx512, IntegrateAvx512}};
+#else
+constexpr SimdTable<PatchKernels> kPatchKernels{
+    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable},
+    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable},
+    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable}};
+#endif
+#undef FELT_PATCH_KERNELS
+
+
+// The pairs (c, r)-(c + dc, r + dr) whose i ends lie in local rows [ra, rb] of a window of
+// rows with `pitch` entries per row, every column (the pairs that would wrap past a row's end have
+// mask 0), as one flat run: i ends at local [l0, l1), j ends at l + off, clipped to the window.
+struct PairRun {
+  int32_t l0, l1, off;
+};
+PairRun RowRun(int32_t rows, int32_t pitch, int32_t dc, int32_t dr, int32_t ra, int32_t rb) {
+  PairRun run;
+  run.off = dr * pitch + dc;
+  run.l0 = std::max(ra * pitch, -run.off);
+  run.l1 = std::min((rb + 1) * pitch, rows * pitch - run.off);
+  return run;
+}
+
+// How many of x[0..count) are infinite or NaN (all exponent bits set, IEEE 754 binary64), as
+// integer operations, which vectorise.
+int64_t CountNonFinite(const double* __restrict x, size_t count) {
+  constexpr uint64_t kExponent = 0x7ff0000000000000ULL;
+  int64_t bad = 0;
+  for (size_t l = 0; l < count; ++l) {
+    bad += static_cast<int64_t>((std::bit_cast<uint64_t>(x[l]) & kExponent) == kExponent);
+  }
+  return bad;
+}
+
+// Entries per row of a window's dense arrays: its columns, made even (ProvotBody's colours).
+int32_t PitchOf(const PatchWindow& win) {
+  const int32_t cols = win.col1 - win.col0 + 1;
+  return cols + (cols & 1);
+}
+
+// Window k's single-precision arrays (WindowSoa) from the patch's block.
+WindowSoa WindowArrays(float* single, size_t stride, int32_t base, const PatchWindow& win) {
+  WindowSoa w;
+  const auto at = [&](int32_t array) { return single + array * stride + base; };
+  for (int32_t a = 0; a < 3; ++a) {
+    w.p[a] = at(kP + a);
+    w.u[a] = at(kU + a);
+    w.f[a] = at(kF + a);
+    w.t[a] = at(kT + a);
+  }
+  w.movable = at(kMovable);
+  for (int32_t m = 0; m < 5; ++m) w.mask[m] = at(kMask + m);
+  w.pitch = PitchOf(win);
+  w.count = (win.row1 - win.row0 + 1) * w.pitch;
+  return w;
 }
 
 }  // namespace
@@ -126,7 +438,8 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
   linger_s_.assign(static_cast<size_t>(max_windows), 0.0);
   role_.assign(n, PatchRole::kOutside);
   next_role_.assign(n, PatchRole::kOutside);
-  for (std::vector<Vec3>* a : {&x_, &v_, &x_before_, &a_, &a_last_}) a->assign(n, Vec3::Zero());
+  for (std::vector<Vec3>* a : {&x_, &v_, &x_before_, &a_last_}) a->assign(n, Vec3::Zero());
+  restart_.assign(n, 1);
   // The triangles around each particle (for NormalAt), compressed rows.
   vertex_tri_start_.assign(n + 1, 0);
   for (const Triangle& t : model.triangles) {
@@ -141,12 +454,16 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
           static_cast<int32_t>(t);
     }
   }
+  // The dense arrays hold the largest layout, the whole cloth (merged windows may grow to it) with
+  // a padding entry on each row of each window, and room for a block's overrun (ProvotBlock).
+  const size_t most = n + static_cast<size_t>(max_windows) * static_cast<size_t>(model.height);
+  stride_ = (most + 15) / 16 * 16 + 2 * 16;
+  base_.assign(static_cast<size_t>(max_windows) + 1, 0);
+  global_.assign(stride_, -1);
+  local_.assign(n, -1);
+  dense_.assign(kDenseArrays * stride_, 0.0);
+  single_.assign(kSingleArrays * stride_, 0.0f);
   f_.assign(3 * n, 0.0);
-  // The structure-of-arrays block: 13 arrays (position, velocity, movability, force, one row of
-  // pair forces) of the largest window, the whole cloth (merged windows may grow to it).
-  soa_stride_ = (n + 15) / 16 * 16 + 16;
-  soa_.assign(13 * soa_stride_, 0.0f);
-  restart_.assign(n, 1);
   for (size_t i = 0; i < model.provot_families.size(); ++i) {
     if (model.provot_families[i].level == 1) level1_.push_back(static_cast<int32_t>(i));
   }
@@ -196,6 +513,81 @@ double ClothPatch::DriftFromDrive(const PatchWindow& window, const ClothSnapshot
   return std::sqrt(max2);
 }
 
+void ClothPatch::Flush() {
+  // The dense state back into the per-particle arrays (x_ and v_ are written by every step).
+  for (int32_t l = 0; l < locals_; ++l) {
+    const int32_t p = global_[l];
+    if (p < 0) continue;
+    for (int32_t a = 0; a < 3; ++a) a_last_[p][a] = D(kALast + a)[l];
+    restart_[p] = D(kRestart)[l] > 0.0 ? 1 : 0;
+  }
+}
+
+void ClothPatch::Layout() {
+  // The windows' particles into the dense arrays, window by window, row by row, each row padded
+  // to an even pitch (PitchOf) by an entry that is no particle (global_ -1, all zero, mask 0).
+  for (int32_t l = 0; l < locals_; ++l) {
+    if (global_[l] >= 0) local_[global_[l]] = -1;
+  }
+  const int32_t w = model_.width;
+  int32_t next = 0;
+  for (size_t k = 0; k < window_count_; ++k) {
+    const PatchWindow& win = windows_[k];
+    base_[k] = next;
+    const int32_t cols = win.col1 - win.col0 + 1, pitch = PitchOf(win);
+    for (int32_t r = win.row0; r <= win.row1; ++r) {
+      for (int32_t col = 0; col < pitch; ++col) {
+        const int32_t l = next + (r - win.row0) * pitch + col;
+        const bool real = col < cols;
+        const int32_t p = real ? r * w + win.col0 + col : -1;
+        global_[l] = p;
+        const bool free = real && role_[p] == PatchRole::kFree;
+        for (int32_t a = 0; a < 3; ++a) {
+          D(kX + a)[l] = real ? x_[p][a] : 0.0;
+          D(kV + a)[l] = real ? v_[p][a] : 0.0;
+          D(kALast + a)[l] = real ? a_last_[p][a] : 0.0;
+          D(kDriveX + a)[l] = 0.0;
+          D(kDriveV + a)[l] = 0.0;
+        }
+        D(kInvMass)[l] = real ? model_.inv_mass_per_kg[p] : 0.0;
+        F(kMovable)[l] = free ? 1.0f : 0.0f;
+        D(kFree)[l] = free ? 1.0 : 0.0;
+        D(kRestart)[l] = !real || restart_[p] ? 1.0 : 0.0;
+        for (int32_t dc = -2; dc <= 2; ++dc) {
+          F(kMask + dc + 2)[l] = real && col + dc >= 0 && col + dc < cols ? 1.0f : 0.0f;
+        }
+        if (real) local_[p] = l;
+      }
+    }
+    next += (win.row1 - win.row0 + 1) * pitch;
+  }
+  base_[window_count_] = next;
+  locals_ = next;
+  drive_loaded_ = false;
+}
+
+void ClothPatch::LoadDrive(const ClothSnapshot& drive) {
+  // The drive's state by local index, once per snapshot and layout.
+  if (drive_loaded_ && drive_ == &drive && drive_frame_ == drive.frame) return;
+  for (int32_t l = 0; l < locals_; ++l) {
+    const int32_t p = global_[l];
+    if (p < 0) continue;
+    for (int32_t a = 0; a < 3; ++a) {
+      D(kDriveX + a)[l] = drive.x[p][a];
+      D(kDriveV + a)[l] = drive.v[p][a];
+    }
+  }
+  drive_ = &drive;
+  drive_frame_ = drive.frame;
+  drive_loaded_ = true;
+}
+
+void ClothPatch::StorePositions(Vec3* x) const {
+  for (int32_t l = 0; l < locals_; ++l) {
+    if (global_[l] >= 0) x[global_[l]] = Vec3(D(kX)[l], D(kX + 1)[l], D(kX + 2)[l]);
+  }
+}
+
 void ClothPatch::Place(std::span<const int32_t> centres, const ClothSnapshot& drive, double tau_s,
                        double dt_s) {
   const int32_t w = model_.width, h = model_.height, n = model_.num_particles();
@@ -243,6 +635,7 @@ void ClothPatch::Place(std::span<const int32_t> centres, const ClothSnapshot& dr
   for (size_t i = 0; same && i < count; ++i) same = SameWindow(next_windows_[i], windows_[i]);
   if (same) return;
   ++counters_.placements;
+  Flush();
 
   // New roles; entering particles start from the drive, particles turning free restart.
   const std::span<const PatchWindow> next(next_windows_.data(), count);
@@ -255,6 +648,7 @@ void ClothPatch::Place(std::span<const int32_t> centres, const ClothSnapshot& dr
           x_[p] = drive.x[p] + tau_s * drive.v[p];
           v_[p] = drive.v[p];
           x_before_[p] = x_[p];
+          a_last_[p] = Vec3::Zero();
           restart_[p] = 1;
         } else if (next_role_[p] == PatchRole::kFree && role_[p] != PatchRole::kFree) {
           restart_[p] = 1;
@@ -269,20 +663,7 @@ void ClothPatch::Place(std::span<const int32_t> centres, const ClothSnapshot& dr
     role_[p] = next_role_[p];
     next_role_[p] = PatchRole::kOutside;
   });
-}
-
-void ClothPatch::SetDriven(const ClothSnapshot& drive, double tau_s, double dt_s) {
-  // Each driven particle moves with the drive's velocity and closes the fraction
-  // beta = dt / (T + dt) of its distance to the drive (backward Euler of x' = v + (target - x) / T,
-  // unconditionally stable), T = kPatchDriveTime_s.
-  const double beta = dt_s / (kPatchDriveTime_s + dt_s);
-  ForEachParticle([&](int32_t p) {
-    if (role_[p] != PatchRole::kDriven) return;
-    const Vec3 target = drive.x[p] + tau_s * drive.v[p];
-    const Vec3 moved = x_[p] + dt_s * drive.v[p];
-    x_[p] = moved + beta * (target - moved);
-    v_[p] = drive.v[p];
-  });
+  Layout();
 }
 
 bool ClothPatch::SpringInside(const ExternalForce& e) const {
@@ -298,134 +679,6 @@ bool ClothPatch::SpringInside(const ExternalForce& e) const {
     }
   }
   return true;
-}
-
-void ClothPatch::Gather(const PatchWindow& win, bool velocities) {
-  // The window into the structure-of-arrays block, single precision, metres from its first
-  // particle (as ApplyProvot's arrays, ~1e-9 m over a window), with each particle's movability
-  // (1 free, 0 driven) for the constraint kernel.
-  const int32_t w = model_.width;
-  const int32_t cols = win.col1 - win.col0 + 1;
-  origin_ = x_[win.row0 * w + win.col0];
-  float* __restrict px = soa_.data();
-  float* __restrict py = px + soa_stride_;
-  float* __restrict pz = py + soa_stride_;
-  float* __restrict vx = pz + soa_stride_;
-  float* __restrict vy = vx + soa_stride_;
-  float* __restrict vz = vy + soa_stride_;
-  float* __restrict mv = vz + soa_stride_;
-  for (int32_t r = win.row0; r <= win.row1; ++r) {
-    const int32_t l0 = (r - win.row0) * cols;
-    for (int32_t c = win.col0; c <= win.col1; ++c) {
-      const int32_t p = r * w + c, l = l0 + (c - win.col0);
-      px[l] = static_cast<float>(x_[p].x() - origin_.x());
-      py[l] = static_cast<float>(x_[p].y() - origin_.y());
-      pz[l] = static_cast<float>(x_[p].z() - origin_.z());
-      mv[l] = role_[p] == PatchRole::kFree ? 1.0f : 0.0f;
-      if (velocities) {
-        vx[l] = static_cast<float>(v_[p].x());
-        vy[l] = static_cast<float>(v_[p].y());
-        vz[l] = static_cast<float>(v_[p].z());
-      }
-    }
-  }
-}
-
-void ClothPatch::ComputeAccelerations() {
-  ForEachParticle([&](int32_t p) {
-    f_[3 * p] = 0.0;
-    f_[3 * p + 1] = 0.0;
-    f_[3 * p + 2] = 0.0;
-  });
-  // Springs: Hooke plus the dashpot along the unit direction u from i to j,
-  // f_i = (k (l - L) + c (v_j - v_i) . u) u, f_j = -f_i (001 §2), as AddSpringForces. Per window,
-  // family and row: every pair's force into one row of scratch, then added to its i ends and
-  // subtracted from its j ends in two passes (loops the compiler vectorises; the pairs with no
-  // free end in the range compute forces nobody reads).
-  const int32_t w = model_.width;
-  const size_t stride = soa_stride_;
-  for (size_t k = 0; k < window_count_; ++k) {
-    const PatchWindow& win = windows_[k];
-    Gather(win, true);
-    const int32_t cols = win.col1 - win.col0 + 1;
-    const float* __restrict px = soa_.data();
-    const float* __restrict py = px + stride;
-    const float* __restrict pz = py + stride;
-    const float* __restrict vx = pz + stride;
-    const float* __restrict vy = vx + stride;
-    const float* __restrict vz = vy + stride;
-    float* __restrict fx = soa_.data() + 7 * stride;
-    float* __restrict fy = fx + stride;
-    float* __restrict fz = fy + stride;
-    float* __restrict tx = fz + stride;
-    float* __restrict ty = tx + stride;
-    float* __restrict tz = ty + stride;
-    const size_t size = static_cast<size_t>(win.size());
-    std::fill(fx, fx + size, 0.0f);
-    std::fill(fy, fy + size, 0.0f);
-    std::fill(fz, fz + size, 0.0f);
-    for (const SpringFamily& fam : model_.spring_families) {
-      const PatchWindow range = PairRange(win, fam.dc, fam.dr);
-      if (range.empty()) continue;
-      const auto stiffness = static_cast<float>(fam.stiffness_N_per_m);
-      const auto damping = static_cast<float>(fam.damping_N_s_per_m);
-      const auto rest = static_cast<float>(fam.rest_length_m);
-      const int32_t offset = fam.dr * cols + fam.dc;
-      const int32_t count = range.col1 - range.col0 + 1;
-      for (int32_t r = range.row0; r <= range.row1; ++r) {
-        const int32_t li = (r - win.row0) * cols + (range.col0 - win.col0);
-        const int32_t lj = li + offset;
-        RowSpringForces(count, px + li, py + li, pz + li, px + lj, py + lj, pz + lj, vx + li,
-                        vy + li, vz + li, vx + lj, vy + lj, vz + lj, stiffness, damping, rest, tx,
-                        ty, tz);
-        AddRow(count, 1.0f, tx, ty, tz, fx + li, fy + li, fz + li);
-        AddRow(count, -1.0f, tx, ty, tz, fx + lj, fy + lj, fz + lj);
-      }
-    }
-    for (int32_t r = win.row0; r <= win.row1; ++r) {
-      const int32_t l0 = (r - win.row0) * cols;
-      for (int32_t c = win.col0; c <= win.col1; ++c) {
-        const int32_t p = r * w + c, l = l0 + (c - win.col0);
-        f_[3 * p] += static_cast<double>(fx[l]);
-        f_[3 * p + 1] += static_cast<double>(fy[l]);
-        f_[3 * p + 2] += static_cast<double>(fz[l]);
-      }
-    }
-  }
-  // The contact springs (sim_loop/cloth_coupling.h), then gravity and drag (001 §6.1).
-  AddCouplingForces(*springs_, x_, 1.0, f_.data());
-  const double drag = model_.drag_N_s_per_m;
-  const Vec3 g = model_.gravity_m_per_s2;
-  ForEachParticle([&](int32_t p) {
-    if (role_[p] != PatchRole::kFree) return;
-    const Vec3 f(f_[3 * p], f_[3 * p + 1], f_[3 * p + 2]);
-    a_[p] = model_.inv_mass_per_kg[p] * (f - drag * v_[p]) + g;
-  });
-}
-
-void ClothPatch::Integrate(double h) {
-  // Leapfrog Verlet, kick-drift-kick with variable steps, as sim_loop's LeapfrogVerlet: the
-  // half-step velocity v_{n+1/2} = v_{n-1/2} + (h_old + h)/2 a_n, x_{n+1} = x_n + h v_{n+1/2},
-  // the state keeping v_{n+1} = v_{n+1/2} + h/2 a_n; a particle restarts from v (v + h/2 a).
-  const double h_old = h_last_s_ > 0.0 ? h_last_s_ : h;
-  const double kick = 0.5 * (h_old + h);
-  const double back = 0.5 * h_old;
-  ForEachParticle([&](int32_t p) {
-    if (role_[p] != PatchRole::kFree) return;
-    Vec3 v_half;
-    if (restart_[p]) {
-      v_half = v_[p] + (0.5 * h) * a_[p];
-    } else if (h_old == h) {
-      v_half = v_[p] + h * (a_[p] - 0.5 * a_last_[p]);
-    } else {
-      v_half = v_[p] + (kick * a_[p] - back * a_last_[p]);
-    }
-    restart_[p] = 0;
-    x_[p] += h * v_half;
-    v_[p] = v_half + (0.5 * h) * a_[p];
-    a_last_[p] = a_[p];
-  });
-  h_last_s_ = h;
 }
 
 PatchWindow ClothPatch::PairRange(const PatchWindow& win, int32_t dc, int32_t dr) const {
@@ -445,85 +698,106 @@ PatchWindow ClothPatch::PairRange(const PatchWindow& win, int32_t dc, int32_t dr
   return out;
 }
 
+
+void ClothPatch::SubstepForces() {
+  // The windows' positions (m from each window's first particle) and velocities in single
+  // precision, then every spring family's forces (SpringForcesBody) over each window's rows where
+  // a pair has a free end (PairRange), then the contact springs (sim_loop/cloth_coupling.h).
+  const PatchKernels& kernels = PickSimd(kPatchKernels);
+  for (size_t k = 0; k < window_count_; ++k) {
+    const PatchWindow& win = windows_[k];
+    const int32_t base = base_[k];
+    WindowSoa w = WindowArrays(single_.data(), stride_, base, win);
+    for (int32_t a = 0; a < 3; ++a) {
+      const double* __restrict x = D(kX + a) + base;
+      const double* __restrict v = D(kV + a) + base;
+      float* __restrict px = w.p[a];
+      float* __restrict pv = F(kU + a) + base;
+      const double o = x[0];
+      for (int32_t l = 0; l < w.count; ++l) {
+        px[l] = static_cast<float>(x[l] - o);
+        pv[l] = static_cast<float>(v[l]);
+      }
+    }
+    std::array<SpringPass, 16> passes;
+    int32_t num = 0;
+    const int32_t rows = win.row1 - win.row0 + 1;
+    for (const SpringFamily& fam : model_.spring_families) {
+      const PatchWindow range = PairRange(win, fam.dc, fam.dr);
+      if (range.empty() || std::abs(fam.dc) > 2 || num == static_cast<int32_t>(passes.size())) {
+        continue;
+      }
+      const PairRun run =
+          RowRun(rows, w.pitch, fam.dc, fam.dr, range.row0 - win.row0, range.row1 - win.row0);
+      if (run.l1 <= run.l0) continue;
+      passes[static_cast<size_t>(num++)] = SpringPass{
+          run.l0, run.l1, run.off, fam.dc, static_cast<float>(fam.stiffness_N_per_m),
+          static_cast<float>(fam.damping_N_s_per_m), static_cast<float>(fam.rest_length_m)};
+    }
+    kernels.spring_forces(w, passes.data(), num);
+  }
+  if (springs_->count == 0) return;
+  // The contact springs at the positions the proxy reads (x_ is up to date: StorePositions);
+  // AddCouplingForces writes only their candidates' corners, which are read back and re-zeroed.
+  AddCouplingForces(*springs_, x_, 1.0, f_.data());
+  for (int32_t s = 0; s < springs_->count; ++s) {
+    const CouplingSpring& spring = springs_->springs[static_cast<size_t>(s)];
+    for (int32_t t = 0; t < spring.num_candidates; ++t) {
+      for (int32_t p : spring.candidates[static_cast<size_t>(t)]) {
+        const int32_t l = local_[p];
+        for (int32_t a = 0; a < 3; ++a) {
+          if (l >= 0) F(kF + a)[l] += static_cast<float>(f_[3 * p + a]);
+          f_[3 * p + a] = 0.0;
+        }
+      }
+    }
+  }
+}
+
 void ClothPatch::ApplyProvotToWindows(double h) {
   // Provot 1995 (000 slide 9): a pair longer than its limit is shortened to it, both ends moving
   // by equal shares, a driven end not at all (as a pin), sweeps until none was more than 1e-3 over
   // its limit (as ApplyProvot, in single precision like it); the velocity follows the particle's
-  // whole move / h. Per window in the structure-of-arrays block: the pairs of a family along a row
-  // share no particle except for the horizontal families, which are swept in two colours (even,
-  // then odd columns), so every loop is a loop over independent pairs.
-  const int32_t w = model_.width;
-  const size_t stride = soa_stride_;
+  // whole move / h. The sweeps: ProvotBody.
+  const PatchKernels& kernels = PickSimd(kPatchKernels);
   const double inv_h = 1.0 / h;
   for (size_t k = 0; k < window_count_; ++k) {
     const PatchWindow& win = windows_[k];
-    Gather(win, false);
-    const int32_t cols = win.col1 - win.col0 + 1;
-    float* __restrict px = soa_.data();
-    float* __restrict py = px + stride;
-    float* __restrict pz = py + stride;
-    const float* __restrict mv = soa_.data() + 6 * stride;
-    for (int32_t it = 0; it < model_.provot_iterations; ++it) {
-      // Pairs with a free end left more than 1e-3 over their limit by this sweep.
-      constexpr float kLoose = (1.0f + 1e-3f) * (1.0f + 1e-3f);
-      int32_t loose = 0;
-      for (int32_t index : level1_) {
-        const ProvotFamily& fam = model_.provot_families[static_cast<size_t>(index)];
-        const PatchWindow range = PairRange(win, fam.dc, fam.dr);
-        if (range.empty()) continue;
-        const auto max_len = static_cast<float>(fam.max_length_m);
-        const float inv_max2 = 1.0f / (max_len * max_len);
-        const int32_t offset = fam.dr * cols + fam.dc;
-        const int32_t count = range.col1 - range.col0 + 1;
-        const int32_t step = fam.dr == 0 ? 2 : 1;
-        for (int32_t r = range.row0; r <= range.row1; ++r) {
-          const int32_t li = (r - win.row0) * cols + (range.col0 - win.col0);
-          if (step == 1) {
-            loose += RowProvot(count, px + li, py + li, pz + li, px + li + offset, py + li + offset,
-                               pz + li + offset, mv + li, mv + li + offset, max_len, inv_max2,
-                               kLoose);
-            continue;
-          }
-          // A horizontal family (dc = 1): its pairs share ends along the row, so it is swept in
-          // two colours, even then odd columns, each over independent pairs.
-          for (int32_t colour = 0; colour < 2; ++colour) {
-            for (int32_t c = colour; c < count; c += 2) {
-              const float dx = px[li + c + 1] - px[li + c];
-              const float dy = py[li + c + 1] - py[li + c];
-              const float dz = pz[li + c + 1] - pz[li + c];
-              const float len2 = dx * dx + dy * dy + dz * dz;
-              const float mi = mv[li + c], mj = mv[li + c + 1];
-              const float ratio = len2 * inv_max2;
-              if (!(ratio > 1.0f) || mi + mj == 0.0f) continue;
-              loose += ratio > kLoose ? 1 : 0;
-              const float len = std::sqrt(len2);
-              const float cut = (len - max_len) / (len * (mi + mj));
-              px[li + c] += cut * mi * dx;
-              py[li + c] += cut * mi * dy;
-              pz[li + c] += cut * mi * dz;
-              px[li + c + 1] -= cut * mj * dx;
-              py[li + c + 1] -= cut * mj * dy;
-              pz[li + c + 1] -= cut * mj * dz;
-            }
-          }
-        }
-      }
-      if (loose == 0) break;
+    const int32_t base = base_[k];
+    WindowSoa w = WindowArrays(single_.data(), stride_, base, win);
+    for (int32_t a = 0; a < 3; ++a) {
+      const double* __restrict x = D(kX + a) + base;
+      float* __restrict px = w.p[a];
+      const double o = x[0];
+      for (int32_t l = 0; l < w.count; ++l) px[l] = static_cast<float>(x[l] - o);
     }
-    // Back as each free particle's move (exact in double; nothing for one not moved).
-    for (int32_t r = win.row0; r <= win.row1; ++r) {
-      const int32_t l0 = (r - win.row0) * cols;
-      for (int32_t c = win.col0; c <= win.col1; ++c) {
-        const int32_t p = r * w + c, l = l0 + (c - win.col0);
-        if (role_[p] != PatchRole::kFree) continue;
-        // The move in single precision from where Gather put the particle, exactly.
-        const auto from = [&](int a) {
-          return static_cast<double>(static_cast<float>(x_[p][a] - origin_[a]));
-        };
-        const Vec3 move(static_cast<double>(px[l]) - from(0), static_cast<double>(py[l]) - from(1),
-                        static_cast<double>(pz[l]) - from(2));
-        x_[p] += move;
-        v_[p] += inv_h * move;
+    std::array<ProvotPass, 16> passes;
+    int32_t num = 0;
+    for (int32_t index : level1_) {
+      const ProvotFamily& fam = model_.provot_families[static_cast<size_t>(index)];
+      const PatchWindow range = PairRange(win, fam.dc, fam.dr);
+      if (range.empty() || std::abs(fam.dc) > 2 || num == static_cast<int32_t>(passes.size())) {
+        continue;
+      }
+      const auto max_len = static_cast<float>(fam.max_length_m);
+      passes[static_cast<size_t>(num++)] =
+          ProvotPass{range.row0 - win.row0, range.row1 - win.row0, range.col0 - win.col0,
+                     range.col1 - win.col0, fam.dc, fam.dr, max_len, 1.0f / (max_len * max_len)};
+    }
+    for (int32_t it = 0; it < model_.provot_iterations; ++it) {
+      if (kernels.provot(w, passes.data(), num) == 0) break;
+    }
+    // Back as each particle's move (exact in double; zero for a particle not moved).
+    for (int32_t a = 0; a < 3; ++a) {
+      double* __restrict x = D(kX + a) + base;
+      double* __restrict v = D(kV + a) + base;
+      const float* __restrict px = w.p[a];
+      const double o = x[0];
+      for (int32_t l = 0; l < w.count; ++l) {
+        const double move =
+            static_cast<double>(px[l]) - static_cast<double>(static_cast<float>(x[l] - o));
+        x[l] += move;
+        v[l] += inv_h * move;
       }
     }
   }
@@ -533,33 +807,44 @@ void ClothPatch::ApplyObstaclesToWindows() {
   // Projection to the margin shell along the distance's gradient; the inward normal velocity is
   // removed and the particle restarts from its velocity (no sweep and no friction: the patch's
   // steps are 1 ms, and the sim's frame resolves the obstacles fully).
-  ForEachParticle([&](int32_t p) {
-    if (role_[p] != PatchRole::kFree) return;
+  for (int32_t l = 0; l < locals_; ++l) {
+    if (!(D(kFree)[l] > 0.0)) continue;
+    Vec3 x(D(kX)[l], D(kX + 1)[l], D(kX + 2)[l]);
+    Vec3 v(D(kV)[l], D(kV + 1)[l], D(kV + 2)[l]);
+    bool moved = false;
     for (const ObstacleSpec& o : model_.obstacles) {
       Vec3 n;
-      const double phi = ObstacleDistance(o, x_[p], &n);
+      const double phi = ObstacleDistance(o, x, &n);
       if (!(phi < o.margin_m)) continue;
-      x_[p] += (o.margin_m - phi) * n;
-      const double vn = v_[p].dot(n);
-      if (vn < 0.0) v_[p] -= vn * n;
-      restart_[p] = 1;
+      x += (o.margin_m - phi) * n;
+      const double vn = v.dot(n);
+      if (vn < 0.0) v -= vn * n;
+      moved = true;
     }
-  });
+    if (!moved) continue;
+    for (int32_t a = 0; a < 3; ++a) {
+      D(kX + a)[l] = x[a];
+      D(kV + a)[l] = v[a];
+    }
+    D(kRestart)[l] = 1.0;
+  }
 }
 
 bool ClothPatch::AllFinite() const {
-  double probe = 0.0;
-  ForEachParticle([&](int32_t p) { probe += (x_[p] * 0.0).sum() + (v_[p] * 0.0).sum(); });
-  return probe == 0.0;
+  int64_t bad = 0;
+  for (int32_t a = 0; a < 6; ++a) bad += CountNonFinite(D(kX + a), static_cast<size_t>(locals_));
+  return bad == 0;
 }
 
-void ClothPatch::RestartFromDrive(const ClothSnapshot& drive, double tau_s) {
-  ForEachParticle([&](int32_t p) {
-    x_[p] = drive.x[p] + tau_s * drive.v[p];
-    v_[p] = drive.v[p];
-    x_before_[p] = x_[p];
-    restart_[p] = 1;
-  });
+void ClothPatch::RestartFromDrive(double tau_s) {
+  for (int32_t l = 0; l < locals_; ++l) {
+    for (int32_t a = 0; a < 3; ++a) {
+      D(kX + a)[l] = D(kDriveX + a)[l] + tau_s * D(kDriveV + a)[l];
+      D(kV + a)[l] = D(kDriveV + a)[l];
+    }
+    D(kRestart)[l] = 1.0;
+  }
+  StorePositions(x_before_.data());
 }
 
 Vec3 ClothPatch::NormalAt(int32_t p) const {
@@ -577,7 +862,10 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   PatchStepResult out;
   if (window_count_ == 0 || !(dt_s > 0.0)) return out;
   ++counters_.steps;
-  ForEachParticle([&](int32_t p) { x_before_[p] = x_[p]; });
+  // x_ holds the step's start (every window particle: written by the last step or by Place):
+  // it becomes x_before_, and x_ is written again below.
+  std::swap(x_, x_before_);
+  LoadDrive(drive);
 
   // Substeps no longer than the patch's nominal one, shortened for a stiff contact spring
   // (CouplingSubsteps: Colgate, Stanley & Brown 1995).
@@ -591,24 +879,62 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
       ++counters_.springs_outside;
       continue;
     }
-    AddCouplingSpring(model_, e, h, x_, springs_.get(), &counters_.coupling);
+    AddCouplingSpring(model_, e, h, x_before_, springs_.get(), &counters_.coupling);
   }
+  if (springs_->count > 0) StorePositions(x_.data());
   const bool provot = model_.provot_enabled && !level1_.empty();
+  const PatchKernels& kernels = PickSimd(kPatchKernels);
+  IntegrateArgs args;
+  for (int32_t a = 0; a < 3; ++a) {
+    args.x[a] = D(kX + a);
+    args.v[a] = D(kV + a);
+    args.a_last[a] = D(kALast + a);
+    args.drive_x[a] = D(kDriveX + a);
+    args.drive_v[a] = D(kDriveV + a);
+    args.f[a] = F(kF + a);
+    args.g[a] = model_.gravity_m_per_s2[a];
+  }
+  args.inv_mass = D(kInvMass);
+  args.movable = D(kFree);
+  args.restart = D(kRestart);
+  args.count = locals_;
+  args.h = h;
+  // Each driven particle closes the fraction beta = h / (T + h) of its distance to the drive
+  // (backward Euler of x' = v + (target - x) / T, unconditionally stable), T = kPatchDriveTime_s.
+  args.beta = h / (kPatchDriveTime_s + h);
+  args.drag = model_.drag_N_s_per_m;
   for (int32_t s = 0; s < substeps; ++s) {
-    if (s > 0) AdvanceCouplingSprings(s * h, springs_.get());
+    if (s > 0) {
+      AdvanceCouplingSprings(s * h, springs_.get());
+      if (springs_->count > 0) StorePositions(x_.data());
+    }
     // Forces at the substep's start (the driven particles where they are), then the driven
     // particles to the substep's end, where the constraints see them.
-    ComputeAccelerations();
-    Integrate(h);
-    SetDriven(drive, tau_s - dt_s + (s + 1) * h, h);
+    SubstepForces();
+    args.h_old = h_last_s_ > 0.0 ? h_last_s_ : h;
+    args.drive_tau_s = tau_s - dt_s + (s + 1) * h;
+    kernels.integrate(args);
+    h_last_s_ = h;
     if (provot) ApplyProvotToWindows(h);
     if (!model_.obstacles.empty()) ApplyObstaclesToWindows();
   }
   if (!AllFinite()) {
     ++counters_.nan_events;
-    RestartFromDrive(drive, tau_s);
+    RestartFromDrive(tau_s);
     out.recovered = true;
   }
+  // The state the proxy reads, and the largest distance from the drive's snapshot.
+  double max2 = 0.0;
+  for (int32_t l = 0; l < locals_; ++l) {
+    const int32_t p = global_[l];
+    if (p < 0) continue;
+    const Vec3 x(D(kX)[l], D(kX + 1)[l], D(kX + 2)[l]);
+    x_[p] = x;
+    v_[p] = Vec3(D(kV)[l], D(kV + 1)[l], D(kV + 2)[l]);
+    const Vec3 d(D(kDriveX)[l], D(kDriveX + 1)[l], D(kDriveX + 2)[l]);
+    max2 = std::max({max2, (x - d).squaredNorm(), (x_before_[p] - d).squaredNorm()});
+  }
+  drive_distance_m_ = std::sqrt(max2);
   out.substeps = substeps;
   out.springs = springs_->count;
   return out;

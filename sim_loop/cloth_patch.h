@@ -29,9 +29,14 @@
 // its rings. Handing its positions (or positions and velocities) back to the sim each frame was
 // measured and made the held press oscillate (docs/proxy.md, mode patch).
 //
-// Arrays are the cloth's size, indexed by particle, so a window is addressed like the cloth (rows
-// of a window are contiguous) and the coupling kernels run unchanged; only window particles are
-// ever touched. Sized once; Place and Step are real-time safe.
+// Storage: the windows' particles live densely (structure of arrays, each window's rows one after
+// the other at an even pitch), so that every spring family and every constraint colour of a
+// window is one long loop over independent pairs, compiled for each vector level of base/simd.h
+// (the same bits at every level); positions and velocities stay in double precision between
+// steps, the spring and constraint kernels run in single precision from the window's first
+// particle (as ApplyProvot). The per-particle arrays (x(), x_before(), v(), roles()) are the
+// cloth's size, written back every step for the proxy. Sized once; Place and Step are real-time
+// safe.
 
 #include <cstdint>
 #include <span>
@@ -132,6 +137,8 @@ class ClothPatch {
   /// Largest distance [m] of a window particle's position, now or at the start of the last step,
   /// from `s`'s position of it (0 without windows). Real-time safe; O(window particles).
   double MaxDistanceFrom(const ClothSnapshot& s) const;
+  /// MaxDistanceFrom(drive) for the drive of the last Step [m], computed by Step at no extra pass.
+  double DistanceFromDrive() const { return drive_distance_m_; }
 
   /// Role of each particle [cloth's particles].
   const PatchRole* roles() const { return role_.data(); }
@@ -163,17 +170,22 @@ class ClothPatch {
   void MarkRoles(std::span<const PatchWindow> windows, PatchRole* roles) const;
   bool SpringInside(const ExternalForce& e) const;
   PatchWindow PairRange(const PatchWindow& window, int32_t dc, int32_t dr) const;
-  void SetDriven(const ClothSnapshot& drive, double tau_s, double dt_s);
   double DriftFromDrive(const PatchWindow& window, const ClothSnapshot& drive, double tau_s) const;
-  void Gather(const PatchWindow& window, bool velocities);
-  void ComputeAccelerations();
-  void Integrate(double h);
+  void Flush();
+  void Layout();
+  void LoadDrive(const ClothSnapshot& drive);
+  void StorePositions(Vec3* x) const;
+  void SubstepForces();
   void ApplyProvotToWindows(double h);
   void ApplyObstaclesToWindows();
   bool AllFinite() const;
-  void RestartFromDrive(const ClothSnapshot& drive, double tau_s);
+  void RestartFromDrive(double tau_s);
   template <typename Visit>
   void ForEachParticle(Visit&& visit) const;
+  double* D(int32_t array) { return dense_.data() + array * stride_; }
+  const double* D(int32_t array) const { return dense_.data() + array * stride_; }
+  float* F(int32_t array) { return single_.data() + array * stride_; }
+  const float* F(int32_t array) const { return single_.data() + array * stride_; }
 
   const ClothModel& model_;
   int32_t radius_;
@@ -186,16 +198,28 @@ class ClothPatch {
   size_t window_count_ = 0;
   std::vector<PatchRole> role_;       // [n]
   std::vector<PatchRole> next_role_;  // [n], scratch of Place
-  std::vector<Vec3> x_, v_, x_before_, a_, a_last_;  // [n] each
+  // The state by particle (the proxy reads x_ and x_before_; Place starts entering particles here).
+  std::vector<Vec3> x_, v_, x_before_, a_last_;  // [n] each
+  std::vector<uint8_t> restart_;                 // [n] leapfrog restarts from v
   std::vector<int32_t> vertex_tri_start_;  // [n + 1] CSR: triangles around each particle
   std::vector<int32_t> vertex_tris_;
-  std::vector<double> f_;                           // [3 n] forces, packed xyz
-  std::vector<uint8_t> restart_;                    // [n] leapfrog restarts from v
-  std::vector<float> soa_;  // [13 soa_stride_] a window's structure of arrays (Gather)
-  size_t soa_stride_ = 0;
-  Vec3 origin_ = Vec3::Zero();  // the gathered window's first particle, m
+  // The windows' particles, densely: window k's particle (c, r) at local index
+  // base_[k] + (r - row0) (col1 - col0 + 1) + (c - col0). The state lives here between Place's
+  // layouts (x_ and v_ are written back every step); arrays of stride_ entries each.
+  size_t stride_ = 0;
+  int32_t locals_ = 0;             // window particles in all
+  std::vector<int32_t> base_;      // [max_windows + 1] first local index of each window
+  std::vector<int32_t> global_;    // [stride_] particle of each local index (-1: padding)
+  std::vector<int32_t> local_;     // [n] local index of each particle (-1: outside)
+  std::vector<double> dense_;      // [kDenseArrays stride_] (cloth_patch.cc)
+  std::vector<float> single_;      // [kSingleArrays stride_] (cloth_patch.cc)
+  const ClothSnapshot* drive_ = nullptr;  // the drive dense_ holds, with its frame
+  uint64_t drive_frame_ = 0;
+  bool drive_loaded_ = false;
+  std::vector<double> f_;          // [3 n] AddCouplingForces' output, zero between uses
   std::vector<int32_t> level1_;  // indices of model_.provot_families with level 1
   double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
+  double drive_distance_m_ = 0.0;  // DistanceFromDrive
   std::unique_ptr<CouplingSprings> springs_;  // the contact springs of the step
   PatchCounters counters_;
 };

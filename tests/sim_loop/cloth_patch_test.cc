@@ -1,7 +1,7 @@
 // The local patch (sim_loop/cloth_patch.h) on closed-form cases: windows, roles and merging; a
 // cloth moving rigidly is followed exactly; a patch with no contact on a cloth at rest stays at
 // rest; a contact spring pushes the free particles away from the hand while the rings stay with
-// the drive; lingering and release; no allocation.
+// the drive; lingering and release; every vector level gives the same bits; no allocation.
 #include "sim_loop/cloth_patch.h"
 
 #include <gtest/gtest.h>
@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cloth_test_util.h"
+#include "base/simd.h"
 #include "collision/collision_structure.h"
 #include "tests/alloc_counter.h"
 
@@ -182,6 +183,47 @@ TEST(ClothPatchTest, AWindowWithoutItsCentreLingersUntilItIsBackOnTheDrive) {
   }
   EXPECT_GT(ticks, 0);
   EXPECT_LE(ticks, static_cast<int>(kPatchMaxLinger_s / 1e-3) + 1);
+}
+
+// The patch's kernels at every vector level (base/simd.h) give the same bits, over windows of
+// every shape the kernels treat apart: narrow ones on the cloth's edge (fewer columns than a
+// constraint block), full ones (one block a row), two merged into one wider than a block, with
+// odd and even column counts, while the hand presses and the windows move.
+TEST(ClothPatchTest, EveryVectorLevelGivesTheSameBits) {
+  SimSpec spec = Curtain(40);
+  const ClothModel model = BuildClothModel(spec);
+  ClothState state = MakeClothState(model);
+  const ClothSnapshot s = SnapshotOf(model, state);
+  const auto run = [&](SimdLevel level) {
+    LimitSimdLevel(level);
+    ClothPatch patch(model, 8, 2);
+    std::vector<Vec3> out;
+    for (int k = 0; k < 240; ++k) {
+      const int32_t col = 1 + (k / 8) % 38, row = 20;
+      const int32_t a = At(model, col, row);
+      const int32_t b = k < 120 ? -1 : At(model, 38 - (k / 16) % 20, 24);
+      const int32_t centres[2] = {a, b};
+      patch.Place(centres, s, 0.0, 1e-3);
+      const std::vector<ExternalForce> springs = {
+          PressBehind(model, 2 * (row * (model.width - 1) + std::min(col, model.width - 2)), a)};
+      const PatchStepResult r = patch.Step(springs, 1e-3, s, 0.0);
+      EXPECT_FALSE(r.recovered);
+      for (int32_t p = 0; p < model.num_particles(); ++p) {
+        if (patch.roles()[p] != PatchRole::kOutside) out.push_back(patch.x()[p]);
+      }
+    }
+    LimitSimdLevel(kWidestSimdLevel);
+    return out;
+  };
+  const std::vector<Vec3> portable = run(SimdLevel::kPortable);
+  for (SimdLevel level : {SimdLevel::kAvx2, SimdLevel::kAvx512}) {
+    if (level > CpuSimdLevel()) continue;
+    const std::vector<Vec3> wide = run(level);
+    ASSERT_EQ(wide.size(), portable.size());
+    size_t differ = 0;
+    for (size_t i = 0; i < wide.size(); ++i) differ += wide[i] != portable[i] ? 1 : 0;
+    EXPECT_EQ(differ, 0u) << SimdLevelName(level);
+  }
 }
 
 TEST(ClothPatchTest, PlaceAndStepNeverAllocate) {
