@@ -187,7 +187,7 @@ void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
   const PatchStepResult step = patch_->Step(
       std::span<const ExternalForce>(patch_springs_.data(), static_cast<size_t>(springs)), dt_s,
       *cloth.newest, tau_s);
-  overlay_.offset_m = patch_->MaxDistanceFrom(*cloth.newest);
+  overlay_.offset_m = patch_->DistanceFromDrive();
   Bump(counters_.patch_ticks);
   if (step.recovered) Bump(counters_.patch_nan_events);
 }

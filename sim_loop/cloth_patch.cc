@@ -41,7 +41,8 @@ enum DenseArray : int32_t {
   kInvMass = 15, // 1 / mass, 1/kg
   kFree = 16,    // 1 free, 0 driven
   kRestart = 17, // 1: leapfrog restarts from v
-  kDenseArrays = 18,
+  kXStart = 18,  // positions at the step's start, m (3)
+  kDenseArrays = 21,
 };
 // The single-precision arrays (ClothPatch::single_), stride_ entries each.
 enum SingleArray : int32_t {
@@ -213,6 +214,31 @@ constexpr int32_t kBlock = 16;
   return loose;
 }
 
+// One row r of an across-row pass: in blocks (ProvotBlock), or in a narrow window one loop.
+// Returns the pairs left loose.
+[[gnu::always_inline]] inline int32_t ProvotRow(const WindowSoa& w, const ProvotPass& s,
+                                                int32_t r) {
+  float* const px = w.p[0];
+  float* const py = w.p[1];
+  float* const pz = w.p[2];
+  const float* const mv = w.movable;
+  const float* const mask = w.mask[s.dc + 2];
+  const int32_t off = s.dr * w.pitch + s.dc, count = s.col1 - s.col0 + 1;
+  const int32_t first = r * w.pitch + s.col0;
+  if (off < kBlock) {
+    const int32_t i = first, j = first + off;
+    return ProvotRun<1>(count, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i, mv + j,
+                        mask + i, s.max_len, s.inv_max2);
+  }
+  int32_t loose = 0;
+  for (int32_t c = 0; c < count; c += kBlock) {
+    const int32_t i = first + c, j = i + off;
+    loose += ProvotBlock(count - c, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i,
+                         mv + j, mask + i, s.max_len, s.inv_max2);
+  }
+  return loose;
+}
+
 // One Gauss-Seidel sweep of Provot's limits over a window's families; returns the pairs left
 // loose (ProvotRun). A family across rows (dr > 0) is swept row by row, in order (a correction
 // travels down the window within one sweep, as the sim's sweeps): the pairs of one row share no
@@ -228,7 +254,7 @@ constexpr int32_t kBlock = 16;
   float* const pz = w.p[2];
   const float* const mv = w.movable;
   int32_t loose = 0;
-  for (int32_t k = 0; k < num_passes; ++k) {
+  for (int32_t k = 0; k < num_passes;) {
     const ProvotPass s = passes[k];
     const float* const mask = w.mask[s.dc + 2];
     if (s.dr == 0 && s.dc == 1) {
@@ -239,34 +265,37 @@ constexpr int32_t kBlock = 16;
         loose += ProvotRun<2>(pairs, px + i, py + i, pz + i, px + i + 1, py + i + 1, pz + i + 1,
                               mv + i, mv + i + 1, mask + i, s.max_len, s.inv_max2);
       }
+      ++k;
       continue;
     }
-    const int32_t off = s.dr * w.pitch + s.dc;
     if (s.dr == 0) {  // another family along a row (not a level-1 family): pair by pair
       for (int32_t r = s.row0; r <= s.row1; ++r) {
         for (int32_t i = r * w.pitch + s.col0; i <= r * w.pitch + s.col1; ++i) {
-          const int32_t j = i + off;
+          const int32_t j = i + s.dc;
           loose += ProvotRun<1>(1, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i, mv + j,
                                 mask + i, s.max_len, s.inv_max2);
         }
       }
+      ++k;
       continue;
     }
-    const int32_t count = s.col1 - s.col0 + 1;
-    for (int32_t r = s.row0; r <= s.row1; ++r) {
-      const int32_t first = r * w.pitch + s.col0;
-      if (off < kBlock) {
-        const int32_t i = first, j = first + off;
-        loose += ProvotRun<1>(count, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i,
-                              mv + j, mask + i, s.max_len, s.inv_max2);
-        continue;
-      }
-      for (int32_t c = 0; c < count; c += kBlock) {
-        const int32_t i = first + c, j = i + off;
-        loose += ProvotBlock(count - c, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i,
-                             mv + j, mask + i, s.max_len, s.inv_max2);
+    // Consecutive passes across one row (dr = 1) over the same rows, pipelined: at step t, pass
+    // g of the group sweeps row t - 2 g. Pass g's row q needs pass g - 1's rows q - 1 .. q + 1
+    // (done at earlier steps) and touches rows q, q + 1, which no later row of an earlier pass
+    // touches; so each pair sees exactly what it sees when the passes run one after the other,
+    // and the rows of one step, two apart, are independent chains whose latencies overlap.
+    int32_t group = 1;
+    while (k + group < num_passes && passes[k + group].dr == 1 && s.dr == 1 &&
+           passes[k + group].row0 == s.row0 && passes[k + group].row1 == s.row1) {
+      ++group;
+    }
+    for (int32_t t = s.row0; t <= s.row1 + 2 * (group - 1); ++t) {
+      for (int32_t g = 0; g < group; ++g) {
+        const int32_t r = t - 2 * g;
+        if (r >= s.row0 && r <= s.row1) loose += ProvotRow(w, passes[k + g], r);
       }
     }
+    k += group;
   }
   return loose;
 }
@@ -325,12 +354,42 @@ struct IntegrateArgs {
   for (int32_t l = 0; l < a.count; ++l) rs[l] *= 1.0 - a.movable[l];
 }
 
+// How many of x[0..count) are infinite or NaN (all exponent bits set, IEEE 754 binary64), as
+// integer operations, which vectorise.
+[[gnu::always_inline]] inline int64_t CountNonFiniteBody(const double* __restrict x,
+                                                        size_t count) {
+  constexpr uint64_t kExponent = 0x7ff0000000000000ULL;
+  int64_t bad = 0;
+  for (size_t l = 0; l < count; ++l) {
+    bad += static_cast<int64_t>((std::bit_cast<uint64_t>(x[l]) & kExponent) == kExponent);
+  }
+  return bad;
+}
+
+// The largest squared distance [m^2] between (x, y, z)[l] and (dx, dy, dz)[l], l < count. A
+// non-negative double's bits order as an integer's, so the maximum is an integer one, which
+// vectorises.
+[[gnu::always_inline]] inline double MaxDistance2Body(
+    int32_t count, const double* __restrict x, const double* __restrict y,
+    const double* __restrict z, const double* __restrict dx, const double* __restrict dy,
+    const double* __restrict dz) {
+  int64_t most = 0;
+  for (int32_t l = 0; l < count; ++l) {
+    const double ex = x[l] - dx[l], ey = y[l] - dy[l], ez = z[l] - dz[l];
+    most = std::max(most, std::bit_cast<int64_t>(ex * ex + ey * ey + ez * ez));
+  }
+  return std::bit_cast<double>(most);
+}
+
 // The kernels at each vector level (base/simd.h): the same source compiled for the level's
 // instruction set, so every level gives the same bits (no contraction: -ffp-contract=off).
 struct PatchKernels {
   void (*spring_forces)(const WindowSoa&, const SpringPass*, int32_t);
   int32_t (*provot)(const WindowSoa&, const ProvotPass*, int32_t);
   void (*integrate)(const IntegrateArgs&);
+  int64_t (*non_finite)(const double*, size_t);
+  double (*max_distance2)(int32_t, const double*, const double*, const double*, const double*,
+                          const double*, const double*);
 };
 
 #define FELT_PATCH_KERNELS(SUFFIX, ATTRIBUTE)                                                  \
@@ -340,21 +399,35 @@ struct PatchKernels {
   ATTRIBUTE int32_t Provot##SUFFIX(const WindowSoa& w, const ProvotPass* p, int32_t n) {      \
     return ProvotBody(w, p, n);                                                              \
   }                                                                                          \
-  ATTRIBUTE void Integrate##SUFFIX(const IntegrateArgs& a) { IntegrateBody(a); }
+  ATTRIBUTE void Integrate##SUFFIX(const IntegrateArgs& a) { IntegrateBody(a); }             \
+  ATTRIBUTE int64_t NonFinite##SUFFIX(const double* x, size_t n) {                          \
+    return CountNonFiniteBody(x, n);                                                         \
+  }                                                                                          \
+  ATTRIBUTE double MaxDistance2##SUFFIX(int32_t n, const double* x, const double* y,          \
+                                        const double* z, const double* dx, const double* dy,  \
+                                        const double* dz) {                                  \
+    return MaxDistance2Body(n, x, y, z, dx, dy, dz);                                         \
+  }
 
 FELT_PATCH_KERNELS(Portable, )
 #if defined(__x86_64__)
 FELT_PATCH_KERNELS(Avx2, __attribute__((target("avx2"))))
 FELT_PATCH_KERNELS(Avx512, __attribute__((target("avx512f,prefer-vector-width=512"))))
 constexpr SimdTable<PatchKernels> kPatchKernels{
-    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable},
-    PatchKernels{SpringForcesAvx2, ProvotAvx2, IntegrateAvx2},
-    PatchKernels{SpringForcesAvx512, ProvotAvx512, IntegrateAvx512}};
+    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable, NonFinitePortable,
+                 MaxDistance2Portable},
+    PatchKernels{SpringForcesAvx2, ProvotAvx2, IntegrateAvx2, NonFiniteAvx2,
+                 MaxDistance2Avx2},
+    PatchKernels{SpringForcesAvx512, ProvotAvx512, IntegrateAvx512, NonFiniteAvx512,
+                 MaxDistance2Avx512}};
 #else
 constexpr SimdTable<PatchKernels> kPatchKernels{
-    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable},
-    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable},
-    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable}};
+    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable, NonFinitePortable,
+                 MaxDistance2Portable},
+    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable, NonFinitePortable,
+                 MaxDistance2Portable},
+    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable, NonFinitePortable,
+                 MaxDistance2Portable}};
 #endif
 #undef FELT_PATCH_KERNELS
 
@@ -373,15 +446,15 @@ PairRun RowRun(int32_t rows, int32_t pitch, int32_t dc, int32_t dr, int32_t ra, 
   return run;
 }
 
-// How many of x[0..count) are infinite or NaN (all exponent bits set, IEEE 754 binary64), as
-// integer operations, which vectorise.
-int64_t CountNonFinite(const double* __restrict x, size_t count) {
-  constexpr uint64_t kExponent = 0x7ff0000000000000ULL;
-  int64_t bad = 0;
-  for (size_t l = 0; l < count; ++l) {
-    bad += static_cast<int64_t>((std::bit_cast<uint64_t>(x[l]) & kExponent) == kExponent);
+// out[3 c + 0, 1, 2] = x[c], y[c], z[c] for c < count (a row of the dense arrays into the
+// per-particle ones).
+void Interleave(int32_t count, const double* __restrict x, const double* __restrict y,
+                const double* __restrict z, double* __restrict out) {
+  for (int32_t c = 0; c < count; ++c) {
+    out[3 * c] = x[c];
+    out[3 * c + 1] = y[c];
+    out[3 * c + 2] = z[c];
   }
-  return bad;
 }
 
 // Entries per row of a window's dense arrays: its columns, made even (ProvotBody's colours).
@@ -699,7 +772,7 @@ PatchWindow ClothPatch::PairRange(const PatchWindow& win, int32_t dc, int32_t dr
 }
 
 
-void ClothPatch::SubstepForces() {
+void ClothPatch::SubstepForces(std::span<const Vec3> positions) {
   // The windows' positions (m from each window's first particle) and velocities in single
   // precision, then every spring family's forces (SpringForcesBody) over each window's rows where
   // a pair has a free end (PairRange), then the contact springs (sim_loop/cloth_coupling.h).
@@ -737,9 +810,9 @@ void ClothPatch::SubstepForces() {
     kernels.spring_forces(w, passes.data(), num);
   }
   if (springs_->count == 0) return;
-  // The contact springs at the positions the proxy reads (x_ is up to date: StorePositions);
-  // AddCouplingForces writes only their candidates' corners, which are read back and re-zeroed.
-  AddCouplingForces(*springs_, x_, 1.0, f_.data());
+  // The contact springs at `positions` (the substep's start, by particle); AddCouplingForces
+  // writes only their candidates' corners, which are read back and re-zeroed.
+  AddCouplingForces(*springs_, positions, 1.0, f_.data());
   for (int32_t s = 0; s < springs_->count; ++s) {
     const CouplingSpring& spring = springs_->springs[static_cast<size_t>(s)];
     for (int32_t t = 0; t < spring.num_candidates; ++t) {
@@ -832,7 +905,8 @@ void ClothPatch::ApplyObstaclesToWindows() {
 
 bool ClothPatch::AllFinite() const {
   int64_t bad = 0;
-  for (int32_t a = 0; a < 6; ++a) bad += CountNonFinite(D(kX + a), static_cast<size_t>(locals_));
+  const PatchKernels& kernels = PickSimd(kPatchKernels);
+  for (int32_t a = 0; a < 6; ++a) bad += kernels.non_finite(D(kX + a), static_cast<size_t>(locals_));
   return bad == 0;
 }
 
@@ -840,6 +914,7 @@ void ClothPatch::RestartFromDrive(double tau_s) {
   for (int32_t l = 0; l < locals_; ++l) {
     for (int32_t a = 0; a < 3; ++a) {
       D(kX + a)[l] = D(kDriveX + a)[l] + tau_s * D(kDriveV + a)[l];
+      D(kXStart + a)[l] = D(kX + a)[l];
       D(kV + a)[l] = D(kDriveV + a)[l];
     }
     D(kRestart)[l] = 1.0;
@@ -881,7 +956,9 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
     }
     AddCouplingSpring(model_, e, h, x_before_, springs_.get(), &counters_.coupling);
   }
-  if (springs_->count > 0) StorePositions(x_.data());
+  for (int32_t a = 0; a < 3; ++a) {
+    std::copy(D(kX + a), D(kX + a) + locals_, D(kXStart + a));
+  }
   const bool provot = model_.provot_enabled && !level1_.empty();
   const PatchKernels& kernels = PickSimd(kPatchKernels);
   IntegrateArgs args;
@@ -904,13 +981,15 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   args.beta = h / (kPatchDriveTime_s + h);
   args.drag = model_.drag_N_s_per_m;
   for (int32_t s = 0; s < substeps; ++s) {
+    // The contact springs read positions by particle: the step's start is x_before_; later
+    // substeps write x_ first.
     if (s > 0) {
       AdvanceCouplingSprings(s * h, springs_.get());
       if (springs_->count > 0) StorePositions(x_.data());
     }
     // Forces at the substep's start (the driven particles where they are), then the driven
     // particles to the substep's end, where the constraints see them.
-    SubstepForces();
+    SubstepForces(s == 0 ? x_before_ : x_);
     args.h_old = h_last_s_ > 0.0 ? h_last_s_ : h;
     args.drive_tau_s = tau_s - dt_s + (s + 1) * h;
     kernels.integrate(args);
@@ -923,17 +1002,22 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
     RestartFromDrive(tau_s);
     out.recovered = true;
   }
-  // The state the proxy reads, and the largest distance from the drive's snapshot.
-  double max2 = 0.0;
-  for (int32_t l = 0; l < locals_; ++l) {
-    const int32_t p = global_[l];
-    if (p < 0) continue;
-    const Vec3 x(D(kX)[l], D(kX + 1)[l], D(kX + 2)[l]);
-    x_[p] = x;
-    v_[p] = Vec3(D(kV)[l], D(kV + 1)[l], D(kV + 2)[l]);
-    const Vec3 d(D(kDriveX)[l], D(kDriveX + 1)[l], D(kDriveX + 2)[l]);
-    max2 = std::max({max2, (x - d).squaredNorm(), (x_before_[p] - d).squaredNorm()});
+  // The state the proxy reads, row by row, and the largest distance from the drive's snapshot.
+  const int32_t w = model_.width;
+  for (size_t k = 0; k < window_count_; ++k) {
+    const PatchWindow& win = windows_[k];
+    const int32_t cols = win.col1 - win.col0 + 1, pitch = PitchOf(win);
+    for (int32_t r = win.row0; r <= win.row1; ++r) {
+      const int32_t l = base_[k] + (r - win.row0) * pitch, p = r * w + win.col0;
+      Interleave(cols, D(kX) + l, D(kX + 1) + l, D(kX + 2) + l, x_[p].data());
+      Interleave(cols, D(kV) + l, D(kV + 1) + l, D(kV + 2) + l, v_[p].data());
+    }
   }
+  const double max2 =
+      std::max(kernels.max_distance2(locals_, D(kX), D(kX + 1), D(kX + 2), D(kDriveX), D(kDriveX + 1),
+                            D(kDriveX + 2)),
+               kernels.max_distance2(locals_, D(kXStart), D(kXStart + 1), D(kXStart + 2), D(kDriveX),
+                            D(kDriveX + 1), D(kDriveX + 2)));
   drive_distance_m_ = std::sqrt(max2);
   out.substeps = substeps;
   out.springs = springs_->count;

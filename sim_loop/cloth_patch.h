@@ -175,7 +175,7 @@ class ClothPatch {
   void Layout();
   void LoadDrive(const ClothSnapshot& drive);
   void StorePositions(Vec3* x) const;
-  void SubstepForces();
+  void SubstepForces(std::span<const Vec3> positions);
   void ApplyProvotToWindows(double h);
   void ApplyObstaclesToWindows();
   bool AllFinite() const;
