@@ -114,6 +114,9 @@ int Compare(const CompareArgs& args) {
   LockstepOptions options;
   options.max_duration_s = args.duration_s;
   options.prepend_truth = args.truth;
+  std::vector<std::string> warnings;
+  if (args.truth) warnings = TruthClothMismatches(variants);
+  for (const std::string& w : warnings) std::fprintf(stderr, "felt compare: warning: %s\n", w.c_str());
 
   const CompareResult result = CompareVariants(scene, trace.samples, variants, options);
   const std::string load_end = report::LoadAverage();
@@ -146,7 +149,9 @@ int Compare(const CompareArgs& args) {
                      "cloth)"
                    : "",
         result.summaries.front().timer_overhead_us);
-    report::WriteTextFile(args.md, header + "\n" + what + table);
+    std::string warned;
+    for (const std::string& w : warnings) warned.append("**Warning**: ").append(w).append(".\n\n");
+    report::WriteTextFile(args.md, header + "\n" + what + warned + table);
   }
   return 0;
 }

@@ -549,6 +549,25 @@ std::vector<VariantSummary> SummarizeRuns(const std::vector<LockstepRun>& runs) 
   return out;
 }
 
+std::vector<std::string> TruthClothMismatches(const std::vector<LockstepVariant>& variants) {
+  std::vector<std::string> out;
+  for (const LockstepVariant& v : variants) {
+    std::string keys;
+    for (const VariantOverride& o : v.overrides) {
+      if (o.key.rfind("cloth.", 0) != 0) continue;
+      if (!keys.empty()) keys.append(", ");
+      keys.append(o.key);
+    }
+    if (keys.empty()) continue;
+    std::string line = "variant '";
+    line.append(v.name).append("' overrides ").append(keys).append(
+        "; the truth (--truth) runs the scene's own cloth, so this variant is compared with "
+        "another cloth: list 'truth: truth=on,...' with the same cloth keys instead");
+    out.push_back(std::move(line));
+  }
+  return out;
+}
+
 CompareResult CompareVariants(const SceneDocument& scene, const std::vector<TraceSample>& samples,
                               const std::vector<LockstepVariant>& variants,
                               const LockstepOptions& options) {

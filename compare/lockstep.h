@@ -164,6 +164,13 @@ struct CompareResult {
   std::vector<VariantSummary> summaries;  ///< one per variant; [0] is the reference
 };
 
+/// What `--truth` (LockstepOptions::prepend_truth) would compare unlike with like: one line per
+/// variant that overrides a key of the scene's [cloth] table (its grid, spacing, mass, drag ...),
+/// naming the variant and its keys, since the prepended truth runs the cloth as the scene file has
+/// it (the same trace on another cloth); empty when none does. The remedy is to list the truth
+/// with the same cloth keys ("truth: truth=on,cloth.width=64,...") instead of `--truth`.
+std::vector<std::string> TruthClothMismatches(const std::vector<LockstepVariant>& variants);
+
 /// Builds every variant's spec (VariantSpec) and checks they can be paired with the first (same
 /// haptic_rate_hz and number of devices) before running any, then runs each (RunLockstep) and
 /// summarises them (SummarizeRuns). With options.prepend_truth the truth (TruthVariant) runs

@@ -131,6 +131,18 @@ TEST(LockstepVariants, TruthIsABareWordAShorthandAndAFunction) {
       << bad;
 }
 
+// --truth runs the scene's own cloth: a variant on another cloth is named, with its keys.
+TEST(LockstepVariants, TruthNamesVariantsThatRunAnotherCloth) {
+  const std::vector<LockstepVariant> v = ParseVariantList(
+      "a: snapshot=patch; b: snapshot=patch, cloth.width=64, proxy.patch_radius=6, "
+      "cloth.spacing_m=0.008; c: provot.iterations=5");
+  const std::vector<std::string> w = TruthClothMismatches(v);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("variant 'b' overrides cloth.width, cloth.spacing_m;"), std::string::npos)
+      << w[0];
+  EXPECT_TRUE(TruthClothMismatches(ParseVariantList("snapshot=newest; truth")).empty());
+}
+
 TEST(LockstepVariants, OverridesReachTheParsedSpec) {
   const SceneDocument scene = SmallCurtainScene();
   const ServerSpec base = VariantSpec(scene, LockstepVariant{"scene", {}}, 1);
