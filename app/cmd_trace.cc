@@ -100,6 +100,7 @@ struct GenerateArgs {
   std::string out_dir = "recordings";
   uint64_t seed = kDefaultTraceSeed;
   std::string real_motion;
+  int64_t real_trials = 1;
 };
 
 void PrintWritten(const std::string& path) {
@@ -115,6 +116,10 @@ CommandRun SetupGenerate(CLI::App& cmd) {
   cmd.add_option("--real-motion", args->real_motion,
                  "also write OUT_DIR/real_pen.trace from this directory's handwriting recording "
                  "(GPL data: never commit the result)");
+  cmd.add_option("--real-trials", args->real_trials,
+                 "with --real-motion: write trials 1..N of the handwriting, trial 1 as "
+                 "real_pen.trace and trial k > 1 as real_pen_k.trace (default 1)")
+      ->check(CLI::Range(int64_t{1}, kRealPenTrials));
   return [args]() {
     const std::string hard_dir = args->out_dir + "/hard";
     std::filesystem::create_directories(hard_dir);
@@ -122,9 +127,11 @@ CommandRun SetupGenerate(CLI::App& cmd) {
       PrintWritten(path);
     }
     for (const std::string& path : WriteHardTraces(hard_dir, args->seed)) PrintWritten(path);
-    if (!args->real_motion.empty()) {
-      const std::string path = args->out_dir + "/real_pen.trace";
-      WriteTrace(path, RealPenTrace(args->real_motion), TraceWriteOptions{kBundledDecimals});
+    for (int64_t trial = 1; !args->real_motion.empty() && trial <= args->real_trials; ++trial) {
+      const std::string path = args->out_dir + "/real_pen" +
+                               (trial == 1 ? std::string() : "_" + std::to_string(trial)) +
+                               ".trace";
+      WriteTrace(path, RealPenTrace(args->real_motion, trial), TraceWriteOptions{kBundledDecimals});
       PrintWritten(path);
       std::printf("%s derives from GPL data (%s/%s): do not commit it\n", path.c_str(),
                   args->real_motion.c_str(), kRealPenFile);

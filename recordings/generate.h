@@ -73,6 +73,8 @@ inline constexpr double kScrubAmplitude_m = 0.03;
 inline constexpr double kScrubFrequency_hz = 5.0;
 /// The real recording RealPenTrace reads from its data directory (cran/fda `handwrit`, GPL).
 inline constexpr const char* kRealPenFile = "fda_handwrit_optotrak_600Hz.csv";
+/// Trials (repetitions) in kRealPenFile: RealPenTrace's `trial` is 1..this.
+inline constexpr int64_t kRealPenTrials = 20;
 /// RealPenTrace scales the handwriting to fit x_D, y_D in [-this, this] [m].
 inline constexpr double kRealPenHalfExtent_m = 0.05;
 

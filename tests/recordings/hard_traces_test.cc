@@ -284,5 +284,23 @@ TEST(HardTraces, RealPenWritesIntoTheClothInsideTheWorkspace) {
   EXPECT_LT(WorstIntegralDrift(trace, {}), 1e-3);
 }
 
+TEST(HardTraces, EveryRealPenTrialIsItsOwnWritingAndNoOtherExists) {
+  const std::string dir = test::RealMotionDir();
+  if (!std::filesystem::exists(dir + "/" + kRealPenFile)) {
+    GTEST_SKIP() << "no real-motion data at " << dir << "/" << kRealPenFile;
+  }
+  const Trace first = RealPenTrace(dir, 1);
+  for (int64_t trial = 2; trial <= kRealPenTrials; ++trial) {
+    const Trace t = RealPenTrace(dir, trial);
+    ASSERT_GT(t.samples.size(), 4000u) << trial;
+    double differ = 0.0;
+    for (size_t k = 0; k < std::min(t.samples.size(), first.samples.size()); ++k) {
+      differ = std::max(differ, (t.samples[k].p_D - first.samples[k].p_D).norm());
+    }
+    EXPECT_GT(differ, 1e-3) << "trial " << trial << " repeats trial 1";
+  }
+  EXPECT_ANY_THROW(RealPenTrace(dir, kRealPenTrials + 1));
+}
+
 }  // namespace
 }  // namespace felt
