@@ -115,8 +115,10 @@ TEST(BenchSmoke, ClothOneGridWritesItsFiles) {
 }
 
 // `felt bench haptic --quick` on one trace (poke_hold, given with --trace, the bundled and hard
-// traces skipped) on the default curtain resized to 32 x 32: the truth and every snapshot mode
-// of kSnapshotModes (by name, never listed here) in the tables, JSON and CSV, and the plot.
+// traces skipped) on the default curtain resized to 32 x 32: the truth, every snapshot mode of
+// kSnapshotModes (by name, never listed here) and the truth at twice the rate (the reference's
+// convergence, which decides whether the trace judges the force targets) in the tables, JSON and
+// CSV, and the plot.
 TEST(BenchSmoke, HapticQuickOnOneTraceWritesItsFiles) {
   const std::string dir = FreshDir("felt_bench_haptic");
   const Outcome outcome =
@@ -151,14 +153,19 @@ TEST(BenchSmoke, HapticQuickOnOneTraceWritesItsFiles) {
                     "nan_events",
                     "rms_error_worst_N",
                     "rms_error_median_N",
-                    "targets_met"});
+                    "targets_met",
+                    "converged_spread_N",
+                    "reference_spread_N",
+                    "judged",
+                    "judged_traces",
+                    "judged_rms_error_worst_N"});
   const Json doc = Json::parse(json, nullptr, false);
   ASSERT_TRUE(doc.is_object()) << json;
   EXPECT_EQ(doc["duration_s"], Json(2.5));
   EXPECT_EQ(doc["triangles"], Json(2 * 31 * 31));
   ASSERT_EQ(doc["traces"].size(), 1u);
   const Json& variants = doc["traces"][0]["variants"];
-  ASSERT_EQ(variants.size(), 1u + std::size(kSnapshotModes));
+  ASSERT_EQ(variants.size(), 2u + std::size(kSnapshotModes));
   EXPECT_EQ(variants[0]["name"], Json("truth"));
   EXPECT_EQ(variants[0]["frames"], Json(2501));  // the cloth stepped every tick
   EXPECT_EQ(variants[0]["force_rms_error_N"], Json(0));
@@ -170,12 +177,20 @@ TEST(BenchSmoke, HapticQuickOnOneTraceWritesItsFiles) {
     EXPECT_GT(variants[m + 1]["force_rms_error_N"].get<double>(), 0.0) << name;
     EXPECT_NE(outcome.output.find("| " + name + " | "), std::string::npos) << name;
   }
+  const Json& twice = variants[1 + std::size(kSnapshotModes)];
+  EXPECT_EQ(twice["name"], Json("truth_2x"));
+  EXPECT_EQ(twice["frames"], Json(5002));  // the cloth stepped twice every tick
+  // A held poke converges: the finer truth is within half the RMS target, so the trace judges.
+  EXPECT_EQ(doc["traces"][0]["reference_spread_N"], twice["force_rms_error_N"]);
+  EXPECT_LT(doc["traces"][0]["reference_spread_N"].get<double>(), 0.075);
+  EXPECT_EQ(doc["traces"][0]["judged"], Json(true));
   EXPECT_TRUE(doc["summary"]["hard"].empty());
   EXPECT_NE(outcome.output.find("| poke_hold | truth | 0 | 0 |"), std::string::npos)
       << outcome.output;
   EXPECT_NE(outcome.output.find("Host: "), std::string::npos) << outcome.output;
   const std::string md = ReadFile(dir + "/haptic.md");
   EXPECT_NE(md.find("## Targets per mode"), std::string::npos) << md;
+  EXPECT_NE(md.find("Every trace judged"), std::string::npos) << md;
   const std::string csv = ReadFile(dir + "/haptic.csv");
   EXPECT_EQ(csv.rfind("group,trace,variant,ticks,force_rms_error_N,", 0), 0u) << csv;
   EXPECT_NE(csv.find("\nuser,poke_hold,truth,2501,0,"), std::string::npos) << csv;
