@@ -142,6 +142,31 @@ struct ProvotPass {
 // Pairs longer than their limit left more than 1e-3 over it by a sweep count as loose.
 constexpr float kLoose = (1.0f + 1e-3f) * (1.0f + 1e-3f);
 
+// One pair of ProvotRun and ProvotBlock, ends i and j (positions updated in place), movabilities mi,
+// mj (1 free, 0 driven, times the pair's mask): shortened to max_len if longer, each end moving by
+// its share m / (m_i + m_j) of the cut. Returns 1 if the pair has a free end and was more than
+// 1e-3 over its limit (kLoose), else 0. Branch-free.
+[[gnu::always_inline]] inline int32_t ProjectLane(float& xi, float& yi, float& zi, float& xj,
+                                                  float& yj, float& zj, float mi, float mj,
+                                                  float max_len, float inv_max2) {
+  const float dx = xj - xi, dy = yj - yi, dz = zj - zi;
+  const float len2 = dx * dx + dy * dy + dz * dz;
+  const float both = mi + mj;
+  const float ratio = len2 * inv_max2;
+  const bool moves = both > 0.0f;
+  const float over = static_cast<float>((ratio > 1.0f) & moves);
+  const float len = std::sqrt(len2);
+  const float cut = over * (len - max_len) / (std::max(len, 1e-10f) * std::max(both, 1.0f));
+  const float si = cut * mi, sj = cut * mj;
+  xi += si * dx;
+  yi += si * dy;
+  zi += si * dz;
+  xj -= sj * dx;
+  yj -= sj * dy;
+  zj -= sj * dz;
+  return static_cast<int32_t>((ratio > kLoose) & moves);
+}
+
 // Provot 1995 (000 slide 9) over independent pairs c < count, end i of pair c at index
 // c * stride of xi.., end j at c * stride of xj..: a pair longer than max_len is shortened to it,
 // each end moving by its share of the cut (movabilities m_i, m_j: 1 free, 0 driven, times the
@@ -156,23 +181,8 @@ template <int32_t kStride>
   int32_t loose = 0;
   for (int32_t c = 0; c < count; ++c) {
     const int32_t k = c * kStride;
-    const float mi = mask[k] * movable_i[k], mj = mask[k] * movable_j[k];
-    const float dx = xj[k] - xi[k], dy = yj[k] - yi[k], dz = zj[k] - zi[k];
-    const float len2 = dx * dx + dy * dy + dz * dz;
-    const float both = mi + mj;
-    const float ratio = len2 * inv_max2;
-    const bool moves = both > 0.0f;
-    const float over = static_cast<float>((ratio > 1.0f) & moves);
-    loose += static_cast<int32_t>((ratio > kLoose) & moves);
-    const float len = std::sqrt(len2);
-    const float cut = over * (len - max_len) / (std::max(len, 1e-10f) * std::max(both, 1.0f));
-    const float si = cut * mi, sj = cut * mj;
-    xi[k] += si * dx;
-    yi[k] += si * dy;
-    zi[k] += si * dz;
-    xj[k] -= sj * dx;
-    yj[k] -= sj * dy;
-    zj[k] -= sj * dz;
+    loose += ProjectLane(xi[k], yi[k], zi[k], xj[k], yj[k], zj[k], mask[k] * movable_i[k],
+                         mask[k] * movable_j[k], max_len, inv_max2);
   }
   return loose;
 }
@@ -193,23 +203,8 @@ constexpr int32_t kBlock = 16;
   int32_t loose = 0;
   for (int32_t c = 0; c < kBlock; ++c) {
     const float lane = mask[c] * static_cast<float>(c < count);
-    const float mi = lane * movable_i[c], mj = lane * movable_j[c];
-    const float dx = xj[c] - xi[c], dy = yj[c] - yi[c], dz = zj[c] - zi[c];
-    const float len2 = dx * dx + dy * dy + dz * dz;
-    const float both = mi + mj;
-    const float ratio = len2 * inv_max2;
-    const bool moves = both > 0.0f;
-    const float over = static_cast<float>((ratio > 1.0f) & moves);
-    loose += static_cast<int32_t>((ratio > kLoose) & moves);
-    const float len = std::sqrt(len2);
-    const float cut = over * (len - max_len) / (std::max(len, 1e-10f) * std::max(both, 1.0f));
-    const float si = cut * mi, sj = cut * mj;
-    xi[c] += si * dx;
-    yi[c] += si * dy;
-    zi[c] += si * dz;
-    xj[c] -= sj * dx;
-    yj[c] -= sj * dy;
-    zj[c] -= sj * dz;
+    loose += ProjectLane(xi[c], yi[c], zi[c], xj[c], yj[c], zj[c], lane * movable_i[c],
+                         lane * movable_j[c], max_len, inv_max2);
   }
   return loose;
 }
@@ -410,27 +405,22 @@ struct PatchKernels {
   }
 
 FELT_PATCH_KERNELS(Portable, )
+constexpr PatchKernels kPortablePatchKernels{SpringForcesPortable, ProvotPortable,
+                                             IntegratePortable, NonFinitePortable,
+                                             MaxDistance2Portable};
 #if defined(__x86_64__)
 FELT_PATCH_KERNELS(Avx2, __attribute__((target("avx2"))))
 FELT_PATCH_KERNELS(Avx512, __attribute__((target("avx512f,prefer-vector-width=512"))))
 constexpr SimdTable<PatchKernels> kPatchKernels{
-    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable, NonFinitePortable,
-                 MaxDistance2Portable},
-    PatchKernels{SpringForcesAvx2, ProvotAvx2, IntegrateAvx2, NonFiniteAvx2,
-                 MaxDistance2Avx2},
+    kPortablePatchKernels,
+    PatchKernels{SpringForcesAvx2, ProvotAvx2, IntegrateAvx2, NonFiniteAvx2, MaxDistance2Avx2},
     PatchKernels{SpringForcesAvx512, ProvotAvx512, IntegrateAvx512, NonFiniteAvx512,
                  MaxDistance2Avx512}};
 #else
-constexpr SimdTable<PatchKernels> kPatchKernels{
-    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable, NonFinitePortable,
-                 MaxDistance2Portable},
-    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable, NonFinitePortable,
-                 MaxDistance2Portable},
-    PatchKernels{SpringForcesPortable, ProvotPortable, IntegratePortable, NonFinitePortable,
-                 MaxDistance2Portable}};
+constexpr SimdTable<PatchKernels> kPatchKernels{kPortablePatchKernels, kPortablePatchKernels,
+                                                kPortablePatchKernels};
 #endif
 #undef FELT_PATCH_KERNELS
-
 
 // The pairs (c, r)-(c + dc, r + dr) whose i ends lie in local rows [ra, rb] of a window of
 // rows with `pitch` entries per row, every column (the pairs that would wrap past a row's end have
