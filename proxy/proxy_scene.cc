@@ -178,8 +178,9 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
                                         InRange(kMinCandidateCapacity, kMaxCandidateCapacity));
   const std::vector<std::string> names = CollisionStructureNames();
   std::vector<std::string_view> views(names.begin(), names.end());
+  const std::string default_name = ShortName(DefaultCollisionStructure());
   const size_t default_index =
-      static_cast<size_t>(std::find(names.begin(), names.end(), "bvh-sphere-4") - names.begin());
+      static_cast<size_t>(std::find(names.begin(), names.end(), default_name) - names.begin());
   const size_t index = table->ChoiceIndex("collision_structure", default_index, views);
   CollisionStructureFromName(names[index], &p.structure);
   return p;

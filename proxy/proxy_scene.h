@@ -22,7 +22,7 @@
 //   snapshot_mode = "interpolate"   # "newest" | "blend_forces" | "interpolate" | "extrapolate"
 //   max_iterations = 10             # 1..100
 //   candidate_capacity = 1024       # 16..65536
-//   collision_structure = "bvh-sphere-4"  # "naive", "osh",
+//   collision_structure = "bvh-aabb-4"    # "naive", "osh",
 //   "bvh-{sphere,aabb}-{2,4}[-topdown|-rebuild]"
 //
 // Every error is a SceneError "file:line:col: field: rule" (scene/scene_file.h).

@@ -96,8 +96,8 @@ struct ProxySpec {
   /// Triangles near the proxy gathered per tick (sized once in the proxy state), >= 16. A tick
   /// that finds more is counted (ProxyCounters::overflow_ticks) and uses the first ones found.
   int32_t candidate_capacity = 1024;
-  CollisionStructureSpec
-      structure;  ///< what the sim builds into each snapshot (default bvh-sphere-4)
+  /// What the sim builds into each snapshot (default bvh-aabb-4: DefaultCollisionStructure).
+  CollisionStructureSpec structure = DefaultCollisionStructure();
   /// The scene's static obstacles ([[obstacles]], the same ones the cloth is kept out of; world,
   /// m): the proxy cannot enter them either (proxy/obstacle_sweep.h). Not a [proxy] key: the
   /// server copies SimSpec's (ParseServerSpec). Empty: nothing is tested, at no cost.

@@ -36,7 +36,7 @@ TEST(ProxySceneTest, DefaultsWhenSectionsAreAbsent) {
   const ProxySpec p = ParseProxySpec(doc);
   EXPECT_TRUE(p.force_shading);
   EXPECT_EQ(p.friction_static, 0.0);
-  EXPECT_EQ(CollisionStructureName(p.structure), "bvh-sphere-4-bottomup");
+  EXPECT_EQ(CollisionStructureName(p.structure), "bvh-aabb-4-bottomup");  // the fastest (README-collision)
   const std::vector<DeviceSpec> all = ParseDeviceSpecs(doc);
   ASSERT_EQ(all.size(), 1u);
   EXPECT_EQ(all[0].id, "default");

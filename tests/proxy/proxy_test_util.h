@@ -72,7 +72,7 @@ inline TestMesh FlatSheet(double side = 0.2, int32_t n = 11, double z0 = 0.0) {
                   [&](double u, double v) { return Vec3((u - 0.5) * side, (v - 0.5) * side, z0); });
 }
 
-/// A snapshot of `mesh` with the default structure (bvh-sphere-4) unless `spec` says otherwise.
+/// A snapshot of `mesh` with the default structure (bvh-aabb-4) unless `spec` says otherwise.
 inline ClothSnapshot Snap(const TestMesh& mesh, const CollisionStructureSpec& spec = {}) {
   return MakeClothSnapshot(std::make_shared<const std::vector<Triangle>>(mesh.triangles), mesh.x,
                            spec);
