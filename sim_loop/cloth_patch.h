@@ -204,10 +204,11 @@ class ClothPatch {
   std::vector<int32_t> vertex_tri_start_;  // [n + 1] CSR: triangles around each particle
   std::vector<int32_t> vertex_tris_;
   // The windows' particles, densely: window k's particle (c, r) at local index
-  // base_[k] + (r - row0) (col1 - col0 + 1) + (c - col0). The state lives here between Place's
-  // layouts (x_ and v_ are written back every step); arrays of stride_ entries each.
+  // base_[k] + (r - row0) pitch + (c - col0), pitch the window's column count made even (a row of
+  // odd length ends in one padding entry). The state lives here between Place's layouts (x_ and
+  // v_ are written back every step); arrays of stride_ entries each.
   size_t stride_ = 0;
-  int32_t locals_ = 0;             // window particles in all
+  int32_t locals_ = 0;             // local entries in all, padding included
   std::vector<int32_t> base_;      // [max_windows + 1] first local index of each window
   std::vector<int32_t> global_;    // [stride_] particle of each local index (-1: padding)
   std::vector<int32_t> local_;     // [n] local index of each particle (-1: outside)
