@@ -341,8 +341,8 @@ std::string TargetTable(const std::vector<ModeSummary>& all,
   return MarkdownTable(header, std::vector<bool>(header.size(), false), rows);
 }
 
-// The traces of `set` whose reference did not converge, with its spread, as one sentence ("" when
-// every trace was judged or the check did not run).
+// One sentence on which traces of `set` judge the force targets: those whose reference did not
+// converge are named with their spread (or every trace judged, or the check not run).
 std::string SetAside(const std::vector<const TraceResult*>& set) {
   std::string list;
   int checked = 0;

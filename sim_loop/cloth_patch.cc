@@ -41,8 +41,7 @@ enum DenseArray : int32_t {
   kInvMass = 15, // 1 / mass, 1/kg
   kFree = 16,    // 1 free, 0 driven
   kRestart = 17, // 1: leapfrog restarts from v
-  kXStart = 18,  // positions at the step's start, m (3)
-  kDenseArrays = 21,
+  kDenseArrays = 18,
 };
 // The single-precision arrays (ClothPatch::single_), stride_ entries each.
 enum SingleArray : int32_t {
@@ -63,7 +62,7 @@ struct WindowSoa {
   float* t[3];
   const float* movable;
   const float* mask[5];   // by dc + 2
-  int32_t count = 0;     // particles
+  int32_t count = 0;     // entries (rows x pitch, padding included)
   int32_t pitch = 0;     // entries per row: its particles, and one of padding if they are odd
 };
 
@@ -142,7 +141,7 @@ struct ProvotPass {
 // Pairs longer than their limit left more than 1e-3 over it by a sweep count as loose.
 constexpr float kLoose = (1.0f + 1e-3f) * (1.0f + 1e-3f);
 
-// One pair of ProvotRun and ProvotBlock, ends i and j (positions updated in place), movabilities mi,
+// One pair of ProvotRun, ends i and j (positions updated in place), movabilities mi,
 // mj (1 free, 0 driven, times the pair's mask): shortened to max_len if longer, each end moving by
 // its share m / (m_i + m_j) of the cut. Returns 1 if the pair has a free end and was more than
 // 1e-3 over its limit (kLoose), else 0. Branch-free.
@@ -167,49 +166,37 @@ constexpr float kLoose = (1.0f + 1e-3f) * (1.0f + 1e-3f);
   return static_cast<int32_t>((ratio > kLoose) & moves);
 }
 
-// Provot 1995 (000 slide 9) over independent pairs c < count, end i of pair c at index
-// c * stride of xi.., end j at c * stride of xj..: a pair longer than max_len is shortened to it,
-// each end moving by its share of the cut (movabilities m_i, m_j: 1 free, 0 driven, times the
-// pair's mask; shares m_i / (m_i + m_j)). Returns the pairs with a free end left more than 1e-3
-// over (kLoose). Branch-free.
-template <int32_t kStride>
+// The lanes of a block (ProvotRun with kLanes = kBlock).
+constexpr int32_t kBlock = 16;
+
+// Provot 1995 (000 slide 9) over independent pairs, end i of pair c at index c * kStride of xi..,
+// end j at c * kStride of xj..: a pair longer than max_len is shortened to it, each end moving by
+// its share of the cut (movabilities m_i, m_j: 1 free, 0 driven, times the pair's mask; shares
+// m_i / (m_i + m_j)); ProjectLane. With kLanes = 0 the pairs are c < count. With kLanes > 0 they
+// are one block of kLanes of which the first `count` are real: a loop of constant length, which
+// the compiler turns into whole vectors with no scalar remainder (one AVX-512 vector, two AVX2
+// ones for kBlock); the lanes past `count` get movability 0 and write back what they read, so the
+// arrays must be readable kLanes entries on (ClothPatch pads them) and the i and j blocks must
+// not overlap (a row offset of at least kLanes). Returns the pairs with a free end left more than
+// 1e-3 over (kLoose). Branch-free.
+template <int32_t kStride, int32_t kLanes = 0>
 [[gnu::always_inline]] inline int32_t ProvotRun(
     int32_t count, float* __restrict xi, float* __restrict yi, float* __restrict zi,
     float* __restrict xj, float* __restrict yj, float* __restrict zj,
     const float* __restrict movable_i, const float* __restrict movable_j,
     const float* __restrict mask, float max_len, float inv_max2) {
   int32_t loose = 0;
-  for (int32_t c = 0; c < count; ++c) {
+  const int32_t pairs = kLanes > 0 ? kLanes : count;
+  for (int32_t c = 0; c < pairs; ++c) {
     const int32_t k = c * kStride;
-    loose += ProjectLane(xi[k], yi[k], zi[k], xj[k], yj[k], zj[k], mask[k] * movable_i[k],
-                         mask[k] * movable_j[k], max_len, inv_max2);
+    const float lane = kLanes > 0 ? mask[k] * static_cast<float>(c < count) : mask[k];
+    loose += ProjectLane(xi[k], yi[k], zi[k], xj[k], yj[k], zj[k], lane * movable_i[k],
+                         lane * movable_j[k], max_len, inv_max2);
   }
   return loose;
 }
 
-// The lanes of ProvotBlock.
-constexpr int32_t kBlock = 16;
-
-// ProvotRun over one block of kBlock pairs of which the first `count` are real: a loop of
-// constant length, which the compiler turns into whole vectors with no scalar remainder (one
-// AVX-512 vector, two AVX2 ones); the lanes past `count` get movability 0 and write back what
-// they read. The arrays must be readable kBlock entries on (ClothPatch pads them), and the i and
-// j blocks must not overlap (a row offset of at least kBlock).
-[[gnu::always_inline]] inline int32_t ProvotBlock(
-    int32_t count, float* __restrict xi, float* __restrict yi, float* __restrict zi,
-    float* __restrict xj, float* __restrict yj, float* __restrict zj,
-    const float* __restrict movable_i, const float* __restrict movable_j,
-    const float* __restrict mask, float max_len, float inv_max2) {
-  int32_t loose = 0;
-  for (int32_t c = 0; c < kBlock; ++c) {
-    const float lane = mask[c] * static_cast<float>(c < count);
-    loose += ProjectLane(xi[c], yi[c], zi[c], xj[c], yj[c], zj[c], lane * movable_i[c],
-                         lane * movable_j[c], max_len, inv_max2);
-  }
-  return loose;
-}
-
-// One row r of an across-row pass: in blocks (ProvotBlock), or in a narrow window one loop.
+// One row r of an across-row pass: in blocks of kBlock, or in a narrow window one loop.
 // Returns the pairs left loose.
 [[gnu::always_inline]] inline int32_t ProvotRow(const WindowSoa& w, const ProvotPass& s,
                                                 int32_t r) {
@@ -228,8 +215,8 @@ constexpr int32_t kBlock = 16;
   int32_t loose = 0;
   for (int32_t c = 0; c < count; c += kBlock) {
     const int32_t i = first + c, j = i + off;
-    loose += ProvotBlock(count - c, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i,
-                         mv + j, mask + i, s.max_len, s.inv_max2);
+    loose += ProvotRun<1, kBlock>(count - c, px + i, py + i, pz + i, px + j, py + j, pz + j,
+                                  mv + i, mv + j, mask + i, s.max_len, s.inv_max2);
   }
   return loose;
 }
@@ -237,7 +224,7 @@ constexpr int32_t kBlock = 16;
 // One Gauss-Seidel sweep of Provot's limits over a window's families; returns the pairs left
 // loose (ProvotRun). A family across rows (dr > 0) is swept row by row, in order (a correction
 // travels down the window within one sweep, as the sim's sweeps): the pairs of one row share no
-// particle, in blocks of kBlock (ProvotBlock) where the window is wide enough, else one loop. The
+// particle, in blocks of kBlock (ProvotRow) where the window is wide enough, else one loop. The
 // structural family along a row (dr = 0, dc = 1) is swept in two colours over the window's rows
 // as one flat run, the pairs (l, l + 1) with l - l0 even, then odd: each colour's pairs share no
 // particle, and a pair that would wrap past a row's end has mask 0. Every loop is a loop over
@@ -472,6 +459,15 @@ WindowSoa WindowArrays(float* single, size_t stride, int32_t base, const PatchWi
 
 }  // namespace
 
+// One window's spring and constraint passes, built by Layout from the window's shape (PairRange)
+// and used by every substep until the windows change.
+struct WindowPasses {
+  std::array<SpringPass, 16> springs;
+  int32_t num_springs = 0;
+  std::array<ProvotPass, 16> provot;
+  int32_t num_provot = 0;
+};
+
 ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows)
     : model_(model),
       radius_(radius),
@@ -518,10 +514,11 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
     }
   }
   // The dense arrays hold the largest layout, the whole cloth (merged windows may grow to it) with
-  // a padding entry on each row of each window, and room for a block's overrun (ProvotBlock).
+  // a padding entry on each row of each window, and room for a block's overrun (ProvotRun).
   const size_t most = n + static_cast<size_t>(max_windows) * static_cast<size_t>(model.height);
   stride_ = (most + 15) / 16 * 16 + 2 * 16;
   base_.assign(static_cast<size_t>(max_windows) + 1, 0);
+  passes_.resize(static_cast<size_t>(max_windows));
   global_.assign(stride_, -1);
   local_.assign(n, -1);
   dense_.assign(kDenseArrays * stride_, 0.0);
@@ -586,6 +583,40 @@ void ClothPatch::Flush() {
   }
 }
 
+void ClothPatch::BuildPasses(const PatchWindow& win, WindowPasses* out) const {
+  // Each spring family over the window's rows where a pair has a free end (PairRange) as one flat
+  // run (RowRun); each level-1 Provot family over its pairs with a free end. Families joining
+  // particles more than two columns apart have no mask and are not built (none are).
+  const int32_t rows = win.row1 - win.row0 + 1, pitch = PitchOf(win);
+  out->num_springs = 0;
+  for (const SpringFamily& fam : model_.spring_families) {
+    const PatchWindow range = PairRange(win, fam.dc, fam.dr);
+    if (range.empty() || std::abs(fam.dc) > 2 ||
+        out->num_springs == static_cast<int32_t>(out->springs.size())) {
+      continue;
+    }
+    const PairRun run =
+        RowRun(rows, pitch, fam.dc, fam.dr, range.row0 - win.row0, range.row1 - win.row0);
+    if (run.l1 <= run.l0) continue;
+    out->springs[static_cast<size_t>(out->num_springs++)] = SpringPass{
+        run.l0, run.l1, run.off, fam.dc, static_cast<float>(fam.stiffness_N_per_m),
+        static_cast<float>(fam.damping_N_s_per_m), static_cast<float>(fam.rest_length_m)};
+  }
+  out->num_provot = 0;
+  for (int32_t index : level1_) {
+    const ProvotFamily& fam = model_.provot_families[static_cast<size_t>(index)];
+    const PatchWindow range = PairRange(win, fam.dc, fam.dr);
+    if (range.empty() || std::abs(fam.dc) > 2 ||
+        out->num_provot == static_cast<int32_t>(out->provot.size())) {
+      continue;
+    }
+    const auto max_len = static_cast<float>(fam.max_length_m);
+    out->provot[static_cast<size_t>(out->num_provot++)] =
+        ProvotPass{range.row0 - win.row0, range.row1 - win.row0, range.col0 - win.col0,
+                   range.col1 - win.col0, fam.dc, fam.dr, max_len, 1.0f / (max_len * max_len)};
+  }
+}
+
 void ClothPatch::Layout() {
   // The windows' particles into the dense arrays, window by window, row by row, each row padded
   // to an even pitch (PitchOf) by an entry that is no particle (global_ -1, all zero, mask 0).
@@ -623,6 +654,7 @@ void ClothPatch::Layout() {
       }
     }
     next += (win.row1 - win.row0 + 1) * pitch;
+    BuildPasses(win, &passes_[k]);
   }
   base_[window_count_] = next;
   locals_ = next;
@@ -761,11 +793,10 @@ PatchWindow ClothPatch::PairRange(const PatchWindow& win, int32_t dc, int32_t dr
   return out;
 }
 
-
 void ClothPatch::SubstepForces(std::span<const Vec3> positions) {
   // The windows' positions (m from each window's first particle) and velocities in single
-  // precision, then every spring family's forces (SpringForcesBody) over each window's rows where
-  // a pair has a free end (PairRange), then the contact springs (sim_loop/cloth_coupling.h).
+  // precision, then every spring family's forces (SpringForcesBody, the window's passes from
+  // BuildPasses), then the contact springs (sim_loop/cloth_coupling.h).
   const PatchKernels& kernels = PickSimd(kPatchKernels);
   for (size_t k = 0; k < window_count_; ++k) {
     const PatchWindow& win = windows_[k];
@@ -782,22 +813,8 @@ void ClothPatch::SubstepForces(std::span<const Vec3> positions) {
         pv[l] = static_cast<float>(v[l]);
       }
     }
-    std::array<SpringPass, 16> passes;
-    int32_t num = 0;
-    const int32_t rows = win.row1 - win.row0 + 1;
-    for (const SpringFamily& fam : model_.spring_families) {
-      const PatchWindow range = PairRange(win, fam.dc, fam.dr);
-      if (range.empty() || std::abs(fam.dc) > 2 || num == static_cast<int32_t>(passes.size())) {
-        continue;
-      }
-      const PairRun run =
-          RowRun(rows, w.pitch, fam.dc, fam.dr, range.row0 - win.row0, range.row1 - win.row0);
-      if (run.l1 <= run.l0) continue;
-      passes[static_cast<size_t>(num++)] = SpringPass{
-          run.l0, run.l1, run.off, fam.dc, static_cast<float>(fam.stiffness_N_per_m),
-          static_cast<float>(fam.damping_N_s_per_m), static_cast<float>(fam.rest_length_m)};
-    }
-    kernels.spring_forces(w, passes.data(), num);
+    const WindowPasses& passes = passes_[k];
+    kernels.spring_forces(w, passes.springs.data(), passes.num_springs);
   }
   if (springs_->count == 0) return;
   // The contact springs at `positions` (the substep's start, by particle); AddCouplingForces
@@ -834,21 +851,9 @@ void ClothPatch::ApplyProvotToWindows(double h) {
       const double o = x[0];
       for (int32_t l = 0; l < w.count; ++l) px[l] = static_cast<float>(x[l] - o);
     }
-    std::array<ProvotPass, 16> passes;
-    int32_t num = 0;
-    for (int32_t index : level1_) {
-      const ProvotFamily& fam = model_.provot_families[static_cast<size_t>(index)];
-      const PatchWindow range = PairRange(win, fam.dc, fam.dr);
-      if (range.empty() || std::abs(fam.dc) > 2 || num == static_cast<int32_t>(passes.size())) {
-        continue;
-      }
-      const auto max_len = static_cast<float>(fam.max_length_m);
-      passes[static_cast<size_t>(num++)] =
-          ProvotPass{range.row0 - win.row0, range.row1 - win.row0, range.col0 - win.col0,
-                     range.col1 - win.col0, fam.dc, fam.dr, max_len, 1.0f / (max_len * max_len)};
-    }
+    const WindowPasses& passes = passes_[k];
     for (int32_t it = 0; it < model_.provot_iterations; ++it) {
-      if (kernels.provot(w, passes.data(), num) == 0) break;
+      if (kernels.provot(w, passes.provot.data(), passes.num_provot) == 0) break;
     }
     // Back as each particle's move (exact in double; zero for a particle not moved).
     for (int32_t a = 0; a < 3; ++a) {
@@ -904,7 +909,6 @@ void ClothPatch::RestartFromDrive(double tau_s) {
   for (int32_t l = 0; l < locals_; ++l) {
     for (int32_t a = 0; a < 3; ++a) {
       D(kX + a)[l] = D(kDriveX + a)[l] + tau_s * D(kDriveV + a)[l];
-      D(kXStart + a)[l] = D(kX + a)[l];
       D(kV + a)[l] = D(kDriveV + a)[l];
     }
     D(kRestart)[l] = 1.0;
@@ -946,11 +950,11 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
     }
     AddCouplingSpring(model_, e, h, x_before_, springs_.get(), &counters_.coupling);
   }
-  for (int32_t a = 0; a < 3; ++a) {
-    std::copy(D(kX + a), D(kX + a) + locals_, D(kXStart + a));
-  }
-  const bool provot = model_.provot_enabled && !level1_.empty();
   const PatchKernels& kernels = PickSimd(kPatchKernels);
+  // The step's start from the drive's snapshot (DistanceFromDrive: now or at the step's start).
+  double max2 = kernels.max_distance2(locals_, D(kX), D(kX + 1), D(kX + 2), D(kDriveX),
+                                      D(kDriveX + 1), D(kDriveX + 2));
+  const bool provot = model_.provot_enabled && !level1_.empty();
   IntegrateArgs args;
   for (int32_t a = 0; a < 3; ++a) {
     args.x[a] = D(kX + a);
@@ -990,6 +994,7 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   if (!AllFinite()) {
     ++counters_.nan_events;
     RestartFromDrive(tau_s);
+    max2 = 0.0;  // the step now starts where it ends (x_before_ = x_)
     out.recovered = true;
   }
   // The state the proxy reads, row by row, and the largest distance from the drive's snapshot.
@@ -1003,11 +1008,8 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
       Interleave(cols, D(kV) + l, D(kV + 1) + l, D(kV + 2) + l, v_[p].data());
     }
   }
-  const double max2 =
-      std::max(kernels.max_distance2(locals_, D(kX), D(kX + 1), D(kX + 2), D(kDriveX), D(kDriveX + 1),
-                            D(kDriveX + 2)),
-               kernels.max_distance2(locals_, D(kXStart), D(kXStart + 1), D(kXStart + 2), D(kDriveX),
-                            D(kDriveX + 1), D(kDriveX + 2)));
+  max2 = std::max(max2, kernels.max_distance2(locals_, D(kX), D(kX + 1), D(kX + 2), D(kDriveX),
+                                              D(kDriveX + 1), D(kDriveX + 2)));
   drive_distance_m_ = std::sqrt(max2);
   out.substeps = substeps;
   out.springs = springs_->count;

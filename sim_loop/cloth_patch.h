@@ -50,6 +50,7 @@
 namespace felt {
 
 struct CouplingSprings;  // sim_loop/cloth_coupling.h (internal to sim_loop)
+struct WindowPasses;     // sim_loop/cloth_patch.cc
 
 /// A rectangle of the cloth's grid, columns col0..col1 and rows row0..row1 inclusive.
 struct PatchWindow {
@@ -173,6 +174,7 @@ class ClothPatch {
   double DriftFromDrive(const PatchWindow& window, const ClothSnapshot& drive, double tau_s) const;
   void Flush();
   void Layout();
+  void BuildPasses(const PatchWindow& window, WindowPasses* out) const;
   void LoadDrive(const ClothSnapshot& drive);
   void StorePositions(Vec3* x) const;
   void SubstepForces(std::span<const Vec3> positions);
@@ -210,6 +212,7 @@ class ClothPatch {
   size_t stride_ = 0;
   int32_t locals_ = 0;             // local entries in all, padding included
   std::vector<int32_t> base_;      // [max_windows + 1] first local index of each window
+  std::vector<WindowPasses> passes_;  // [max_windows] each window's passes (BuildPasses)
   std::vector<int32_t> global_;    // [stride_] particle of each local index (-1: padding)
   std::vector<int32_t> local_;     // [n] local index of each particle (-1: outside)
   std::vector<double> dense_;      // [kDenseArrays stride_] (cloth_patch.cc)
