@@ -116,7 +116,8 @@ int Compare(const CompareArgs& args) {
   options.prepend_truth = args.truth;
   std::vector<std::string> warnings;
   if (args.truth) warnings = TruthClothMismatches(variants);
-  for (const std::string& w : warnings) std::fprintf(stderr, "felt compare: warning: %s\n", w.c_str());
+  for (const std::string& w : warnings)
+    std::fprintf(stderr, "felt compare: warning: %s\n", w.c_str());
 
   const CompareResult result = CompareVariants(scene, trace.samples, variants, options);
   const std::string load_end = report::LoadAverage();

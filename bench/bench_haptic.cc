@@ -353,11 +353,13 @@ std::string SetAside(const std::vector<const TraceResult*>& set) {
     if (!list.empty()) list += ", ";
     list += r->trace->name + " (" + Sig(r->reference_spread_N) + " N)";
   }
-  if (checked == 0) return "Reference convergence not checked (--no-convergence): every trace judged.\n";
+  if (checked == 0)
+    return "Reference convergence not checked (--no-convergence): every trace judged.\n";
   if (list.empty()) {
-    return fmt::format("Every trace judged: the truth at twice the rate is within {} N RMS of "
-                       "the truth on each.\n",
-                       Sig(kConvergedSpread_N));
+    return fmt::format(
+        "Every trace judged: the truth at twice the rate is within {} N RMS of "
+        "the truth on each.\n",
+        Sig(kConvergedSpread_N));
   }
   return fmt::format(
       "Force targets (RMS, peak) judged on the traces whose truth converged (`{}` within {} N RMS "
@@ -393,7 +395,6 @@ Json SummaryJson(const ModeSummary& m, const ModeSummary* judged) {
   }
   return j;
 }
-
 
 // The CSV: one row per trace and variant, with the host (the plot reads it: bench/haptic.gp).
 std::string Csv(const std::vector<TraceResult>& results, const MachineInfo& machine) {
@@ -518,16 +519,17 @@ int Run(const Args& args) {
   std::string tables;
   if (!main_set.empty()) {
     tables += "## Targets per mode (bundled and --trace traces)\n\n" + host +
-              TargetTable(main_modes, main_judged) + "\n" + SetAside(main_set) + "\n## Per mode: error against tick cost\n\n" + host +
-              SummaryTable(main_modes) + "\n## Per trace\n\n" + host + TraceTable(main_set);
+              TargetTable(main_modes, main_judged) + "\n" + SetAside(main_set) +
+              "\n## Per mode: error against tick cost\n\n" + host + SummaryTable(main_modes) +
+              "\n## Per trace\n\n" + host + TraceTable(main_set);
   }
   tables += "\n## Hard traces (" + args.recordings + "/hard/)\n\n";
   if (hard_set.empty()) {
     tables += "None: no " + args.recordings + "/hard/*.trace" +
               (args.no_bundled ? " read (--no-bundled)" : " found") + ".\n";
   } else {
-    tables += host + TargetTable(hard_modes, hard_judged) + "\n" + SetAside(hard_set) + "\n" + host + SummaryTable(hard_modes) + "\n" +
-              host + TraceTable(hard_set);
+    tables += host + TargetTable(hard_modes, hard_judged) + "\n" + SetAside(hard_set) + "\n" +
+              host + SummaryTable(hard_modes) + "\n" + host + TraceTable(hard_set);
   }
   std::printf("\n%s", tables.c_str());
   std::fflush(stdout);

@@ -560,9 +560,12 @@ std::vector<std::string> TruthClothMismatches(const std::vector<LockstepVariant>
     }
     if (keys.empty()) continue;
     std::string line = "variant '";
-    line.append(v.name).append("' overrides ").append(keys).append(
-        "; the truth (--truth) runs the scene's own cloth, so this variant is compared with "
-        "another cloth: list 'truth: truth=on,...' with the same cloth keys instead");
+    line.append(v.name)
+        .append("' overrides ")
+        .append(keys)
+        .append(
+            "; the truth (--truth) runs the scene's own cloth, so this variant is compared with "
+            "another cloth: list 'truth: truth=on,...' with the same cloth keys instead");
     out.push_back(std::move(line));
   }
   return out;
@@ -643,6 +646,5 @@ Json VariantSummaryJson(const VariantSummary& s) {
               {"stalled_ticks", static_cast<int64_t>(s.stalled_ticks)},
               {"nan_events", static_cast<int64_t>(s.nan_events)}};
 }
-
 
 }  // namespace felt

@@ -7,9 +7,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "base/simd.h"
 #include "sim_loop/cloth_coupling.h"
 #include "sim_loop/cloth_internal.h"
-#include "base/simd.h"
 
 namespace felt {
 namespace {
@@ -33,14 +33,14 @@ bool SameWindow(const PatchWindow& a, const PatchWindow& b) {
 
 // The dense arrays (ClothPatch::dense_, double), stride_ entries each.
 enum DenseArray : int32_t {
-  kX = 0,        // positions x, y, z, m (3 arrays)
-  kV = 3,        // velocities, m/s (3)
-  kALast = 6,    // the last substep's accelerations, m/s^2 (3)
-  kDriveX = 9,   // the drive's positions, m (3)
-  kDriveV = 12,  // the drive's velocities, m/s (3)
-  kInvMass = 15, // 1 / mass, 1/kg
-  kFree = 16,    // 1 free, 0 driven
-  kRestart = 17, // 1: leapfrog restarts from v
+  kX = 0,         // positions x, y, z, m (3 arrays)
+  kV = 3,         // velocities, m/s (3)
+  kALast = 6,     // the last substep's accelerations, m/s^2 (3)
+  kDriveX = 9,    // the drive's positions, m (3)
+  kDriveV = 12,   // the drive's velocities, m/s (3)
+  kInvMass = 15,  // 1 / mass, 1/kg
+  kFree = 16,     // 1 free, 0 driven
+  kRestart = 17,  // 1: leapfrog restarts from v
   kDenseArrays = 18,
 };
 // The single-precision arrays (ClothPatch::single_), stride_ entries each.
@@ -61,7 +61,7 @@ struct WindowSoa {
   float* f[3];
   float* t[3];
   const float* movable;
-  const float* mask[5];   // by dc + 2
+  const float* mask[5];  // by dc + 2
   int32_t count = 0;     // entries (rows x pitch, padding included)
   int32_t pitch = 0;     // entries per row: its particles, and one of padding if they are odd
 };
@@ -215,8 +215,8 @@ template <int32_t kStride, int32_t kLanes = 0>
   int32_t loose = 0;
   for (int32_t c = 0; c < count; c += kBlock) {
     const int32_t i = first + c, j = i + off;
-    loose += ProvotRun<1, kBlock>(count - c, px + i, py + i, pz + i, px + j, py + j, pz + j,
-                                  mv + i, mv + j, mask + i, s.max_len, s.inv_max2);
+    loose += ProvotRun<1, kBlock>(count - c, px + i, py + i, pz + i, px + j, py + j, pz + j, mv + i,
+                                  mv + j, mask + i, s.max_len, s.inv_max2);
   }
   return loose;
 }
@@ -294,19 +294,19 @@ struct IntegrateArgs {
   const double* movable;  // 1 free, 0 driven
   double* restart;        // 1: restarts from v
   int32_t count;
-  double h, h_old;      // this substep and the last one, s
-  double drive_tau_s;   // the drive's time at the substep's end, s after its snapshot
-  double beta;          // the driven particles' easing fraction
-  double drag;          // N s / m
-  double g[3];          // m/s^2
+  double h, h_old;     // this substep and the last one, s
+  double drive_tau_s;  // the drive's time at the substep's end, s after its snapshot
+  double beta;         // the driven particles' easing fraction
+  double drag;         // N s / m
+  double g[3];         // m/s^2
 };
 
 // One coordinate of IntegrateBody.
 [[gnu::always_inline]] inline void IntegrateAxis(
     int32_t count, double* __restrict x, double* __restrict v, double* __restrict al,
     const double* __restrict dx, const double* __restrict dv, const float* __restrict f,
-    const double* __restrict im, const double* __restrict mv, const double* __restrict rs,
-    double h, double kick, double back, double tau, double beta, double drag, double g) {
+    const double* __restrict im, const double* __restrict mv, const double* __restrict rs, double h,
+    double kick, double back, double tau, double beta, double drag, double g) {
   const double half = 0.5 * h;
   for (int32_t l = 0; l < count; ++l) {
     const double acc = im[l] * (static_cast<double>(f[l]) - drag * v[l]) + g;
@@ -328,9 +328,9 @@ struct IntegrateArgs {
 [[gnu::always_inline]] inline void IntegrateBody(const IntegrateArgs& a) {
   const double kick = 0.5 * (a.h_old + a.h), back = 0.5 * a.h_old;
   for (int32_t axis = 0; axis < 3; ++axis) {
-    IntegrateAxis(a.count, a.x[axis], a.v[axis], a.a_last[axis], a.drive_x[axis],
-                  a.drive_v[axis], a.f[axis], a.inv_mass, a.movable, a.restart, a.h, kick, back,
-                  a.drive_tau_s, a.beta, a.drag, a.g[axis]);
+    IntegrateAxis(a.count, a.x[axis], a.v[axis], a.a_last[axis], a.drive_x[axis], a.drive_v[axis],
+                  a.f[axis], a.inv_mass, a.movable, a.restart, a.h, kick, back, a.drive_tau_s,
+                  a.beta, a.drag, a.g[axis]);
   }
   double* const rs = a.restart;
   for (int32_t l = 0; l < a.count; ++l) rs[l] *= 1.0 - a.movable[l];
@@ -338,8 +338,7 @@ struct IntegrateArgs {
 
 // How many of x[0..count) are infinite or NaN (all exponent bits set, IEEE 754 binary64), as
 // integer operations, which vectorise.
-[[gnu::always_inline]] inline int64_t CountNonFiniteBody(const double* __restrict x,
-                                                        size_t count) {
+[[gnu::always_inline]] inline int64_t CountNonFiniteBody(const double* __restrict x, size_t count) {
   constexpr uint64_t kExponent = 0x7ff0000000000000ULL;
   int64_t bad = 0;
   for (size_t l = 0; l < count; ++l) {
@@ -351,10 +350,12 @@ struct IntegrateArgs {
 // The largest squared distance [m^2] between (x, y, z)[l] and (dx, dy, dz)[l], l < count. A
 // non-negative double's bits order as an integer's, so the maximum is an integer one, which
 // vectorises.
-[[gnu::always_inline]] inline double MaxDistance2Body(
-    int32_t count, const double* __restrict x, const double* __restrict y,
-    const double* __restrict z, const double* __restrict dx, const double* __restrict dy,
-    const double* __restrict dz) {
+[[gnu::always_inline]] inline double MaxDistance2Body(int32_t count, const double* __restrict x,
+                                                      const double* __restrict y,
+                                                      const double* __restrict z,
+                                                      const double* __restrict dx,
+                                                      const double* __restrict dy,
+                                                      const double* __restrict dz) {
   int64_t most = 0;
   for (int32_t l = 0; l < count; ++l) {
     const double ex = x[l] - dx[l], ey = y[l] - dy[l], ez = z[l] - dz[l];
@@ -374,19 +375,19 @@ struct PatchKernels {
                           const double*, const double*);
 };
 
-#define FELT_PATCH_KERNELS(SUFFIX, ATTRIBUTE)                                                  \
-  ATTRIBUTE void SpringForces##SUFFIX(const WindowSoa& w, const SpringPass* p, int32_t n) {   \
+#define FELT_PATCH_KERNELS(SUFFIX, ATTRIBUTE)                                                \
+  ATTRIBUTE void SpringForces##SUFFIX(const WindowSoa& w, const SpringPass* p, int32_t n) {  \
     SpringForcesBody(w, p, n);                                                               \
   }                                                                                          \
-  ATTRIBUTE int32_t Provot##SUFFIX(const WindowSoa& w, const ProvotPass* p, int32_t n) {      \
+  ATTRIBUTE int32_t Provot##SUFFIX(const WindowSoa& w, const ProvotPass* p, int32_t n) {     \
     return ProvotBody(w, p, n);                                                              \
   }                                                                                          \
   ATTRIBUTE void Integrate##SUFFIX(const IntegrateArgs& a) { IntegrateBody(a); }             \
-  ATTRIBUTE int64_t NonFinite##SUFFIX(const double* x, size_t n) {                          \
+  ATTRIBUTE int64_t NonFinite##SUFFIX(const double* x, size_t n) {                           \
     return CountNonFiniteBody(x, n);                                                         \
   }                                                                                          \
-  ATTRIBUTE double MaxDistance2##SUFFIX(int32_t n, const double* x, const double* y,          \
-                                        const double* z, const double* dx, const double* dy,  \
+  ATTRIBUTE double MaxDistance2##SUFFIX(int32_t n, const double* x, const double* y,         \
+                                        const double* z, const double* dx, const double* dy, \
                                         const double* dz) {                                  \
     return MaxDistance2Body(n, x, y, z, dx, dy, dz);                                         \
   }
@@ -598,9 +599,14 @@ void ClothPatch::BuildPasses(const PatchWindow& win, WindowPasses* out) const {
     const PairRun run =
         RowRun(rows, pitch, fam.dc, fam.dr, range.row0 - win.row0, range.row1 - win.row0);
     if (run.l1 <= run.l0) continue;
-    out->springs[static_cast<size_t>(out->num_springs++)] = SpringPass{
-        run.l0, run.l1, run.off, fam.dc, static_cast<float>(fam.stiffness_N_per_m),
-        static_cast<float>(fam.damping_N_s_per_m), static_cast<float>(fam.rest_length_m)};
+    out->springs[static_cast<size_t>(out->num_springs++)] =
+        SpringPass{run.l0,
+                   run.l1,
+                   run.off,
+                   fam.dc,
+                   static_cast<float>(fam.stiffness_N_per_m),
+                   static_cast<float>(fam.damping_N_s_per_m),
+                   static_cast<float>(fam.rest_length_m)};
   }
   out->num_provot = 0;
   for (int32_t index : level1_) {
@@ -611,9 +617,14 @@ void ClothPatch::BuildPasses(const PatchWindow& win, WindowPasses* out) const {
       continue;
     }
     const auto max_len = static_cast<float>(fam.max_length_m);
-    out->provot[static_cast<size_t>(out->num_provot++)] =
-        ProvotPass{range.row0 - win.row0, range.row1 - win.row0, range.col0 - win.col0,
-                   range.col1 - win.col0, fam.dc, fam.dr, max_len, 1.0f / (max_len * max_len)};
+    out->provot[static_cast<size_t>(out->num_provot++)] = ProvotPass{range.row0 - win.row0,
+                                                                     range.row1 - win.row0,
+                                                                     range.col0 - win.col0,
+                                                                     range.col1 - win.col0,
+                                                                     fam.dc,
+                                                                     fam.dr,
+                                                                     max_len,
+                                                                     1.0f / (max_len * max_len)};
   }
 }
 
@@ -707,8 +718,8 @@ void ClothPatch::Place(std::span<const int32_t> centres, const ClothSnapshot& dr
       }
     } else {
       linger_s_[s] = 0.0;
-      const bool keep = a >= 0 && std::abs(a % w - c % w) < recentre_ &&
-                        std::abs(a / w - c / w) < recentre_;
+      const bool keep =
+          a >= 0 && std::abs(a % w - c % w) < recentre_ && std::abs(a / w - c / w) < recentre_;
       if (!keep) anchors_[s] = c;
     }
     next_windows_[count++] = window_of(anchors_[s]);
@@ -901,7 +912,8 @@ void ClothPatch::ApplyObstaclesToWindows() {
 bool ClothPatch::AllFinite() const {
   int64_t bad = 0;
   const PatchKernels& kernels = PickSimd(kPatchKernels);
-  for (int32_t a = 0; a < 6; ++a) bad += kernels.non_finite(D(kX + a), static_cast<size_t>(locals_));
+  for (int32_t a = 0; a < 6; ++a)
+    bad += kernels.non_finite(D(kX + a), static_cast<size_t>(locals_));
   return bad == 0;
 }
 

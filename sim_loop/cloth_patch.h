@@ -39,10 +39,9 @@
 // safe.
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
-
-#include <memory>
 
 #include "sim_loop/cloth.h"
 #include "sim_loop/snapshot.h"
@@ -103,7 +102,7 @@ struct PatchCounters {
   uint64_t merges = 0;                 ///< windows merged with another
   uint64_t nan_events = 0;             ///< steps that restarted from the drive
   uint64_t springs_outside = 0;        ///< contact springs too near a window's edge, not applied
-  ClothCounters coupling;  ///< AddCouplingSpring's counts (invalid, reduced, dropped)
+  ClothCounters coupling;              ///< AddCouplingSpring's counts (invalid, reduced, dropped)
 };
 
 /// The local patch (file comment). Owned by the haptic thread.
@@ -120,10 +119,11 @@ class ClothPatch {
 
   /// The windows of this tick: one around each particle index of `centres` (slot k: device k;
   /// negative entries: no centre), a window kept where it is while its centre stays within
-  /// radius / kPatchRecentreFraction of it, then merged where they meet (file comment). A slot whose centre
-  /// is gone keeps its window while it lingers (kPatchReleaseDistance_m, kPatchMaxLinger_s; dt_s
-  /// [s] is the tick). Particles that enter take the drive's state at tau_s [s]: x = drive.x +
-  /// tau_s drive.v, v = drive.v; particles that leave are forgotten. Real-time safe.
+  /// radius / kPatchRecentreFraction of it, then merged where they meet (file comment). A slot
+  /// whose centre is gone keeps its window while it lingers (kPatchReleaseDistance_m,
+  /// kPatchMaxLinger_s; dt_s [s] is the tick). Particles that enter take the drive's state at tau_s
+  /// [s]: x = drive.x + tau_s drive.v, v = drive.v; particles that leave are forgotten. Real-time
+  /// safe.
   void Place(std::span<const int32_t> centres, const ClothSnapshot& drive, double tau_s,
              double dt_s);
 
@@ -192,7 +192,7 @@ class ClothPatch {
   const ClothModel& model_;
   int32_t radius_;
   double h_max_s_;  // the patch's longest substep, s
-  int32_t recentre_;  // a window follows its centre this many particles away
+  int32_t recentre_;                       // a window follows its centre this many particles away
   std::vector<PatchWindow> windows_;       // [max_windows]
   std::vector<PatchWindow> next_windows_;  // [max_windows], scratch of Place
   std::vector<int32_t> anchors_;           // [max_windows] each slot's window centre (-1: none)
@@ -203,27 +203,27 @@ class ClothPatch {
   // The state by particle (the proxy reads x_ and x_before_; Place starts entering particles here).
   std::vector<Vec3> x_, v_, x_before_, a_last_;  // [n] each
   std::vector<uint8_t> restart_;                 // [n] leapfrog restarts from v
-  std::vector<int32_t> vertex_tri_start_;  // [n + 1] CSR: triangles around each particle
+  std::vector<int32_t> vertex_tri_start_;        // [n + 1] CSR: triangles around each particle
   std::vector<int32_t> vertex_tris_;
   // The windows' particles, densely: window k's particle (c, r) at local index
   // base_[k] + (r - row0) pitch + (c - col0), pitch the window's column count made even (a row of
   // odd length ends in one padding entry). The state lives here between Place's layouts (x_ and
   // v_ are written back every step); arrays of stride_ entries each.
   size_t stride_ = 0;
-  int32_t locals_ = 0;             // local entries in all, padding included
-  std::vector<int32_t> base_;      // [max_windows + 1] first local index of each window
-  std::vector<WindowPasses> passes_;  // [max_windows] each window's passes (BuildPasses)
-  std::vector<int32_t> global_;    // [stride_] particle of each local index (-1: padding)
-  std::vector<int32_t> local_;     // [n] local index of each particle (-1: outside)
-  std::vector<double> dense_;      // [kDenseArrays stride_] (cloth_patch.cc)
-  std::vector<float> single_;      // [kSingleArrays stride_] (cloth_patch.cc)
+  int32_t locals_ = 0;                    // local entries in all, padding included
+  std::vector<int32_t> base_;             // [max_windows + 1] first local index of each window
+  std::vector<WindowPasses> passes_;      // [max_windows] each window's passes (BuildPasses)
+  std::vector<int32_t> global_;           // [stride_] particle of each local index (-1: padding)
+  std::vector<int32_t> local_;            // [n] local index of each particle (-1: outside)
+  std::vector<double> dense_;             // [kDenseArrays stride_] (cloth_patch.cc)
+  std::vector<float> single_;             // [kSingleArrays stride_] (cloth_patch.cc)
   const ClothSnapshot* drive_ = nullptr;  // the drive dense_ holds, with its frame
   uint64_t drive_frame_ = 0;
   bool drive_loaded_ = false;
-  std::vector<double> f_;          // [3 n] AddCouplingForces' output, zero between uses
+  std::vector<double> f_;        // [3 n] AddCouplingForces' output, zero between uses
   std::vector<int32_t> level1_;  // indices of model_.provot_families with level 1
   double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
-  double drive_distance_m_ = 0.0;  // DistanceFromDrive
+  double drive_distance_m_ = 0.0;             // DistanceFromDrive
   std::unique_ptr<CouplingSprings> springs_;  // the contact springs of the step
   PatchCounters counters_;
 };

@@ -8,8 +8,8 @@
 
 #include <vector>
 
-#include "cloth_test_util.h"
 #include "base/simd.h"
+#include "cloth_test_util.h"
 #include "collision/collision_structure.h"
 #include "tests/alloc_counter.h"
 
