@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace felt {
@@ -56,31 +57,104 @@ LocalCloth::LocalCloth(int32_t capacity) {
 bool LocalCloth::Gather(const ClothSnapshot& query, double inflation_m, const ClothView& now,
                         const ClothView* before, const Vec3& center_W, double radius_m) {
   // Query 1 on the snapshot's own positions, enlarged by how far the tick's cloth may lie from it.
+  // Mode patch: the triangles with a corner in the patch's windows are gathered from the windows
+  // instead (GatherPatch), at their own positions, so that `inflation_m` need not cover how far
+  // the patch has moved from the snapshot (up to centimetres under a pressing hand).
   const WithinResult within =
       TrianglesWithin(query.structure, query.x, center_W, radius_m + inflation_m, found_);
-  size_ = static_cast<size_t>(within.written);
+  size_ = 0;
   query_ = &query;
-  fallback_ = within.overflowed();
-  // Place each found triangle at this tick's cloth (and the previous tick's), with a bounding
-  // sphere over both for cheap culling in the sweeps.
-  for (size_t k = 0; k < size_; ++k) {
-    LocalTriangle& t = tris_[k];
-    t.triangle = found_[k].triangle;
-    now.Corners(t.triangle, &t.a, &t.b, &t.c);
-    if (before != nullptr) {
-      before->Corners(t.triangle, &t.a0, &t.b0, &t.c0);
-    } else {
-      t.a0 = t.a;
-      t.b0 = t.b;
-      t.c0 = t.c;
-    }
-    t.center = (t.a + t.b + t.c + t.a0 + t.b0 + t.c0) / 6.0;
-    const double r2 = std::max({(t.a - t.center).squaredNorm(), (t.b - t.center).squaredNorm(),
-                                (t.c - t.center).squaredNorm(), (t.a0 - t.center).squaredNorm(),
-                                (t.b0 - t.center).squaredNorm(), (t.c0 - t.center).squaredNorm()});
-    t.radius_m = std::sqrt(r2);
+  bool overflow = within.overflowed();
+  for (size_t k = 0; k < static_cast<size_t>(within.written); ++k) {
+    const int32_t tri = found_[k].triangle;
+    if (now.patch != nullptr && TouchesPatch(now, tri)) continue;
+    Place(tri, now, before, &tris_[size_++]);
   }
-  return !within.overflowed();
+  if (now.patch != nullptr && !overflow) overflow = !GatherPatch(now, before, center_W, radius_m);
+  fallback_ = overflow;
+  return !overflow;
+}
+
+bool LocalCloth::TouchesPatch(const ClothView& now, int32_t triangle) {
+  const Triangle& t = (*now.to->triangles)[static_cast<size_t>(triangle)];
+  return now.patch_role[t[0]] != PatchRole::kOutside ||
+         now.patch_role[t[1]] != PatchRole::kOutside || now.patch_role[t[2]] != PatchRole::kOutside;
+}
+
+void LocalCloth::Place(int32_t triangle, const ClothView& now, const ClothView* before,
+                       LocalTriangle* t) {
+  // The triangle at this tick's cloth (and the previous tick's), with a bounding sphere over both
+  // for cheap culling in the sweeps.
+  t->triangle = triangle;
+  now.Corners(triangle, &t->a, &t->b, &t->c);
+  if (before != nullptr) {
+    before->Corners(triangle, &t->a0, &t->b0, &t->c0);
+  } else {
+    t->a0 = t->a;
+    t->b0 = t->b;
+    t->c0 = t->c;
+  }
+  t->center = (t->a + t->b + t->c + t->a0 + t->b0 + t->c0) / 6.0;
+  const double r2 =
+      std::max({(t->a - t->center).squaredNorm(), (t->b - t->center).squaredNorm(),
+                (t->c - t->center).squaredNorm(), (t->a0 - t->center).squaredNorm(),
+                (t->b0 - t->center).squaredNorm(), (t->c0 - t->center).squaredNorm()});
+  t->radius_m = std::sqrt(r2);
+}
+
+bool LocalCloth::GatherPatch(const ClothView& now, const ClothView* before, const Vec3& center_W,
+                             double radius_m) {
+  // Every triangle with a corner in a window lies in a grid cell of the window grown by one
+  // particle up and left (MakeGridTriangles: cell (c, r) holds triangles 2 (r (W - 1) + c) and the
+  // next). Blocks of kBlock x kBlock cells are culled by the bounding box of their particles now
+  // and before (the sphere-box distance, Ericson 2005 §5.1.3), then each triangle by its bounding
+  // sphere: a superset of the triangles within radius_m, as the structure's query gives.
+  constexpr int32_t kBlock = 4;
+  const int32_t width = now.patch->width();
+  const int32_t height = static_cast<int32_t>(now.to->x.size()) / width;
+  const double reach = radius_m + CullSlack(center_W, center_W, radius_m);
+  for (const PatchWindow& w : now.patch->windows()) {
+    const int32_t c_lo = std::max(0, w.col0 - 1), c_hi = std::min(width - 2, w.col1);
+    const int32_t r_lo = std::max(0, w.row0 - 1), r_hi = std::min(height - 2, w.row1);
+    for (int32_t br = r_lo; br <= r_hi; br += kBlock) {
+      for (int32_t bc = c_lo; bc <= c_hi; bc += kBlock) {
+        const int32_t c_end = std::min(c_hi, bc + kBlock - 1),
+                      r_end = std::min(r_hi, br + kBlock - 1);
+        Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+        Vec3 hi = -lo;
+        for (int32_t row = br; row <= r_end + 1; ++row) {
+          for (int32_t col = bc; col <= c_end + 1; ++col) {
+            const int32_t p = row * width + col;
+            const Vec3 x = now.Position(p);
+            lo = lo.cwiseMin(x);
+            hi = hi.cwiseMax(x);
+            if (before != nullptr) {
+              const Vec3 x0 = before->Position(p);
+              lo = lo.cwiseMin(x0);
+              hi = hi.cwiseMax(x0);
+            }
+          }
+        }
+        const Vec3 nearest = center_W.cwiseMax(lo).cwiseMin(hi);
+        if ((nearest - center_W).squaredNorm() > reach * reach) continue;
+        for (int32_t row = br; row <= r_end; ++row) {
+          for (int32_t col = bc; col <= c_end; ++col) {
+            const int32_t first = 2 * (row * (width - 1) + col);
+            for (int32_t tri = first; tri < first + 2; ++tri) {
+              if (!TouchesPatch(now, tri)) continue;
+              LocalTriangle t;
+              Place(tri, now, before, &t);
+              const double d = reach + t.radius_m;
+              if ((t.center - center_W).squaredNorm() > d * d) continue;
+              if (size_ == tris_.size()) return false;
+              tris_[size_++] = t;
+            }
+          }
+        }
+      }
+    }
+  }
+  return true;
 }
 
 bool LocalCloth::Corners(int32_t triangle, Vec3* a, Vec3* b, Vec3* c) const {

@@ -71,7 +71,9 @@ class LocalCloth {
   /// Returns false when more triangles were found than fit: the tick then falls back to querying
   /// `query`'s structure directly (exact for `query`'s own positions, which for the interpolated
   /// and extrapolated cloths stand in for the tick's cloth; the moving test uses the triangles
-  /// kept). `query` must outlive the queries. Real-time safe.
+  /// kept). `query` must outlive the queries. Mode patch (`now.patch` set): `inflation_m` need only
+  /// bound the particles outside the patch's windows; the triangles with a corner in a window are
+  /// gathered from the windows at `now`'s and `before`'s positions. Real-time safe.
   bool Gather(const ClothSnapshot& query, double inflation_m, const ClothView& now,
               const ClothView* before, const Vec3& center_W, double radius_m);
 
@@ -100,6 +102,16 @@ class LocalCloth {
   int32_t capacity() const { return static_cast<int32_t>(tris_.size()); }
 
  private:
+  // True when a corner of `triangle` lies in one of now.patch's windows.
+  static bool TouchesPatch(const ClothView& now, int32_t triangle);
+  // `triangle`'s corners now and before and a sphere bounding both.
+  static void Place(int32_t triangle, const ClothView& now, const ClothView* before,
+                    LocalTriangle* t);
+  // Mode patch: appends the triangles with a corner in a window that come within radius_m of
+  // center_W now or before, from the windows' own positions; false when they do not fit.
+  bool GatherPatch(const ClothView& now, const ClothView* before, const Vec3& center_W,
+                   double radius_m);
+
   std::vector<PointContact> found_;  // [capacity] query 1's buffer
   std::vector<LocalTriangle> tris_;  // [capacity]
   size_t size_ = 0;

@@ -652,8 +652,9 @@ TickBodies MoveProxies(const ProxyModel& model, const ClothSnapshot& newest, con
                       cloth.moved ? &cloth.before : nullptr, goal, &state->local, &state->body);
   if (cloth.interpolated && out.main.overflow) {
     state->body = body_before;
-    out.main = TickBody(model, newest, cloth.inflation_m, ClothView::Of(newest),
-                        cloth.first ? nullptr : &cloth.before, goal, &state->local, &state->body);
+    out.main = TickBody(model, newest, std::max(cloth.inflation_m, cloth.patch_offset_m),
+                        ClothView::Of(newest), cloth.first ? nullptr : &cloth.before, goal,
+                        &state->local, &state->body);
     out.on_newest = true;
   }
   if (blend) {
@@ -898,7 +899,9 @@ TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
     cloth.before.patch_x = p.x_before();
     cloth.before.patch = &p;
     cloth.moved = !cloth.first;
-    cloth.inflation_m = std::max(cloth.inflation_m, patch->offset_m);
+    // The gather takes the windows' triangles at their own positions (LocalCloth::Gather), so
+    // inflation_m stays the extrapolation's; the rerun on `newest` needs the patch's offset too.
+    cloth.patch_offset_m = patch->offset_m;
   }
   // A previous tick that fell back to its newest snapshot (MoveProxies) left the proxy on that
   // cloth: the one now called prev after an arrival.

@@ -135,6 +135,8 @@ struct TickCloth {
   ClothView before;           ///< the cloth of the previous tick (meaningful when `moved`)
   bool moved = false;         ///< the proxy is to be carried from `before` to `now`
   double inflation_m = 0.0;   ///< bound on how far `now` and `before` lie from `newest`, m
+                              ///< (mode patch: outside the patch's windows)
+  double patch_offset_m = 0.0;  ///< mode patch: bound on how far the windows lie from `newest`, m
   bool interpolated = false;  ///< modes c, d (their gather overflow falls back to `newest`)
 };
 
