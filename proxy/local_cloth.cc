@@ -55,22 +55,30 @@ LocalCloth::LocalCloth(int32_t capacity) {
 }
 
 bool LocalCloth::Gather(const ClothSnapshot& query, double inflation_m, const ClothView& now,
-                        const ClothView* before, const Vec3& center_W, double radius_m) {
+                        const ClothView* before, const Vec3& center_W, double radius_m,
+                        double patch_offset_m) {
   // Query 1 on the snapshot's own positions, enlarged by how far the tick's cloth may lie from it.
-  // Mode patch: the triangles with a corner in the patch's windows are gathered from the windows
-  // instead (GatherPatch), at their own positions, so that `inflation_m` need not cover how far
-  // the patch has moved from the snapshot (up to centimetres under a pressing hand).
-  const WithinResult within =
-      TrianglesWithin(query.structure, query.x, center_W, radius_m + inflation_m, found_);
   size_ = 0;
   query_ = &query;
+  WithinResult within = TrianglesWithin(query.structure, query.x, center_W,
+                                        radius_m + std::max(inflation_m, patch_offset_m), found_);
   bool overflow = within.overflowed();
-  for (size_t k = 0; k < static_cast<size_t>(within.written); ++k) {
-    const int32_t tri = found_[k].triangle;
-    if (now.patch != nullptr && TouchesPatch(now, tri)) continue;
-    Place(tri, now, before, &tris_[size_++]);
+  if (now.patch != nullptr && overflow) {
+    // Mode patch, and the patch lies so far from the snapshot that the enlarged query overflows:
+    // the triangles with a corner in a window are taken from the windows at their own positions
+    // (GatherPatch) and the query, enlarged by `inflation_m` alone, gives the rest.
+    within = TrianglesWithin(query.structure, query.x, center_W, radius_m + inflation_m, found_);
+    overflow = within.overflowed();
+    for (size_t k = 0; k < static_cast<size_t>(within.written); ++k) {
+      const int32_t tri = found_[k].triangle;
+      if (!TouchesPatch(now, tri)) Place(tri, now, before, &tris_[size_++]);
+    }
+    if (!overflow) overflow = !GatherPatch(now, before, center_W, radius_m);
+  } else {
+    for (size_t k = 0; k < static_cast<size_t>(within.written); ++k) {
+      Place(found_[k].triangle, now, before, &tris_[size_++]);
+    }
   }
-  if (now.patch != nullptr && !overflow) overflow = !GatherPatch(now, before, center_W, radius_m);
   fallback_ = overflow;
   return !overflow;
 }

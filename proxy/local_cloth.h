@@ -71,11 +71,14 @@ class LocalCloth {
   /// Returns false when more triangles were found than fit: the tick then falls back to querying
   /// `query`'s structure directly (exact for `query`'s own positions, which for the interpolated
   /// and extrapolated cloths stand in for the tick's cloth; the moving test uses the triangles
-  /// kept). `query` must outlive the queries. Mode patch (`now.patch` set): `inflation_m` need only
-  /// bound the particles outside the patch's windows; the triangles with a corner in a window are
-  /// gathered from the windows at `now`'s and `before`'s positions. Real-time safe.
+  /// kept). `query` must outlive the queries. Mode patch (`now.patch` set): `inflation_m` bounds
+  /// the particles outside the patch's windows and `patch_offset_m` [m] those in them; when the
+  /// query enlarged by both overflows, the triangles with a corner in a window are gathered from
+  /// the windows at `now`'s and `before`'s positions instead, and the query is enlarged by
+  /// `inflation_m` alone. Real-time safe.
   bool Gather(const ClothSnapshot& query, double inflation_m, const ClothView& now,
-              const ClothView* before, const Vec3& center_W, double radius_m);
+              const ClothView* before, const Vec3& center_W, double radius_m,
+              double patch_offset_m = 0.0);
 
   /// First contact of a sphere of radius r [m] moving p0 -> p1 [m] against the gathered triangles
   /// at the tick's cloth (SweepSphereTriangle's convention; ties: lowest triangle index); after an

@@ -479,7 +479,7 @@ bool CatchOnMovingCloth(const LocalCloth& local, const ClothView& before, const 
 
 // Carry, gather, catch and update one body against one cloth for this tick.
 BodyTick TickBody(const ProxyModel& model, const ClothSnapshot& query, double inflation_m,
-                  const ClothView& now, const ClothView* before, const Vec3& goal,
+                  double patch_offset_m, const ClothView& now, const ClothView* before, const Vec3& goal,
                   LocalCloth* local, GodObject* body) {
   BodyTick out;
   const double r = model.radius_m;
@@ -494,7 +494,8 @@ BodyTick TickBody(const ProxyModel& model, const ClothSnapshot& query, double in
   const double reach = std::max(3.0 * (p_carried - goal).norm(),
                                 (goal - p_prev).norm() + (p_carried - p_prev).norm());
   out.overflow =
-      !local->Gather(query, inflation_m, now, before, goal, reach + r * (1.0 + 1e-6) + 1e-9);
+      !local->Gather(query, inflation_m, now, before, goal, reach + r * (1.0 + 1e-6) + 1e-9,
+                     patch_offset_m);
   if (before != nullptr) {
     out.caught = CatchOnMovingCloth(*local, *before, now, p_prev, p_carried, r, body);
   }
@@ -648,17 +649,17 @@ TickBodies MoveProxies(const ProxyModel& model, const ClothSnapshot& newest, con
   const bool blend = cloth.mode == SnapshotMode::kBlendForces;
   if (blend && cloth.arrived) state->body_prev = state->body;
   const GodObject body_before = state->body;
-  out.main = TickBody(model, newest, cloth.inflation_m, cloth.now,
+  out.main = TickBody(model, newest, cloth.inflation_m, cloth.patch_offset_m, cloth.now,
                       cloth.moved ? &cloth.before : nullptr, goal, &state->local, &state->body);
   if (cloth.interpolated && out.main.overflow) {
     state->body = body_before;
-    out.main = TickBody(model, newest, std::max(cloth.inflation_m, cloth.patch_offset_m),
+    out.main = TickBody(model, newest, std::max(cloth.inflation_m, cloth.patch_offset_m), 0.0,
                         ClothView::Of(newest), cloth.first ? nullptr : &cloth.before, goal,
                         &state->local, &state->body);
     out.on_newest = true;
   }
   if (blend) {
-    out.other = TickBody(model, *cloth.prev, 0.0, ClothView::Of(*cloth.prev), nullptr, goal,
+    out.other = TickBody(model, *cloth.prev, 0.0, 0.0, ClothView::Of(*cloth.prev), nullptr, goal,
                          &state->local, &state->body_prev);
   }
   return out;
@@ -899,8 +900,8 @@ TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
     cloth.before.patch_x = p.x_before();
     cloth.before.patch = &p;
     cloth.moved = !cloth.first;
-    // The gather takes the windows' triangles at their own positions (LocalCloth::Gather), so
-    // inflation_m stays the extrapolation's; the rerun on `newest` needs the patch's offset too.
+    // The gather enlarges its query by both bounds, or takes the windows' triangles at their own
+    // positions when that overflows (LocalCloth::Gather).
     cloth.patch_offset_m = patch->offset_m;
   }
   // A previous tick that fell back to its newest snapshot (MoveProxies) left the proxy on that

@@ -1,13 +1,15 @@
 // The gather of proxy/local_cloth.h in mode patch against a brute-force reference: every triangle
 // within the radius of the query point, now or before (exact point-triangle distance), is
-// gathered, once; the windows' triangles are found at their own positions although the patch lies
-// centimetres from the snapshot and the structure's query is not inflated for it.
+// gathered, once, with the patch centimetres from the snapshot: by the query enlarged by the
+// patch's offset, and, when that overflows, with the windows' triangles taken at their own
+// positions.
 #include "proxy/local_cloth.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <set>
+#include <utility>
 #include <vector>
 
 #include "collision/geometry.h"
@@ -68,25 +70,34 @@ TEST(LocalClothTest, PatchGatherHoldsEveryTriangleWithinTheRadiusOnce) {
   now.patch = &patch;
   ClothView before = now;
   before.patch_x = patch.x_before();
-  LocalCloth local(4096);
+  // Enlarged by the patch's true offset (room for all: the plain path), and by 1 m, which finds
+  // the whole cloth (1152 triangles) and overflows 1000, so the windows are gathered directly.
+  LocalCloth roomy(4096), tight(1000);
   int32_t checked = 0;
   for (const int32_t centre : {centres[0], centres[1], At(model, 20, 20), At(model, 9, 12)}) {
     for (const double radius : {0.002, 0.01, 0.03, 0.08}) {
       // Query points at the patch's pushed cloth, at the snapshot's, and between.
       for (const double w : {0.0, 0.5, 1.0}) {
         const Vec3 c = w * patch.x()[centre] + (1.0 - w) * s.x[centre] + Vec3(0.001, 0.002, 0.0);
-        ASSERT_TRUE(local.Gather(s, 0.0, now, &before, c, radius));
-        std::set<int32_t> got;
-        for (const LocalTriangle& t : local.triangles()) {
-          EXPECT_TRUE(got.insert(t.triangle).second) << "triangle " << t.triangle << " twice";
-          Vec3 a, b, cc;
-          now.Corners(t.triangle, &a, &b, &cc);
-          EXPECT_EQ(t.a, a);
-          EXPECT_EQ(t.c, cc);
-        }
         const std::set<int32_t> want = Reference(model, now, before, c, radius);
-        for (const int32_t t : want) {
-          EXPECT_TRUE(got.count(t)) << "missed triangle " << t << " radius " << radius;
+        for (const auto& [local, offset] : {std::pair{&roomy, patch.DistanceFromDrive()},
+                                            std::pair{&tight, 1.0}}) {
+          ASSERT_TRUE(local->Gather(s, 0.0, now, &before, c, radius, offset));
+          std::set<int32_t> got;
+          for (const LocalTriangle& t : local->triangles()) {
+            EXPECT_TRUE(got.insert(t.triangle).second) << "triangle " << t.triangle << " twice";
+            Vec3 a, b, cc;
+            now.Corners(t.triangle, &a, &b, &cc);
+            EXPECT_EQ(t.a, a);
+            EXPECT_EQ(t.c, cc);
+          }
+          for (const int32_t t : want) {
+            EXPECT_TRUE(got.count(t)) << "missed triangle " << t << " radius " << radius
+                                      << " offset " << offset;
+          }
+          if (local == &tight) {
+            EXPECT_LT(got.size(), 1000u);
+          }
         }
         checked += static_cast<int32_t>(want.size());
       }
@@ -109,7 +120,7 @@ TEST(LocalClothTest, PatchGatherThatDoesNotFitFallsBack) {
   now.patch_x = patch.x();
   now.patch = &patch;
   LocalCloth local(16);
-  EXPECT_FALSE(local.Gather(s, 0.0, now, nullptr, s.x[centres[0]], 0.05));
+  EXPECT_FALSE(local.Gather(s, 0.0, now, nullptr, s.x[centres[0]], 0.05, 0.01));
   EXPECT_TRUE(local.fallback());
   EXPECT_LE(local.triangles().size(), 16u);
 }
