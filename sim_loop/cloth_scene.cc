@@ -3,6 +3,7 @@
 #include <array>
 #include <cmath>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 
@@ -262,6 +263,18 @@ SimSpec ParseSimSpec(const SceneDocument& doc) {
   if (const std::optional<SceneTable> provot = SceneTable::Section(doc, "provot")) {
     spec.provot = ParseProvot(*provot);
   }
+  return spec;
+}
+
+SimSpec ResizedCloth(SimSpec spec, int32_t grid) {
+  if (grid < 2) throw std::invalid_argument("grid must be >= 2, got " + std::to_string(grid));
+  ClothSpec& cloth = spec.cloth;
+  const double span_m = cloth.spacing_m * (cloth.width - 1);
+  const double particles_before = static_cast<double>(cloth.width) * cloth.height;
+  cloth.spacing_m = span_m / (grid - 1);
+  cloth.drag_N_s_per_m *= particles_before / (static_cast<double>(grid) * grid);
+  cloth.width = grid;
+  cloth.height = grid;
   return spec;
 }
 

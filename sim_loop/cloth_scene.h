@@ -16,4 +16,10 @@ namespace felt {
 /// its line; BuildClothModel (sim_loop/cloth.h) validates again. Throws SceneError.
 SimSpec ParseSimSpec(const SceneDocument& doc);
 
+/// `spec` with its cloth regridded to `grid` x `grid` particles over the same square (spacing
+/// scaled so that (width - 1) spacing [m] is kept) and the same total drag (drag per particle
+/// scaled by the particle count: scenes/curtain_128.toml's rule); springs, mass per particle,
+/// pins by name and everything else as they were. Throws std::invalid_argument for grid < 2.
+SimSpec ResizedCloth(SimSpec spec, int32_t grid);
+
 }  // namespace felt

@@ -3,10 +3,13 @@
 
 #include <cmath>
 #include <cstring>
+#include <string>
 #include <limits>
 #include <vector>
 
+#include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
+#include "sim_loop/cloth_scene.h"
 #include "tests/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in collision_alloc_test.cc
 #include "tests/sim_loop/cloth_test_util.h"
 
@@ -27,26 +30,52 @@ bool AllFinite(const ClothState& s) {
   return true;
 }
 
-TEST(ClothStepTest, ProvotHoldsTheStretchLimitAfterEveryFrame) {
-  // Two-corner curtains, released hanging and released horizontal (the harder case), on the
-  // grids of issue 2's hard case. The limit is checked after every frame of the first 12, which
-  // hold the release transient: the stretch peaks at frames 6-8 on every grid, then settles.
-  // 40 sweeps: the default 10 let the transient reach about 1.15 (see ProvotSpec::iterations).
-  for (int32_t grid : {10, 20, 30, 40, 50, 64}) {
+// The shipped curtain (scenes/curtain.toml: auto substeps, 3 sweeps, attachments and
+// multiresolution levels) regridded to `grid`, hanging or released horizontal.
+SimSpec ShippedCurtain(int32_t grid, bool horizontal) {
+  SimSpec spec = ResizedCloth(
+      ParseSimSpec(LoadSceneDocument(std::string(FELT_SOURCE_DIR) + "/scenes/curtain.toml")), grid);
+  if (horizontal) spec.cloth.v_axis = Vec3::UnitZ();
+  return spec;
+}
+
+// Largest structural stretch after any of `frames` frames of the shipped curtain at `grid`.
+double WorstStretch(int32_t grid, bool horizontal, int frames) {
+  const SimSpec spec = ShippedCurtain(grid, horizontal);
+  const ClothModel model = BuildClothModel(spec);
+  ClothState state = MakeClothState(model);
+  double worst = 0.0;
+  for (int f = 0; f < frames; ++f) {
+    StepFrame(model, {}, kFrame_s, &state);
+    worst = std::max(worst, MaxStretch(model, state));
+  }
+  EXPECT_TRUE(AllFinite(state)) << grid;
+  return worst;
+}
+
+// Issue 21's target: the shipped settings hold 10 % after every frame, the release transient (its
+// peak at frames 5-8) and the settling included, at every grid. Missed today: over 120 frames,
+// hanging 1.111-1.126 and released horizontal 1.120-1.138 (10: 1.138, 128: 1.133), so it is
+// disabled rather than loosened; run it with --gtest_also_run_disabled_tests. Enable it when the
+// limiter meets it.
+TEST(ClothStepTest, DISABLED_ShippedSettingsHoldTheStretchLimitAfterEveryFrame) {
+  for (int32_t grid : {10, 20, 32, 40, 50, 64, 128}) {
     for (bool horizontal : {false, true}) {
-      if (grid >= 40 && horizontal) continue;  // the slowest cases add nothing the others miss
-      SimSpec spec = horizontal ? HorizontalCurtain(grid) : Curtain(grid);
-      spec.provot.iterations = 40;
-      const ClothModel model = BuildClothModel(spec);
-      ClothState state = MakeClothState(model);
-      double worst = 0.0;
-      for (int f = 0; f < 12; ++f) {
-        StepFrame(model, {}, kFrame_s, &state);
-        worst = std::max(worst, MaxStretch(model, state));
-      }
-      EXPECT_LE(worst, 1.0 + spec.provot.max_elongation + 0.02)
+      EXPECT_LE(WorstStretch(grid, horizontal, 120), 1.10 + 1e-9)
           << grid << (horizontal ? " horizontal" : " hanging");
-      EXPECT_TRUE(AllFinite(state));
+    }
+  }
+}
+
+// A guard, not the target (the test above): the shipped settings stay within the stretch they
+// reach today (the release peaks above: 1.111-1.138 on these grids), so a change that makes the
+// limiter worse fails here while issue 21 is open.
+TEST(ClothStepTest, ShippedSettingsDoNotStretchPastTodaysRelease) {
+  for (int32_t grid : {10, 20, 32, 64}) {
+    for (bool horizontal : {false, true}) {
+      if (grid >= 64 && horizontal) continue;  // the slowest case adds nothing the others miss
+      EXPECT_LE(WorstStretch(grid, horizontal, 30), 1.145)
+          << grid << (horizontal ? " horizontal" : " hanging");
     }
   }
 }
