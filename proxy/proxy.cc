@@ -479,8 +479,8 @@ bool CatchOnMovingCloth(const LocalCloth& local, const ClothView& before, const 
 
 // Carry, gather, catch and update one body against one cloth for this tick.
 BodyTick TickBody(const ProxyModel& model, const ClothSnapshot& query, double inflation_m,
-                  double patch_offset_m, const ClothView& now, const ClothView* before, const Vec3& goal,
-                  LocalCloth* local, GodObject* body) {
+                  double patch_offset_m, const ClothView& now, const ClothView* before,
+                  const Vec3& goal, LocalCloth* local, GodObject* body) {
   BodyTick out;
   const double r = model.radius_m;
   if (!body->placed) PlaceAtGoal(model, goal, body);
@@ -493,9 +493,8 @@ BodyTick TickBody(const ProxyModel& model, const ClothSnapshot& query, double in
   // |goal - p_prev| + |p_carried - p_prev|.
   const double reach = std::max(3.0 * (p_carried - goal).norm(),
                                 (goal - p_prev).norm() + (p_carried - p_prev).norm());
-  out.overflow =
-      !local->Gather(query, inflation_m, now, before, goal, reach + r * (1.0 + 1e-6) + 1e-9,
-                     patch_offset_m);
+  out.overflow = !local->Gather(query, inflation_m, now, before, goal,
+                                reach + r * (1.0 + 1e-6) + 1e-9, patch_offset_m);
   if (before != nullptr) {
     out.caught = CatchOnMovingCloth(*local, *before, now, p_prev, p_carried, r, body);
   }

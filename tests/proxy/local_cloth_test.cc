@@ -80,8 +80,8 @@ TEST(LocalClothTest, PatchGatherHoldsEveryTriangleWithinTheRadiusOnce) {
       for (const double w : {0.0, 0.5, 1.0}) {
         const Vec3 c = w * patch.x()[centre] + (1.0 - w) * s.x[centre] + Vec3(0.001, 0.002, 0.0);
         const std::set<int32_t> want = Reference(model, now, before, c, radius);
-        for (const auto& [local, offset] : {std::pair{&roomy, patch.DistanceFromDrive()},
-                                            std::pair{&tight, 1.0}}) {
+        for (const auto& [local, offset] :
+             {std::pair{&roomy, patch.DistanceFromDrive()}, std::pair{&tight, 1.0}}) {
           ASSERT_TRUE(local->Gather(s, 0.0, now, &before, c, radius, offset));
           std::set<int32_t> got;
           for (const LocalTriangle& t : local->triangles()) {
@@ -92,8 +92,8 @@ TEST(LocalClothTest, PatchGatherHoldsEveryTriangleWithinTheRadiusOnce) {
             EXPECT_EQ(t.c, cc);
           }
           for (const int32_t t : want) {
-            EXPECT_TRUE(got.count(t)) << "missed triangle " << t << " radius " << radius
-                                      << " offset " << offset;
+            EXPECT_TRUE(got.count(t))
+                << "missed triangle " << t << " radius " << radius << " offset " << offset;
           }
           if (local == &tight) {
             EXPECT_LT(got.size(), 1000u);
