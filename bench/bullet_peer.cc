@@ -222,9 +222,9 @@ Vec3 BulletCurtain::NodePosition(int32_t col, int32_t row) const {
 bool BulletAvailable() { return false; }
 
 std::string BulletMissingReason() {
-  return "this felt was built without Bullet: CMake's find_package(Bullet) did not find it "
-         "(install Debian's libbullet-dev, `apt-get install -y libbullet-dev`, then configure "
-         "and build again)";
+  return "this felt was built without Bullet (CMake's find_package(Bullet) found no "
+         "libbullet-dev, or the build was configured with -DFELT_BULLET=OFF): install Debian's "
+         "libbullet-dev (`apt-get install -y libbullet-dev`), then configure and build again";
 }
 
 std::string BulletVersionText() { return "none"; }
