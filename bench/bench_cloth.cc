@@ -5,6 +5,10 @@
 //
 // Each grid: the curtain settles for --settle-frames frames (not timed), then --frames frames are
 // timed one by one (wall clock and this thread's CPU time). Writes <out>/cloth.{md,csv,json}.
+//
+// `felt bench cloth --tradeoff`: frame cost against max stretch for each setting of Felt's solver
+// and for Bullet's btSoftBody with its iterations swept, at grids 32, 64 and 128 (or --grid N);
+// bench/cloth_tradeoff.h. Writes <out>/cloth_tradeoff.{md,csv,json,png}.
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
@@ -18,6 +22,7 @@
 #include "app/command.h"
 #include "base/json.h"
 #include "bench/bench_util.h"
+#include "bench/cloth_tradeoff.h"
 #include "sim_loop/cloth.h"
 
 namespace felt::bench::bench_cloth {
@@ -30,8 +35,22 @@ struct Args {
   std::string json;
   std::string out = "bench/results";
   std::string scene = "scenes/curtain.toml";
-  int32_t frames = 300;
+  std::optional<int32_t> frames;  // 300, or 120 with --tradeoff
   int32_t settle_frames = 120;
+  // --tradeoff and its options (TradeoffOptions).
+  bool tradeoff = false;
+  bool quick = false;
+  double point_budget_s = TradeoffOptions{}.point_budget_s;
+  std::vector<int32_t> bullet_iterations = TradeoffOptions{}.bullet_iterations;
+  std::vector<int32_t> felt_substeps = TradeoffOptions{}.substeps;
+  std::vector<int32_t> felt_sweeps = TradeoffOptions{}.sweeps;
+  std::vector<int32_t> felt_small_steps = TradeoffOptions{}.small_steps;
+  std::vector<double> felt_limits = TradeoffOptions{}.limits;
+  bool no_bullet = false;
+  std::string gnuplot_script = TradeoffOptions{}.gnuplot_script;
+  bool no_plot = false;
+
+  int32_t timed_frames() const { return frames.value_or(tradeoff ? (quick ? 10 : 120) : 300); }
 };
 
 // One grid's measurements.
@@ -82,9 +101,9 @@ GridResult RunGrid(const Args& args, int32_t grid) {
     r.max_stretch = std::max(r.max_stretch, MaxStretch(model, state));
     r.max_shear = std::max(r.max_shear, MaxStretchOf(model, state, SpringType::kShear));
   }
-  r.wall_ms.reserve(static_cast<size_t>(args.frames));
-  r.cpu_ms.reserve(static_cast<size_t>(args.frames));
-  for (int32_t f = 0; f < args.frames; ++f) {
+  r.wall_ms.reserve(static_cast<size_t>(args.timed_frames()));
+  r.cpu_ms.reserve(static_cast<size_t>(args.timed_frames()));
+  for (int32_t f = 0; f < args.timed_frames(); ++f) {
     const double cpu0 = ThreadCpuMs();
     const double wall0 = WallMs();
     StepFrame(model, none, frame_dt_s, &state);
@@ -128,13 +147,75 @@ bool TargetMet(const GridResult& r) {
 
 std::string Command(const Args& args) {
   std::string cmd = "felt bench cloth";
+  if (args.tradeoff) cmd += " --tradeoff";
+  if (args.quick) cmd += " --quick";
   if (args.grid) cmd += " --grid " + std::to_string(*args.grid);
   if (args.scene != "scenes/curtain.toml") cmd += " --scene " + args.scene;
   if (args.out != "bench/results") cmd += " --out " + args.out;
   if (!args.json.empty()) cmd += " --json " + args.json;
-  if (args.frames != 300) cmd += " --frames " + std::to_string(args.frames);
+  if (args.frames) cmd += " --frames " + std::to_string(*args.frames);
   if (args.settle_frames != 120) cmd += " --settle-frames " + std::to_string(args.settle_frames);
+  if (args.tradeoff) {
+    const TradeoffOptions defaults;
+    if (args.point_budget_s != defaults.point_budget_s) {
+      cmd += " --point-budget-s " + Sig(args.point_budget_s, 6);
+    }
+    if (args.bullet_iterations != defaults.bullet_iterations) {
+      cmd += " --bullet-iterations";
+      for (const int32_t it : args.bullet_iterations) cmd += " " + std::to_string(it);
+    }
+    const auto list = [&](const char* name, const auto& values, const auto& default_values) {
+      if (values == default_values) return;
+      cmd += std::string(" ") + name;
+      for (const auto v : values) cmd += " " + Sig(static_cast<double>(v), 6);
+    };
+    list("--felt-substeps", args.felt_substeps, defaults.substeps);
+    list("--felt-sweeps", args.felt_sweeps, defaults.sweeps);
+    list("--felt-small-steps", args.felt_small_steps, defaults.small_steps);
+    list("--felt-limits", args.felt_limits, defaults.limits);
+    if (args.no_bullet) cmd += " --no-bullet";
+    if (args.gnuplot_script != defaults.gnuplot_script) {
+      cmd += " --gnuplot-script " + args.gnuplot_script;
+    }
+    if (args.no_plot) cmd += " --no-plot";
+  }
   return cmd;
+}
+
+// --tradeoff: the options for bench/cloth_tradeoff.h; --quick is a smoke run (grid 10 unless
+// --grid, 10 + 10 frames unless given, one setting per Felt curve, Bullet at 1 and 10 iterations).
+int RunTradeoff(const Args& args) {
+  TradeoffOptions o;
+  if (args.quick) {
+    o.grids = {10};
+    o.substeps = {6};
+    o.sweeps = {1};
+    o.small_steps = {6};
+    o.limits = {0.05};
+    o.bullet_iterations = {1, 10};
+    o.settle_frames = 10;
+  }
+  if (args.grid) o.grids = {*args.grid};
+  o.scene = args.scene;
+  o.out = args.out;
+  o.json = args.json;
+  if (!args.quick || args.settle_frames != 120) o.settle_frames = args.settle_frames;
+  o.frames = args.timed_frames();
+  o.point_budget_s = args.point_budget_s;
+  // A list given on the command line replaces the (--quick or full) default.
+  const TradeoffOptions defaults;
+  if (args.bullet_iterations != defaults.bullet_iterations) {
+    o.bullet_iterations = args.bullet_iterations;
+  }
+  if (args.felt_substeps != defaults.substeps) o.substeps = args.felt_substeps;
+  if (args.felt_sweeps != defaults.sweeps) o.sweeps = args.felt_sweeps;
+  if (args.felt_small_steps != defaults.small_steps) o.small_steps = args.felt_small_steps;
+  if (args.felt_limits != defaults.limits) o.limits = args.felt_limits;
+  o.bullet = !args.no_bullet;
+  o.gnuplot_script = args.gnuplot_script;
+  o.plot = !args.no_plot;
+  o.command = Command(args);
+  return RunClothTradeoff(o);
 }
 
 std::vector<std::vector<std::string>> Rows(const std::vector<GridResult>& results) {
@@ -151,7 +232,9 @@ std::vector<std::vector<std::string>> Rows(const std::vector<GridResult>& result
 }
 
 int Run(const Args& args) {
-  if (args.frames < 300) throw std::invalid_argument("--frames must be >= 300");
+  if (args.tradeoff) return RunTradeoff(args);
+  if (args.quick) throw std::invalid_argument("--quick needs --tradeoff");
+  if (args.timed_frames() < 300) throw std::invalid_argument("--frames must be >= 300");
   if (args.settle_frames < 0) throw std::invalid_argument("--settle-frames must be >= 0");
   const std::vector<int32_t> grids = args.grid ? std::vector<int32_t>{*args.grid}
                                                : std::vector<int32_t>{10, 20, 32, 40, 50, 64, 128};
@@ -193,7 +276,7 @@ int Run(const Args& args) {
       "families along rows, columns and diagonals, 3 sweeps) resized to each grid "
       "over the same 0.496 m square. " +
       std::to_string(args.settle_frames) + " frames settle (not timed), then " +
-      std::to_string(args.frames) +
+      std::to_string(args.timed_frames()) +
       " frames of 1/60 s are timed one by one. `frame ms` is wall time of StepFrame, `cpu ms` "
       "this thread's CPU time (it does not count time preempted by other processes). Max "
       "stretch: the largest structural spring length / rest length after any frame, settling "
@@ -253,14 +336,51 @@ int Run(const Args& args) {
 
 app::CommandRun Setup(CLI::App& cmd) {
   auto args = std::make_shared<Args>();
-  cmd.add_option("--grid", args->grid, "one grid N (N x N particles) instead of 10 ... 128")
+  cmd.add_option("--grid", args->grid,
+                 "one grid N (N x N particles) instead of 10 ... 128 (--tradeoff: 32, 64, 128)")
       ->check(CLI::Range(2, 2048));
   cmd.add_option("--json", args->json, "JSON output file (default <out>/cloth.json)");
   cmd.add_option("--out", args->out, "folder for cloth.md and cloth.csv")->capture_default_str();
   cmd.add_option("--scene", args->scene, "the curtain scene to resize")->capture_default_str();
-  cmd.add_option("--frames", args->frames, "timed frames per grid (>= 300)")->capture_default_str();
+  cmd.add_option("--frames", args->frames,
+                 "timed frames per grid (default 300, >= 300; --tradeoff: per point, default 120)");
   cmd.add_option("--settle-frames", args->settle_frames, "untimed frames before timing")
       ->capture_default_str();
+  cmd.add_flag("--tradeoff", args->tradeoff,
+               "frame cost against max stretch: Felt's solver settings and Bullet's btSoftBody "
+               "(iterations swept) at grids 32, 64, 128; writes <out>/cloth_tradeoff.{md,csv,json,"
+               "png}");
+  cmd.add_flag("--quick", args->quick,
+               "with --tradeoff: a smoke run (grid 10, 10 + 10 frames, few settings)");
+  cmd.add_option("--point-budget-s", args->point_budget_s,
+                 "with --tradeoff: stop a point whose projected run time exceeds this, s")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd.add_option("--bullet-iterations", args->bullet_iterations,
+                 "with --tradeoff: Bullet's piterations to sweep")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  cmd.add_option("--felt-substeps", args->felt_substeps,
+                 "with --tradeoff: integration.substeps to sweep with the scene's sweeps")
+      ->capture_default_str()
+      ->check(CLI::Range(1, kMaxSubstepsPerFrame));
+  cmd.add_option("--felt-sweeps", args->felt_sweeps,
+                 "with --tradeoff: provot.iterations to sweep with auto substeps")
+      ->capture_default_str()
+      ->check(CLI::Range(1, kMaxProvotIterations));
+  cmd.add_option("--felt-small-steps", args->felt_small_steps,
+                 "with --tradeoff: integration.substeps to sweep with provot.iterations=1")
+      ->capture_default_str()
+      ->check(CLI::Range(1, kMaxSubstepsPerFrame));
+  cmd.add_option("--felt-limits", args->felt_limits,
+                 "with --tradeoff: provot.max_elongation values to sweep (auto substeps, the "
+                 "scene's sweeps)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd.add_flag("--no-bullet", args->no_bullet, "with --tradeoff: leave Bullet's rows out");
+  cmd.add_option("--gnuplot-script", args->gnuplot_script, "with --tradeoff: the plot's script")
+      ->capture_default_str();
+  cmd.add_flag("--no-plot", args->no_plot, "with --tradeoff: do not run gnuplot");
   return [args]() { return Run(*args); };
 }
 
