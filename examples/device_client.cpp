@@ -3,7 +3,7 @@
 // (docs/transport.md).
 //
 // What it does, 1000 times a second, on absolute deadlines:
-//   1. reads the device (ReadDevice: here a simulated tip moving on a circle),
+//   1. reads the device (ReadDevice: here a simulated tip pressing and stroking the cloth),
 //   2. publishes a PointerSample on felt/pointer (position in m, velocity in m/s, device frame),
 //   3. takes the newest ForceCommand for this device from felt/force and writes it to the motors
 //      (WriteMotorForce: here it only accumulates and prints),
@@ -14,12 +14,13 @@
 // Build: the felt_device_client target (see docs/transport.md), or by hand next to Felt's build:
 //   c++ -std=c++20 -O2 -I. -Ibuild/transport examples/device_client.cpp
 //       build/libfelt_transport.a build/transport/libfelt_transport_types.a -lddsc -lpthread
-// Run:  felt_device_client --device right-hand [--seconds 10] [--domain 0] [--dds-config FILE]
+// Run:  felt_device_client [--device default] [--seconds 10] [--domain 0] [--dds-config FILE]
 
 #include <signal.h>
 #include <time.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
@@ -35,8 +36,11 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // REPLACE: read your device. Return the tip position (m) and velocity (m/s) in YOUR device frame
 // (the frame the scene's device mapping expects), the buttons, and the time of the measurement on
-// CLOCK_MONOTONIC (ns). This simulation moves the tip on a 5 cm circle at 0.5 Hz in the x-y plane,
-// 2 cm above the device origin.
+// CLOCK_MONOTONIC (ns). This simulation makes the default scene's cloth felt: with its mapping
+// (world = 3 x device, the curtain hanging in the plane z = 0 from its top corners at y = 0.25 m,
+// facing +z; docs/scenes.md) the tip comes from 1.2 cm in front of the cloth, 10 cm below its top
+// edge, presses 2.4 cm through its rest place while stroking +-6 cm sideways, and comes back out,
+// every 4 s (device frame: x +-2 cm, y 5 cm, z +4 to -8 mm).
 struct DeviceReading {
   std::array<double, 3> position_m_D{};
   std::array<double, 3> velocity_m_per_s_D{};
@@ -45,14 +49,19 @@ struct DeviceReading {
 };
 
 DeviceReading ReadDevice(int64_t now_ns, int64_t start_ns) {
-  constexpr double kRadius_m = 0.05;
-  constexpr double kOmega_rad_per_s = 2.0 * M_PI * 0.5;
+  constexpr double kStroke_m = 0.02;  // sideways amplitude, device frame
+  constexpr double kFront_m = 0.004;  // farthest in front of the cloth, device frame
+  constexpr double kHeight_m = 0.05;  // above the device origin, device frame
+  constexpr double kDepth_m = 0.012;  // how far in from kFront_m at the deepest
+  constexpr double kPeriod_s = 4.0;   // one press: in, stroke, out
+  constexpr double kOmega = 2.0 * M_PI / kPeriod_s;
   const double t_s = static_cast<double>(now_ns - start_ns) * 1e-9;
   DeviceReading r;
-  r.position_m_D = {kRadius_m * std::cos(kOmega_rad_per_s * t_s),
-                    kRadius_m * std::sin(kOmega_rad_per_s * t_s), 0.02};
-  r.velocity_m_per_s_D = {-kRadius_m * kOmega_rad_per_s * std::sin(kOmega_rad_per_s * t_s),
-                          kRadius_m * kOmega_rad_per_s * std::cos(kOmega_rad_per_s * t_s), 0.0};
+  // x = A sin(w t), z = front - depth (1 - cos(w t)) / 2: in and out once per stroke.
+  r.position_m_D = {kStroke_m * std::sin(kOmega * t_s), kHeight_m,
+                    kFront_m - kDepth_m * 0.5 * (1.0 - std::cos(kOmega * t_s))};
+  r.velocity_m_per_s_D = {kStroke_m * kOmega * std::cos(kOmega * t_s), 0.0,
+                          -kDepth_m * 0.5 * kOmega * std::sin(kOmega * t_s)};
   r.buttons = 0;
   r.time_ns = now_ns;
   return r;
@@ -65,14 +74,16 @@ DeviceReading ReadDevice(int64_t now_ns, int64_t start_ns) {
 struct MotorLog {
   std::array<double, 3> last_N{};
   double impulse_N_s = 0;  // sum of |F| dt
+  double peak_N = 0;       // largest |F| written
 };
 MotorLog g_motor;
 
 void WriteMotorForce(const std::array<double, 3>& force_N_D) {
+  const double norm_N = std::sqrt(force_N_D[0] * force_N_D[0] + force_N_D[1] * force_N_D[1] +
+                                  force_N_D[2] * force_N_D[2]);
   g_motor.last_N = force_N_D;
-  g_motor.impulse_N_s += std::sqrt(force_N_D[0] * force_N_D[0] + force_N_D[1] * force_N_D[1] +
-                                   force_N_D[2] * force_N_D[2]) *
-                         1e-3;
+  g_motor.impulse_N_s += norm_N * 1e-3;
+  g_motor.peak_N = std::max(g_motor.peak_N, norm_N);
 }
 // ---------------------------------------------------------------------------------------------
 
@@ -97,7 +108,7 @@ int64_t Now() {
 
 int main(int argc, char** argv) {
   // Options: which device, which domain and configuration, how long, the safety limits.
-  std::string device_id = "right-hand";
+  std::string device_id = "default";  // the default scene's device (docs/scenes.md)
   double seconds = 0;  // 0 = until Ctrl-C
   double silence_ms = 50;
   double max_force_N = 10;
@@ -231,9 +242,11 @@ int main(int argc, char** argv) {
 
     // Leaving: the motors must not keep the last force.
     WriteMotorForce({0.0, 0.0, 0.0});
-    std::printf("stopped: samples %llu, forces %llu, motor impulse %.3f N s, zero force written\n",
-                static_cast<unsigned long long>(seq), static_cast<unsigned long long>(forces),
-                g_motor.impulse_N_s);
+    std::printf(
+        "stopped: samples %llu, forces %llu, motor impulse %.3f N s, peak force %.3f N, zero force "
+        "written\n",
+        static_cast<unsigned long long>(seq), static_cast<unsigned long long>(forces),
+        g_motor.impulse_N_s, g_motor.peak_N);
     return 0;
   } catch (const std::exception& e) {
     WriteMotorForce({0.0, 0.0, 0.0});

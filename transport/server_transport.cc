@@ -8,6 +8,7 @@
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
+#include <string>
 #include <thread>
 #include <utility>
 
@@ -16,6 +17,7 @@
 #include "rt/loop_stats.h"
 #include "rt/spsc_queue.h"
 #include "rt/triple_buffer.h"
+#include "spdlog/spdlog.h"
 #include "transport/dds_config.h"
 #include "transport/message_views.h"
 #include "transport/qos.h"
@@ -111,6 +113,8 @@ class ServerTransport::Impl {
   void WriterLoop();
   void DrainPointers();
   void Accept(const felt_msgs_PointerSample& sample, dds_instance_handle_t writer, int64_t now_ns);
+  // The first sample of a device the scene does not have, logged once (receive thread).
+  void LogFirstUnknownDevice(const char* id) const;
 
   ServerTransportConfig config_;
   std::vector<Device> devices_;
@@ -254,6 +258,15 @@ void ServerTransport::Impl::DrainPointers() {
   receive_hop_.Record(MonotonicNowNs() - start_ns);
 }
 
+void ServerTransport::Impl::LogFirstUnknownDevice(const char* id) const {
+  std::string known;
+  for (const Device& d : devices_) known += std::string(known.empty() ? "'" : ", '") + d.id + "'";
+  spdlog::warn(
+      "felt/pointer: samples for device '{}', which this scene does not have (it has {}), are "
+      "ignored and counted (rejected_unknown_device); logged once",
+      std::string(id, strnlen(id, sizeof(Device::id))), known);
+}
+
 void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
                                    dds_instance_handle_t writer, int64_t now_ns) {
   // Unknown device: the id is not in the scene.
@@ -262,7 +275,10 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
          std::strncmp(devices_[index].id, sample.device_id, sizeof(devices_[index].id)) != 0) {
     ++index;
   }
-  if (index == devices_.size()) return Bump(unknown_);
+  if (index == devices_.size()) {
+    if (unknown_.load(std::memory_order_relaxed) == 0) LogFirstUnknownDevice(sample.device_id);
+    return Bump(unknown_);
+  }
   Device& device = devices_[index];
 
   // Flood: a token bucket of max_rate_hz with burst_samples depth; every sample costs a token.

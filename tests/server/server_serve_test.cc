@@ -1,5 +1,6 @@
 // `felt serve` as a child process: SIGTERM stops it cleanly (exit 0, the final statistics
-// printed, the stats JSON written); a trace run touches the cloth. Needs the `felt` binary of the
+// printed, the stats JSON written); a trace run touches the cloth; the example driver
+// (examples/device_client.cpp) feels the default scene. Needs the `felt` binary of the
 // same build (built with the `felt` target); skipped where it was not built (the TSan CI build
 // compiles only the test executables).
 #include <gtest/gtest.h>
@@ -25,6 +26,7 @@ using felt::Process;
 using felt::SpawnOptions;
 
 const std::string kFelt = std::string(FELT_BINARY_DIR) + "/felt";
+const std::string kDeviceClient = std::string(FELT_BINARY_DIR) + "/felt_device_client";
 const std::string kScene = std::string(FELT_SOURCE_DIR "/scenes/curtain.toml");
 const std::string kTrace = std::string(FELT_SOURCE_DIR "/recordings/poke_hold.trace");
 
@@ -104,6 +106,49 @@ TEST_F(ServeTest, TraceRunTouchesTheCloth) {
   const Json stats = ParseJson(ReadFile(json), json);
   EXPECT_GT(stats.value("contacts", 0), 0) << stats;
   EXPECT_GT(stats.value("peak_force_N", 0.0), 0.0) << stats;
+}
+
+// The README's two lines, as a driver author runs them: `felt serve` with the default scene and
+// the example driver with its defaults (only the domain is the test's own). Forces arrive and the
+// simulated tip is pushed back by the cloth; a driver with a device id the scene lacks gets none,
+// and the server says so once, naming the ids it has.
+TEST_F(ServeTest, TheExampleDriverFeelsTheDefaultScene) {
+  if (!std::filesystem::exists(kDeviceClient)) GTEST_SKIP() << kDeviceClient << " not built";
+  const std::string domain = std::to_string(200 + getpid() % 30);
+  Child server = StartServe("--scene " + kScene + " --duration 30 --no-realtime --domain " + domain,
+                            "serve_example");
+  const auto run_client = [&](const std::string& args, const std::string& name) {
+    const std::string log = (std::filesystem::path(testing::TempDir()) / (name + ".log")).string();
+    SpawnOptions options;
+    options.output = SpawnOptions::Output::kFile;
+    options.output_file = log;
+    Process client = Process::Spawn(
+        {"/bin/sh", "-c", "exec " + kDeviceClient + " --domain " + domain + " " + args}, options);
+    EXPECT_EQ(WaitExit(client, std::chrono::seconds(30)), 0) << ReadFile(log);
+    return ReadFile(log);
+  };
+  // One press of the example's 4 s cycle (in, stroke, out), and a little more.
+  const std::string out = run_client("--seconds 5", "example_default");
+  unsigned long long samples = 0, forces = 0;
+  double impulse = 0, peak = 0;
+  const size_t at = out.find("stopped: ");
+  ASSERT_NE(at, std::string::npos) << out;
+  ASSERT_EQ(std::sscanf(out.c_str() + at,
+                        "stopped: samples %llu, forces %llu, motor impulse %lf N s, peak force "
+                        "%lf N",
+                        &samples, &forces, &impulse, &peak),
+            4)
+      << out;
+  EXPECT_GT(forces, samples / 4) << out;  // loose: a loaded machine may miss periods
+  EXPECT_GT(peak, 0.05) << out;           // the cloth pushes back (0.28 N measured)
+  const std::string other = run_client("--seconds 1 --device right-hand", "example_unknown");
+  EXPECT_NE(other.find("forces 0,"), std::string::npos) << other;
+  server.process.Signal(SIGTERM);
+  EXPECT_EQ(WaitExit(server.process, std::chrono::seconds(10)), 0);
+  const std::string log = ReadFile(server.log);
+  EXPECT_NE(log.find("device 'right-hand', which this scene does not have (it has 'default')"),
+            std::string::npos)
+      << log;
 }
 
 TEST_F(ServeTest, BadSceneExitsTwoAndStartsNothing) {
