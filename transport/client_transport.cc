@@ -85,7 +85,7 @@ ClientTransport::Impl::Impl(ClientTransportConfig config)
   if (config_.force_history < 1) {
     throw std::invalid_argument("ClientTransportConfig.force_history: must be at least 1");
   }
-  const Qos force_qos = StreamQos();
+  const Qos force_qos = StreamReaderQos();
   dds_qset_history(force_qos.get(), DDS_HISTORY_KEEP_LAST,
                    static_cast<int32_t>(std::min<uint32_t>(config_.force_history, 1u << 20)));
   force_reader_ =
@@ -271,6 +271,7 @@ bool ClientTransport::LatestStatus(ServerStatusView* out) {
   out->forces_published = m.forces_published;
   out->forces_queue_full = m.forces_queue_full;
   out->dds_errors = m.dds_errors;
+  out->incompatible_qos = m.incompatible_qos;
   out->nan_events = m.nan_events;
   out->devices_connected = m.devices_connected;
   out->passivity_energy_J = m.passivity_energy_J;

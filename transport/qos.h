@@ -6,10 +6,11 @@
 //                would only add latency (and reliable costs the same on loopback, but not on a
 //                lossy network, where it would queue behind retransmissions).
 //   KEEP_LAST 1  per instance (device id): a slow reader gets the newest sample, never a backlog.
-//   DEADLINE     kStreamDeadline (10 ms) offered by writers and requested by readers: ten missed
-//                periods; Cyclone counts each miss (requested/offered_deadline_missed), which the
-//                transport reports. The safety reaction (zero force) does not rely on it: the
-//                server's stale-input rule and the driver's silence timeout do that.
+//   DEADLINE     kStreamDeadline (10 ms) offered by Felt's writers, requested by none of its
+//                readers: a reader requesting a deadline does not match a writer offering none (a
+//                ROS 2 publisher's default), and such a driver would get nothing, silently. The
+//                safety reaction (zero force) never relied on it: the server's stale-input rule
+//                and the driver's silence timeout do that.
 //   VOLATILE     a late joiner must never act on an old position or force.
 // felt/status is a 1 Hz summary for monitors that may start at any time:
 //   RELIABLE + TRANSIENT_LOCAL + KEEP_LAST 1: a late subscriber receives the latest status at once.
@@ -35,6 +36,15 @@ using Qos = std::unique_ptr<dds_qos_t, QosDeleter>;
 /// QoS of felt/pointer and felt/force, for readers and writers alike: best-effort, keep-last 1,
 /// volatile, deadline `deadline` (kStreamDeadline by default). Throws std::bad_alloc only.
 Qos StreamQos(std::chrono::nanoseconds deadline = kStreamDeadline);
+
+/// QoS of Felt's readers of felt/pointer and felt/force: StreamQos without a requested deadline,
+/// so that a writer offering none (a ROS 2 publisher's default) matches; Felt's writers still offer
+/// kStreamDeadline to readers that request one. Throws std::bad_alloc only.
+Qos StreamReaderQos();
+
+/// The name of a DDS QoS policy id (dds_qos_policy_id_t: "DEADLINE", "RELIABILITY", ...), as
+/// the incompatible-QoS statuses report it; "UNKNOWN" for an id this Cyclone does not define.
+const char* QosPolicyName(uint32_t policy_id);
 
 /// QoS of felt/status, for readers and writers alike: reliable, transient-local, keep-last 1.
 Qos StatusQos();

@@ -19,9 +19,10 @@ namespace {
 
 constexpr int kTapBatch = 64;  // samples per dds_take
 
-// The stream QoS (transport/qos.h) with a deeper history, so nothing is overwritten before taken.
+// The stream readers' QoS (transport/qos.h) with a deeper history, so nothing is overwritten
+// before taken.
 Qos TapQos(uint32_t depth) {
-  Qos qos = StreamQos();
+  Qos qos = StreamReaderQos();
   dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST,
                    static_cast<int32_t>(std::min<uint32_t>(depth, 1u << 20)));
   return qos;

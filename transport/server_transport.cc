@@ -3,6 +3,7 @@
 #include <pthread.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -115,6 +116,11 @@ class ServerTransport::Impl {
   void Accept(const felt_msgs_PointerSample& sample, dds_instance_handle_t writer, int64_t now_ns);
   // The first sample of a device the scene does not have, logged once (receive thread).
   void LogFirstUnknownDevice(const char* id) const;
+  // DDS peers whose QoS does not match: the pointer reader's requested-incompatible total plus
+  // the force and status writers' offered-incompatible totals. The first mismatch of each entity
+  // is logged once with the policy's name (docs/transport.md). Any thread.
+  uint64_t IncompatibleQos() const;
+  mutable std::array<std::atomic<bool>, 3> qos_logged_{};
 
   ServerTransportConfig config_;
   std::vector<Device> devices_;
@@ -168,6 +174,7 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
   force_topic_ = CreateTopic(participant_, &felt_msgs_ForceCommand_desc, config_.topics.force);
   status_topic_ = CreateTopic(participant_, &felt_msgs_ServerStatus_desc, config_.topics.status);
   const Qos stream_qos = StreamQos();
+  const Qos reader_qos = StreamReaderQos();
   const Qos status_qos = StatusQos();
   force_writer_ = CreateWriter(participant_, force_topic_, stream_qos.get(), config_.topics.force);
   status_writer_ =
@@ -182,10 +189,10 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
                                                                           &dds_delete_listener);
       if (!listener) throw std::bad_alloc();
       dds_lset_data_available(listener.get(), &Impl::OnDataAvailable);
-      pointer_reader_ = CreateReader(participant_, pointer_topic_, stream_qos.get(), listener.get(),
+      pointer_reader_ = CreateReader(participant_, pointer_topic_, reader_qos.get(), listener.get(),
                                      config_.topics.pointer);
     } else {
-      pointer_reader_ = CreateReader(participant_, pointer_topic_, stream_qos.get(), nullptr,
+      pointer_reader_ = CreateReader(participant_, pointer_topic_, reader_qos.get(), nullptr,
                                      config_.topics.pointer);
       waitset_ = Entity(CheckDds(dds_create_waitset(participant_.get()), "dds_create_waitset"));
       stop_guard_ = Entity(
@@ -265,6 +272,35 @@ void ServerTransport::Impl::LogFirstUnknownDevice(const char* id) const {
       "felt/pointer: samples for device '{}', which this scene does not have (it has {}), are "
       "ignored and counted (rejected_unknown_device); logged once",
       std::string(id, strnlen(id, sizeof(Device::id))), known);
+}
+
+uint64_t ServerTransport::Impl::IncompatibleQos() const {
+  uint64_t total = 0;
+  const auto note = [&](size_t k, const char* what, uint32_t count, uint32_t policy) {
+    total += count;
+    if (count > 0 && !qos_logged_[k].exchange(true)) {
+      spdlog::warn(
+          "{}: a DDS peer's QoS does not match ({} policy): no data flows between them; counted "
+          "in felt/status (incompatible_qos), logged once (docs/transport.md, QoS)",
+          what, QosPolicyName(policy));
+    }
+  };
+  dds_requested_incompatible_qos_status_t requested{};
+  if (dds_get_requested_incompatible_qos_status(pointer_reader_.get(), &requested) >= 0) {
+    note(0, ("reader of " + config_.topics.pointer).c_str(), requested.total_count,
+         requested.last_policy_id);
+  }
+  dds_offered_incompatible_qos_status_t offered{};
+  if (dds_get_offered_incompatible_qos_status(force_writer_.get(), &offered) >= 0) {
+    note(1, ("writer of " + config_.topics.force).c_str(), offered.total_count,
+         offered.last_policy_id);
+  }
+  offered = {};
+  if (dds_get_offered_incompatible_qos_status(status_writer_.get(), &offered) >= 0) {
+    note(2, ("writer of " + config_.topics.status).c_str(), offered.total_count,
+         offered.last_policy_id);
+  }
+  return total;
 }
 
 void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
@@ -412,6 +448,7 @@ bool ServerTransport::PublishStatus(const ServerStatusView& status) {
   message.forces_published = stats.forces_published;
   message.forces_queue_full = stats.forces_queue_full;
   message.dds_errors = stats.dds_errors;
+  message.incompatible_qos = stats.incompatible_qos;
   message.nan_events = status.nan_events;
   message.devices_connected = status.devices_connected;
   message.passivity_energy_J = status.passivity_energy_J;
@@ -439,10 +476,7 @@ TransportStats ServerTransport::Stats() const {
   s.statuses_published = Load(impl.statuses_);
   s.dds_errors =
       Load(impl.dds_errors_receive_) + Load(impl.dds_errors_write_) + Load(impl.dds_errors_status_);
-  dds_requested_deadline_missed_status_t missed{};
-  if (dds_get_requested_deadline_missed_status(impl.pointer_reader_.get(), &missed) >= 0) {
-    s.pointer_deadline_missed = missed.total_count;
-  }
+  s.incompatible_qos = impl.IncompatibleQos();
   s.receive_hop = SummarizeHops(impl.receive_hop_);
   s.write_hop = SummarizeHops(impl.write_hop_);
   return s;

@@ -67,7 +67,8 @@ struct TransportStats {
   uint64_t forces_published = 0;         ///< forces written to DDS
   uint64_t statuses_published = 0;       ///< statuses written to DDS
   uint64_t dds_errors = 0;               ///< failed dds_take or dds_write calls
-  uint64_t pointer_deadline_missed = 0;  ///< Cyclone's requested-deadline-missed total
+  uint64_t incompatible_qos = 0;  ///< DDS peers whose QoS does not match a Felt reader or writer
+                                  ///< (requested/offered incompatible QoS totals, DDS's counts)
   HopSummary receive_hop;  ///< DDS callback/wake-up -> samples validated and in their slots
   HopSummary write_hop;    ///< force popped from the queue -> dds_write returned
 };

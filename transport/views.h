@@ -73,6 +73,7 @@ struct ServerStatusView {
   uint64_t forces_published = 0;         ///< transport: ForceCommands written
   uint64_t forces_queue_full = 0;        ///< transport: forces PushForce could not queue
   uint64_t dds_errors = 0;               ///< transport: failed dds_take/dds_write calls
+  uint64_t incompatible_qos = 0;         ///< transport: DDS peers whose QoS does not match
   uint64_t nan_events = 0;               ///< haptic ticks that produced a non-finite force
   uint32_t devices_connected = 0;        ///< devices with fresh input
   double passivity_energy_J = 0;         ///< passivity observer, sum of F.v.dt, J

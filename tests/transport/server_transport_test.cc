@@ -7,13 +7,18 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
 
+#include "felt_types.h"
 #include "tests/transport/transport_test_util.h"
 #include "transport/client_transport.h"
+#include "transport/dds_config.h"
+#include "transport/qos.h"
 
 namespace felt::transport {
 namespace {
@@ -265,6 +270,53 @@ INSTANTIATE_TEST_SUITE_P(ReceiveModes, ServerTransportTest,
                          });
 
 // Bad configurations are refused with a message naming the field.
+// A writer with a QoS of its own on the server's pointer topic (`adjust` edits the stream QoS).
+Entity ForeignPointerWriter(const Participant& participant, const TopicNames& topics,
+                            const std::function<void(dds_qos_t*)>& adjust, Entity* topic) {
+  *topic = CreateTopic(participant, &felt_msgs_PointerSample_desc, topics.pointer);
+  const Qos qos = StreamQos();
+  adjust(qos.get());
+  return CreateWriter(participant, *topic, qos.get(), "foreign writer");
+}
+
+// A driver that offers no deadline (a ROS 2 publisher's default) matches and is heard: the
+// server's reader requests none (transport/qos.h).
+TEST_P(ServerTransportTest, AWriterOfferingNoDeadlineIsHeard) {
+  Start();
+  Participant participant(AcquireDomain(TestDds()));
+  Entity topic;
+  const Entity writer = ForeignPointerWriter(
+      participant, topics_, [](dds_qos_t* q) { dds_qset_deadline(q, DDS_INFINITY); }, &topic);
+  ASSERT_TRUE(WaitUntil([&] { return server_->MatchedPointerWriters() >= 2; }, kWait));
+  felt_msgs_PointerSample sample{};
+  std::snprintf(sample.device_id, sizeof(sample.device_id), "left");
+  sample.seq = 1;
+  sample.position_m[0] = 0.1;
+  ASSERT_GE(dds_write(writer.get(), &sample), 0);
+  PointerSampleView view;
+  ASSERT_TRUE(WaitUntil([&] { return server_->LatestPointer(0, &view); }, kWait));
+  EXPECT_EQ(view.seq, 1u);
+  EXPECT_EQ(server_->Stats().incompatible_qos, 0u);
+}
+
+// Peers whose QoS cannot match are counted (and logged once with the policy's name): a writer
+// asking for exclusive ownership of the pointer topic, a force reader asking for a deadline
+// shorter than the 10 ms Felt's writer offers.
+TEST_P(ServerTransportTest, IncompatibleQosPeersAreCounted) {
+  Start();
+  Participant participant(AcquireDomain(TestDds()));
+  Entity pointer_topic;
+  const Entity writer = ForeignPointerWriter(
+      participant, topics_, [](dds_qos_t* q) { dds_qset_ownership(q, DDS_OWNERSHIP_EXCLUSIVE); },
+      &pointer_topic);
+  ASSERT_TRUE(WaitUntil([&] { return server_->Stats().incompatible_qos >= 1; }, kWait));
+  const Entity force_topic = CreateTopic(participant, &felt_msgs_ForceCommand_desc, topics_.force);
+  const Qos qos = StreamQos(std::chrono::milliseconds(5));
+  const Entity reader = CreateReader(participant, force_topic, qos.get(), nullptr, "reader");
+  ASSERT_TRUE(WaitUntil([&] { return server_->Stats().incompatible_qos >= 2; }, kWait));
+  EXPECT_EQ(server_->MatchedPointerWriters(), 1u);  // the client's only
+}
+
 TEST(ServerTransportConfigTest, InvalidConfigurationsNameTheField) {
   const auto message_of = [](ServerTransportConfig config) -> std::string {
     config.dds = TestDds();
