@@ -116,6 +116,11 @@ class ServerTransport::Impl {
   void Accept(const felt_msgs_PointerSample& sample, dds_instance_handle_t writer, int64_t now_ns);
   // The first sample of a device the scene does not have, logged once (receive thread).
   void LogFirstUnknownDevice(const char* id) const;
+  // Index of device `id` in devices_, or devices_.size() when the scene does not have it.
+  size_t DeviceIndex(const char* id) const;
+  // The pointer topic's filter (Cyclone's receive threads): true for a device of the scene; an
+  // unknown one is counted (rejected_unknown_device) and its first sample logged.
+  static bool KnownDeviceFilter(const void* sample, void* arg);
   // DDS peers whose QoS does not match: the pointer reader's requested-incompatible total plus
   // the force and status writers' offered-incompatible totals. The first mismatch of each entity
   // is logged once with the policy's name (docs/transport.md). Any thread.
@@ -171,6 +176,11 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
 
   // Topics, writers, and the pointer reader (last, so nothing arrives before the rest exists).
   pointer_topic_ = CreateTopic(participant_, &felt_msgs_PointerSample_desc, config_.topics.pointer);
+  // A sample for a device the scene does not have is dropped by the topic's filter, before the
+  // reader stores it: its key never becomes an instance, so a peer sending ever new ids cannot
+  // grow the server's memory (issue 23). Set before the reader exists, as Cyclone requires.
+  CheckDds(dds_set_topic_filter_and_arg(pointer_topic_.get(), &Impl::KnownDeviceFilter, this),
+           "dds_set_topic_filter_and_arg");
   force_topic_ = CreateTopic(participant_, &felt_msgs_ForceCommand_desc, config_.topics.force);
   status_topic_ = CreateTopic(participant_, &felt_msgs_ServerStatus_desc, config_.topics.status);
   const Qos stream_qos = StreamQos();
@@ -303,17 +313,33 @@ uint64_t ServerTransport::Impl::IncompatibleQos() const {
   return total;
 }
 
-void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
-                                   dds_instance_handle_t writer, int64_t now_ns) {
-  // Unknown device: the id is not in the scene.
+size_t ServerTransport::Impl::DeviceIndex(const char* id) const {
   size_t index = 0;
   while (index < devices_.size() &&
-         std::strncmp(devices_[index].id, sample.device_id, sizeof(devices_[index].id)) != 0) {
+         std::strncmp(devices_[index].id, id, sizeof(devices_[index].id)) != 0) {
     ++index;
   }
+  return index;
+}
+
+bool ServerTransport::Impl::KnownDeviceFilter(const void* sample, void* arg) {
+  Impl& impl = *static_cast<Impl*>(arg);
+  const char* id = static_cast<const felt_msgs_PointerSample*>(sample)->device_id;
+  if (impl.DeviceIndex(id) < impl.devices_.size()) return true;
+  // Several receive threads may filter at once: a read-modify-write, not Bump.
+  if (impl.unknown_.fetch_add(1, std::memory_order_relaxed) == 0) impl.LogFirstUnknownDevice(id);
+  return false;
+}
+
+void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
+                                   dds_instance_handle_t writer, int64_t now_ns) {
+  // Unknown device: the topic's filter drops those (KnownDeviceFilter); checked again here.
+  const size_t index = DeviceIndex(sample.device_id);
   if (index == devices_.size()) {
-    if (unknown_.load(std::memory_order_relaxed) == 0) LogFirstUnknownDevice(sample.device_id);
-    return Bump(unknown_);
+    if (unknown_.fetch_add(1, std::memory_order_relaxed) == 0) {
+      LogFirstUnknownDevice(sample.device_id);
+    }
+    return;
   }
   Device& device = devices_[index];
 
