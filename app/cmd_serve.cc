@@ -76,6 +76,8 @@ int Serve(const ServeArgs& args) {
     const SceneDocument doc = LoadSceneDocument(args.scene);
     spec = ParseServerSpec(doc);
     config = transport::ParseTransportConfig(doc, spec.devices);
+    // A device's owner may fall silent for as long as the loop calls its input stale.
+    config.ownership_timeout_ns = static_cast<int64_t>(spec.haptic.stale_input_s * 1e9);
   } catch (const SceneError& e) {
     std::fprintf(stderr, "felt serve: %s\n", e.what());
     return 2;

@@ -267,6 +267,7 @@ bool ClientTransport::LatestStatus(ServerStatusView* out) {
   out->rejected_seq = m.rejected_seq;
   out->rejected_unknown_device = m.rejected_unknown_device;
   out->rejected_flood = m.rejected_flood;
+  out->rejected_not_owner = m.rejected_not_owner;
   out->pointer_accepted = m.pointer_accepted;
   out->forces_published = m.forces_published;
   out->forces_queue_full = m.forces_queue_full;

@@ -121,16 +121,23 @@ Entity CreateWriter(const Participant& participant, const Entity& topic, const d
 /// `on_valid(i, now_ns)` for each sample i of a batch that holds data (an invalid one is an
 /// instance state change, not a sample); now_ns is MonotonicNowNs() when the batch was taken.
 /// Returns false when dds_take failed (the taking stops there). Real-time safe when on_valid is.
-template <size_t N, class OnValid>
-bool TakeEverySample(const Entity& reader, std::array<void*, N>& ptrs,
-                     std::array<dds_sample_info_t, N>& infos, OnValid&& on_valid) {
+/// `on_invalid(i)`, if given, is called for each invalid sample (its key fields and info hold the
+/// instance and the writer whose state changed).
+template <size_t N, class OnValid, class OnInvalid = void (*)(size_t)>
+bool TakeEverySample(
+    const Entity& reader, std::array<void*, N>& ptrs, std::array<dds_sample_info_t, N>& infos,
+    OnValid&& on_valid, OnInvalid&& on_invalid = [](size_t) {}) {
   constexpr auto kBatch = static_cast<dds_return_t>(N);
   for (;;) {
     const dds_return_t n = dds_take(reader.get(), ptrs.data(), infos.data(), N, N);
     if (n < 0) return false;
     const int64_t now_ns = MonotonicNowNs();
     for (dds_return_t i = 0; i < n; ++i) {
-      if (infos[static_cast<size_t>(i)].valid_data) on_valid(static_cast<size_t>(i), now_ns);
+      if (infos[static_cast<size_t>(i)].valid_data) {
+        on_valid(static_cast<size_t>(i), now_ns);
+      } else {
+        on_invalid(static_cast<size_t>(i));
+      }
     }
     if (n < kBatch) return true;
   }

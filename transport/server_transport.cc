@@ -84,6 +84,9 @@ void ValidateConfig(const ServerTransportConfig& config) {
   if (config.force_queue_capacity == 0) {
     throw std::invalid_argument("ServerTransportConfig.force_queue_capacity: must be at least 1");
   }
+  if (config.ownership_timeout_ns <= 0) {
+    throw std::invalid_argument("ServerTransportConfig.ownership_timeout_ns: must be positive");
+  }
 }
 
 void NameThisThread(const char* name) { pthread_setname_np(pthread_self(), name); }
@@ -105,6 +108,8 @@ class ServerTransport::Impl {
     bool has_last = false;
     uint64_t last_seq = 0;
     dds_instance_handle_t last_writer = 0;
+    dds_instance_handle_t owner = 0;  // the writer that owns the device (0: none)
+    int64_t owner_last_ns = 0;        // when the owner's last sample arrived
     // Haptic thread only.
     uint64_t next_force_seq = 1;
   };
@@ -114,6 +119,14 @@ class ServerTransport::Impl {
   void WriterLoop();
   void DrainPointers();
   void Accept(const felt_msgs_PointerSample& sample, dds_instance_handle_t writer, int64_t now_ns);
+  // True while `writer` is matched to the pointer reader (or when that cannot be told: an error,
+  // more than kMatchedCapacity writers). Receive thread; allocates nothing.
+  bool StillMatched(dds_instance_handle_t writer);
+  static constexpr size_t kMatchedCapacity = 64;
+  std::array<dds_instance_handle_t, kMatchedCapacity> matched_{};  // StillMatched's buffer
+  // An instance state change (invalid sample): the owner that disposed or unregistered its
+  // device's instance gives the device up at once.
+  void Release(const felt_msgs_PointerSample& key, const dds_sample_info_t& info);
   // The first sample of a device the scene does not have, logged once (receive thread).
   void LogFirstUnknownDevice(const char* id) const;
   // Index of device `id` in devices_, or devices_.size() when the scene does not have it.
@@ -152,6 +165,7 @@ class ServerTransport::Impl {
   std::atomic<uint32_t> force_epoch_{0};  // bumped per push; the writer thread waits on it
 
   std::atomic<uint64_t> accepted_{0}, nonfinite_{0}, workspace_{0}, seq_{0}, unknown_{0}, flood_{0};
+  std::atomic<uint64_t> not_owner_{0}, ownership_changes_{0};
   std::atomic<uint64_t> pushed_{0}, queue_full_{0}, bad_device_{0}, published_{0}, statuses_{0};
   std::atomic<uint64_t> dds_errors_receive_{0}, dds_errors_write_{0}, dds_errors_status_{0};
   // Hop costs: one writer each (the receive path; the writer thread), 0.1 us resolution.
@@ -267,10 +281,12 @@ void ServerTransport::Impl::DrainPointers() {
   std::lock_guard<std::mutex> lock(receive_mutex_);
   const int64_t start_ns = MonotonicNowNs();
   // Take everything available, validating each sample (TakeEverySample: preallocated buffers).
-  const bool ok =
-      TakeEverySample(pointer_reader_, take_ptrs_, take_infos_, [&](size_t i, int64_t now_ns) {
+  const bool ok = TakeEverySample(
+      pointer_reader_, take_ptrs_, take_infos_,
+      [&](size_t i, int64_t now_ns) {
         Accept(take_buffer_[i], take_infos_[i].publication_handle, now_ns);
-      });
+      },
+      [&](size_t i) { Release(take_buffer_[i], take_infos_[i]); });
   if (!ok) Bump(dds_errors_receive_);
   receive_hop_.Record(MonotonicNowNs() - start_ns);
 }
@@ -313,6 +329,22 @@ uint64_t ServerTransport::Impl::IncompatibleQos() const {
   return total;
 }
 
+bool ServerTransport::Impl::StillMatched(dds_instance_handle_t writer) {
+  const dds_return_t n =
+      dds_get_matched_publications(pointer_reader_.get(), matched_.data(), matched_.size());
+  if (n < 0 || static_cast<size_t>(n) > matched_.size()) return true;
+  return std::find(matched_.begin(), matched_.begin() + n, writer) != matched_.begin() + n;
+}
+
+void ServerTransport::Impl::Release(const felt_msgs_PointerSample& key,
+                                    const dds_sample_info_t& info) {
+  if (info.instance_state == DDS_IST_ALIVE) return;
+  const size_t index = DeviceIndex(key.device_id);
+  if (index == devices_.size()) return;
+  Device& device = devices_[index];
+  if (device.owner == info.publication_handle) device.owner = 0;
+}
+
 size_t ServerTransport::Impl::DeviceIndex(const char* id) const {
   size_t index = 0;
   while (index < devices_.size() &&
@@ -342,6 +374,16 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
     return;
   }
   Device& device = devices_[index];
+
+  // Ownership: another writer's sample is refused while the owner is heard and still matched;
+  // after its silence the next writer's sample takes the device over; one that has left (no
+  // longer matched, or disposed: Release) leaves the device free.
+  if (device.owner != 0 && writer != device.owner && StillMatched(device.owner)) {
+    if (now_ns - device.owner_last_ns < config_.ownership_timeout_ns) return Bump(not_owner_);
+    Bump(ownership_changes_);
+  }
+  device.owner = writer;
+  device.owner_last_ns = now_ns;
 
   // Flood: a token bucket of max_rate_hz with burst_samples depth; every sample costs a token.
   const double refill =
@@ -470,6 +512,7 @@ bool ServerTransport::PublishStatus(const ServerStatusView& status) {
   message.rejected_seq = stats.rejected_seq;
   message.rejected_unknown_device = stats.rejected_unknown_device;
   message.rejected_flood = stats.rejected_flood;
+  message.rejected_not_owner = stats.rejected_not_owner;
   message.pointer_accepted = stats.pointer_accepted;
   message.forces_published = stats.forces_published;
   message.forces_queue_full = stats.forces_queue_full;
@@ -495,6 +538,8 @@ TransportStats ServerTransport::Stats() const {
   s.rejected_seq = Load(impl.seq_);
   s.rejected_unknown_device = Load(impl.unknown_);
   s.rejected_flood = Load(impl.flood_);
+  s.rejected_not_owner = Load(impl.not_owner_);
+  s.ownership_changes = Load(impl.ownership_changes_);
   s.forces_pushed = Load(impl.pushed_);
   s.forces_queue_full = Load(impl.queue_full_);
   s.forces_bad_device = Load(impl.bad_device_);

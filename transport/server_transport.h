@@ -40,6 +40,12 @@ struct ServerTransportConfig {
   std::vector<DeviceLimits> devices;  ///< allowed devices; device_index = position here
   size_t force_queue_capacity = 256;  ///< forces held between PushForce and the writer thread
   ReceiveMode receive_mode = ReceiveMode::kListener;  ///< see ReceiveMode
+  /// One writer owns a device at a time: the first whose sample is accepted. Another writer's
+  /// samples for it are rejected (rejected_not_owner) until the owner has sent nothing for this
+  /// long [ns] (`felt serve`: the scene's haptic.stale_input_ms) or has disposed or unregistered
+  /// the device's instance (a driver that exits, or restarts with a new writer after the
+  /// silence); then the next writer's sample takes it over. > 0.
+  int64_t ownership_timeout_ns = 50'000'000;
 };
 
 /// Percentiles of a hop's cost, microseconds, as bin upper edges of a rt/loop_stats.h
@@ -60,6 +66,8 @@ struct TransportStats {
   uint64_t rejected_workspace = 0;       ///< position outside the device's workspace box
   uint64_t rejected_seq = 0;             ///< seq not above the last accepted one of that writer
   uint64_t rejected_unknown_device = 0;  ///< device id not in ServerTransportConfig::devices
+  uint64_t rejected_not_owner = 0;       ///< from a writer other than the device's owner
+  uint64_t ownership_changes = 0;        ///< a device's ownership taken by another writer
   uint64_t rejected_flood = 0;           ///< above the device's token-bucket rate
   uint64_t forces_pushed = 0;            ///< PushForce calls that queued a force
   uint64_t forces_queue_full = 0;        ///< PushForce calls refused: queue full (never silent)

@@ -69,6 +69,7 @@ struct ServerStatusView {
   uint64_t rejected_seq = 0;             ///< transport: seq not above the last accepted one
   uint64_t rejected_unknown_device = 0;  ///< transport: device id not in the scene
   uint64_t rejected_flood = 0;           ///< transport: above the device's rate limit
+  uint64_t rejected_not_owner = 0;       ///< transport: from a writer not owning the device
   uint64_t pointer_accepted = 0;         ///< transport: samples that reached the haptic loop
   uint64_t forces_published = 0;         ///< transport: ForceCommands written
   uint64_t forces_queue_full = 0;        ///< transport: forces PushForce could not queue

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -13,6 +14,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "felt_types.h"
 #include "tests/transport/transport_test_util.h"
@@ -28,7 +30,8 @@ using namespace ::felt::transport::testing;  // tests/transport/transport_test_u
 // A server with devices "left" and "right", and a client publishing for "left" (index 0).
 class ServerTransportTest : public ::testing::TestWithParam<ReceiveMode> {
  protected:
-  void Start(double max_rate_hz = 2000.0, double burst = 50.0, size_t queue = 256) {
+  void Start(double max_rate_hz = 2000.0, double burst = 50.0, size_t queue = 256,
+             int64_t ownership_timeout_ns = 50'000'000) {
     ServerTransportConfig config;
     config.dds = TestDds();
     config.topics = topics_;
@@ -39,6 +42,7 @@ class ServerTransportTest : public ::testing::TestWithParam<ReceiveMode> {
     }
     config.force_queue_capacity = queue;
     config.receive_mode = GetParam();
+    config.ownership_timeout_ns = ownership_timeout_ns;
     server_ = std::make_unique<ServerTransport>(config);
     ClientTransportConfig client_config;
     client_config.dds = TestDds();
@@ -270,6 +274,69 @@ INSTANTIATE_TEST_SUITE_P(ReceiveModes, ServerTransportTest,
                          });
 
 // Bad configurations are refused with a message naming the field.
+// A second driver for device "left" (index 0 of its own list).
+std::unique_ptr<ClientTransport> SecondDriver(const TopicNames& topics) {
+  ClientTransportConfig config;
+  config.dds = TestDds();
+  config.topics = topics;
+  config.device_ids = {"left"};
+  config.subscribe_status = false;
+  return std::make_unique<ClientTransport>(config);
+}
+
+// One writer owns a device: a second writer's samples are refused and counted while the owner is
+// heard, and it takes over once the owner has been silent for the ownership timeout.
+TEST_P(ServerTransportTest, ASecondWriterIsRefusedUntilTheOwnerFallsSilent) {
+  Start(2000.0, 50.0, 256, 200'000'000);  // 200 ms
+  PublishAndWait(Sample(1));              // the fixture's client owns "left"
+  const auto second = SecondDriver(topics_);
+  ASSERT_TRUE(WaitUntil([&] { return server_->MatchedPointerWriters() >= 2; }, kWait));
+  // Interleaved, as two live drivers would: every one of the second's samples is refused.
+  for (uint64_t k = 0; k < 20; ++k) {
+    PublishAndWait(Sample(100 + k, 0.2));
+    ASSERT_TRUE(second->PublishPointer(Sample(1000 + k, 0.3)));
+    ASSERT_TRUE(WaitUntil([&] { return server_->Stats().rejected_not_owner >= k + 1; }, kWait));
+  }
+  PointerSampleView view;
+  ASSERT_TRUE(server_->LatestPointer(0, &view));
+  EXPECT_EQ(view.seq, 119u) << "only the owner's samples reach the slot";
+  EXPECT_EQ(server_->Stats().rejected_not_owner, 20u);
+  EXPECT_EQ(server_->Stats().ownership_changes, 0u);
+  // The owner falls silent for longer than the timeout: the second's next sample takes over.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(second->PublishPointer(Sample(2000, 0.3)));
+  ASSERT_TRUE(
+      WaitUntil([&] { return server_->LatestPointer(0, &view) && view.seq == 2000u; }, kWait));
+  EXPECT_EQ(server_->Stats().ownership_changes, 1u);
+  // And the first, back, is now the one refused.
+  const uint64_t refused = server_->Stats().rejected_not_owner;
+  ASSERT_TRUE(client_->PublishPointer(Sample(3000, 0.2)));
+  ASSERT_TRUE(WaitUntil([&] { return server_->Stats().rejected_not_owner == refused + 1; }, kWait));
+}
+
+// An owner that leaves (its writer deleted: the instance is unregistered) hands the device over
+// at once, without waiting for the timeout (10 s here).
+TEST_P(ServerTransportTest, AnOwnerThatLeavesHandsTheDeviceOverAtOnce) {
+  Start(2000.0, 50.0, 256, 10'000'000'000);
+  PublishAndWait(Sample(1));
+  const auto second = SecondDriver(topics_);
+  ASSERT_TRUE(WaitUntil([&] { return server_->MatchedPointerWriters() >= 2; }, kWait));
+  ASSERT_TRUE(second->PublishPointer(Sample(10, 0.3)));
+  ASSERT_TRUE(WaitUntil([&] { return server_->Stats().rejected_not_owner >= 1; }, kWait));
+  client_.reset();  // the owner exits
+  ASSERT_TRUE(WaitUntil([&] { return server_->MatchedPointerWriters() == 1; }, kWait));
+  PointerSampleView view;
+  const auto start = std::chrono::steady_clock::now();
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        second->PublishPointer(Sample(11, 0.3));
+        return server_->LatestPointer(0, &view) && view.seq == 11u;
+      },
+      kWait));
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  EXPECT_EQ(server_->Stats().ownership_changes, 0u) << "released, not taken over";
+}
+
 // A writer with a QoS of its own on the server's pointer topic (`adjust` edits the stream QoS).
 Entity ForeignPointerWriter(const Participant& participant, const TopicNames& topics,
                             const std::function<void(dds_qos_t*)>& adjust, Entity* topic) {
