@@ -1,14 +1,17 @@
-#include "collision/ccd_cubic.h"
-// The implementations of collision/ccd_proximity.h and ccd_cubic.h (one file: collision/ keeps
-// eight .cc files, one unity batch; collision/spatial_hash.cc uses kInf, which only
-// collision/bvh.cc defines, and builds only while both share a batch).
+#include "collision/ccd.h"
+// The implementations of collision/ccd_proximity.h, ccd_cubic.h, ccd.h and ccd_all_pairs.h (one
+// file: see docs/self_collision.md, "Build note").
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <utility>
 
+#include "base/check.h"
+#include "collision/ccd_all_pairs.h"
+#include "collision/ccd_cubic.h"
 #include "collision/ccd_proximity.h"
+#include "collision/geometry.h"
 
 namespace felt {
 
@@ -246,6 +249,380 @@ CoplanarTimes CoplanarCandidateTimes(const CoplanarityCubic& cubic) {
     }
   }
   return out;
+}
+
+// ----------------------------------------------------------------------------------------------
+// collision/ccd.h
+// ----------------------------------------------------------------------------------------------
+
+namespace {
+
+// A direction shorter than this many ulps of the coordinates' magnitude is rounding noise.
+constexpr double kCcdNoiseUlps = 64.0 * 0x1p-53;
+
+CcdPoints PointsAt(const CcdPoints& x0, const CcdPoints& x1, double t) {
+  CcdPoints p;
+  for (int i = 0; i < 4; ++i) p[i] = LinearPointAt(x0[i], x1[i], t);
+  return p;
+}
+
+// The magnitude below which a difference of these positions is rounding noise, m.
+double NoiseLength(const CcdPoints& p) {
+  double m = 0.0;
+  for (const Vec3& v : p) m = std::max(m, v.cwiseAbs().maxCoeff());
+  return kCcdNoiseUlps * m;
+}
+
+// Where a conservative advancement stopped.
+struct Advanced {
+  bool hit = false;
+  bool capped = false;
+  double t = 0.0;
+};
+
+// The earliest t in [begin, end] with distance_at(t) <= h (1 + slack), by conservative
+// advancement (Mirtich, "Impulse-based dynamic simulation of rigid body systems", PhD thesis,
+// 1996): the distance changes by at most `speed` per unit t, so it stays above h for
+// (d - h) / speed after a time at distance d; the interval's end is always examined. A step
+// landing a rounding error past a contact lands within rounding of it, far inside h.
+template <class DistanceAt>
+Advanced Advance(DistanceAt&& distance_at, double begin, double end, double speed, double h,
+                 int32_t max_steps) {
+  const double h_hit = h * (1.0 + kCcdDistanceSlack);
+  double t = begin;
+  for (int32_t step = 0;; ++step) {
+    const double d = distance_at(t);
+    if (d <= h_hit) return {true, false, t};
+    if (!(speed > 0.0) || t >= end) return {false, false, t};
+    if (step >= max_steps) return {true, true, t};
+    const double next = t + (d - h) / speed;
+    t = next < end ? next : end;
+  }
+}
+
+// A unit direction for a contact without a face normal: `apart` (from the second primitive to
+// the first) when longer than rounding noise, else against the relative velocity, else +z.
+Vec3 FallbackNormal(const Vec3& apart, const Vec3& relative_velocity, double noise) {
+  if (apart.norm() > noise) return apart.normalized();
+  if (relative_velocity.norm() > 0.0) return -relative_velocity.normalized();
+  return Vec3::UnitZ();
+}
+
+// Turns n toward the side the first primitive started on (`apart0`, its separation at t = 0 with
+// the contact's weights), or against the relative velocity when it started in contact.
+Vec3 Oriented(const Vec3& n, const Vec3& apart0, const Vec3& relative_velocity) {
+  const double side = n.dot(apart0);
+  if (side < 0.0 || (side == 0.0 && n.dot(relative_velocity) > 0.0)) return -n;
+  return n;
+}
+
+// The vertex-triangle proximity at time t.
+struct VertexTriangleState {
+  CcdPoints p;
+  TrianglePoint closest;
+};
+
+VertexTriangleState VertexTriangleAt(const CcdPoints& x0, const CcdPoints& x1, double t) {
+  VertexTriangleState s;
+  s.p = PointsAt(x0, x1, t);
+  s.closest = ClosestPointOnTriangle(s.p[0], s.p[1], s.p[2], s.p[3]);
+  return s;
+}
+
+// The hit record at an advancement's stop, with the normal of the file comment
+// (`prefer_apart`: the minimal-separation variant's closest-point direction first).
+VertexTriangleHit VertexTriangleHitAt(const CcdPoints& x0, const CcdPoints& x1, const Advanced& adv,
+                                      bool prefer_apart) {
+  const VertexTriangleState s = VertexTriangleAt(x0, x1, adv.t);
+  const Vec3& w = s.closest.barycentric;
+  VertexTriangleHit hit;
+  hit.hit = true;
+  hit.capped = adv.capped;
+  hit.toi = adv.t;
+  hit.distance_m = std::sqrt(s.closest.distance_sq);
+  hit.barycentric = w;
+  const auto velocity = [&](int i) -> Vec3 { return x1[i] - x0[i]; };
+  const Vec3 relative_velocity =
+      velocity(0) - (w[0] * velocity(1) + w[1] * velocity(2) + w[2] * velocity(3));
+  const Vec3 apart0 = x0[0] - (w[0] * x0[1] + w[1] * x0[2] + w[2] * x0[3]);
+  const Vec3 apart = s.p[0] - s.closest.point;
+  const double noise = NoiseLength(s.p);
+  Vec3 n;
+  if (prefer_apart && apart.norm() > noise) {
+    n = apart.normalized();
+  } else if (!IsDegenerateTriangle(s.p[1], s.p[2], s.p[3])) {
+    n = Oriented((s.p[2] - s.p[1]).cross(s.p[3] - s.p[1]).normalized(), apart0, relative_velocity);
+  } else {
+    n = Oriented(FallbackNormal(apart, relative_velocity, noise), apart0, relative_velocity);
+  }
+  hit.normal = n;
+  return hit;
+}
+
+// The edge-edge proximity at time t.
+struct EdgeEdgeState {
+  CcdPoints p;
+  SegmentsClosest closest;
+};
+
+EdgeEdgeState EdgeEdgeAt(const CcdPoints& x0, const CcdPoints& x1, double t) {
+  EdgeEdgeState s;
+  s.p = PointsAt(x0, x1, t);
+  s.closest = ClosestPointsOfSegments(s.p[0], s.p[1], s.p[2], s.p[3]);
+  return s;
+}
+
+EdgeEdgeHit EdgeEdgeHitAt(const CcdPoints& x0, const CcdPoints& x1, const Advanced& adv,
+                          bool prefer_apart) {
+  const EdgeEdgeState s = EdgeEdgeAt(x0, x1, adv.t);
+  EdgeEdgeHit hit;
+  hit.hit = true;
+  hit.capped = adv.capped;
+  hit.toi = adv.t;
+  hit.distance_m = std::sqrt(s.closest.distance_sq);
+  hit.s = s.closest.s;
+  hit.u = s.closest.u;
+  const auto at = [&](const CcdPoints& x, double s_e, double u_f) -> Vec3 {
+    return (x[0] + s_e * (x[1] - x[0])) - (x[2] + u_f * (x[3] - x[2]));
+  };
+  CcdPoints v;
+  for (int i = 0; i < 4; ++i) v[i] = x1[i] - x0[i];
+  const Vec3 relative_velocity = at(v, hit.s, hit.u);
+  const Vec3 apart0 = at(x0, hit.s, hit.u);
+  const Vec3 apart = s.closest.point_a - s.closest.point_b;
+  const double noise = NoiseLength(s.p);
+  const Vec3 ea = s.p[1] - s.p[0];
+  const Vec3 eb = s.p[3] - s.p[2];
+  const Vec3 cross = ea.cross(eb);
+  Vec3 n;
+  if (prefer_apart && apart.norm() > noise) {
+    n = apart.normalized();
+  } else if (cross.squaredNorm() > kDegenerateSin2 * ea.squaredNorm() * eb.squaredNorm()) {
+    n = Oriented(cross.normalized(), apart0, relative_velocity);
+  } else {
+    n = Oriented(FallbackNormal(apart, relative_velocity, noise), apart0, relative_velocity);
+  }
+  hit.normal = n;
+  return hit;
+}
+
+void CheckOptions(const CcdOptions& options) {
+  FELT_CHECK(options.thickness_m > 0.0);
+  FELT_CHECK(options.max_steps >= 0);
+}
+
+}  // namespace
+
+Vec3 LinearPointAt(const Vec3& a, const Vec3& b, double t) {
+  return t < 0.5 ? Vec3(a + t * (b - a)) : Vec3(b - (1.0 - t) * (b - a));
+}
+
+double VertexTriangleRelativeSpeed(const CcdPoints& x0, const CcdPoints& x1) {
+  const Vec3 v = x1[0] - x0[0];
+  double speed = 0.0;
+  for (int i = 1; i < 4; ++i) speed = std::max(speed, (v - (x1[i] - x0[i])).norm());
+  return speed;
+}
+
+double EdgeEdgeRelativeSpeed(const CcdPoints& x0, const CcdPoints& x1) {
+  double speed = 0.0;
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 2; j < 4; ++j) {
+      speed = std::max(speed, ((x1[i] - x0[i]) - (x1[j] - x0[j])).norm());
+    }
+  }
+  return speed;
+}
+
+VertexTriangleHit VertexTriangleCcd(const CcdPoints& x0, const CcdPoints& x1,
+                                    const CcdOptions& options) {
+  CheckOptions(options);
+  // Coplanarity of the vertex with the triangle: A = b - a, B = c - a, C = p - a (Provot 1997;
+  // Bridson et al. 2002), then the times it may vanish.
+  const CoplanarityCubic cubic = MakeCoplanarityCubic(x0[2] - x0[1], x1[2] - x1[1], x0[3] - x0[1],
+                                                      x1[3] - x1[1], x0[0] - x0[1], x1[0] - x1[1]);
+  const CoplanarTimes times = CoplanarCandidateTimes(cubic);
+  if (times.count == 0) return {};
+  // In each, the first time the vertex is within h of the triangle.
+  const double speed = VertexTriangleRelativeSpeed(x0, x1);
+  const auto distance_at = [&](double t) {
+    return std::sqrt(VertexTriangleAt(x0, x1, t).closest.distance_sq);
+  };
+  for (int32_t i = 0; i < times.count; ++i) {
+    const Advanced adv = Advance(distance_at, times.intervals[i].begin, times.intervals[i].end,
+                                 speed, options.thickness_m, options.max_steps);
+    if (adv.hit) return VertexTriangleHitAt(x0, x1, adv, /*prefer_apart=*/false);
+  }
+  return {};
+}
+
+EdgeEdgeHit EdgeEdgeCcd(const CcdPoints& x0, const CcdPoints& x1, const CcdOptions& options) {
+  CheckOptions(options);
+  // Coplanarity of the two edges: A = e1 - e0, B = f1 - f0, C = f0 - e0 (Bridson et al. 2002).
+  const CoplanarityCubic cubic = MakeCoplanarityCubic(x0[1] - x0[0], x1[1] - x1[0], x0[3] - x0[2],
+                                                      x1[3] - x1[2], x0[2] - x0[0], x1[2] - x1[0]);
+  const CoplanarTimes times = CoplanarCandidateTimes(cubic);
+  if (times.count == 0) return {};
+  const double speed = EdgeEdgeRelativeSpeed(x0, x1);
+  const auto distance_at = [&](double t) {
+    return std::sqrt(EdgeEdgeAt(x0, x1, t).closest.distance_sq);
+  };
+  for (int32_t i = 0; i < times.count; ++i) {
+    const Advanced adv = Advance(distance_at, times.intervals[i].begin, times.intervals[i].end,
+                                 speed, options.thickness_m, options.max_steps);
+    if (adv.hit) return EdgeEdgeHitAt(x0, x1, adv, /*prefer_apart=*/false);
+  }
+  return {};
+}
+
+VertexTriangleHit VertexTriangleSeparation(const CcdPoints& x0, const CcdPoints& x1,
+                                           const CcdOptions& options) {
+  CheckOptions(options);
+  const auto distance_at = [&](double t) {
+    return std::sqrt(VertexTriangleAt(x0, x1, t).closest.distance_sq);
+  };
+  const Advanced adv = Advance(distance_at, 0.0, 1.0, VertexTriangleRelativeSpeed(x0, x1),
+                               options.thickness_m, options.max_steps);
+  if (!adv.hit) return {};
+  return VertexTriangleHitAt(x0, x1, adv, /*prefer_apart=*/true);
+}
+
+EdgeEdgeHit EdgeEdgeSeparation(const CcdPoints& x0, const CcdPoints& x1,
+                               const CcdOptions& options) {
+  CheckOptions(options);
+  const auto distance_at = [&](double t) {
+    return std::sqrt(EdgeEdgeAt(x0, x1, t).closest.distance_sq);
+  };
+  const Advanced adv = Advance(distance_at, 0.0, 1.0, EdgeEdgeRelativeSpeed(x0, x1),
+                               options.thickness_m, options.max_steps);
+  if (!adv.hit) return {};
+  return EdgeEdgeHitAt(x0, x1, adv, /*prefer_apart=*/true);
+}
+
+// ----------------------------------------------------------------------------------------------
+// collision/ccd_all_pairs.h
+// ----------------------------------------------------------------------------------------------
+
+namespace {
+
+// The box around both positions of the given vertices, grown by `pad` [m].
+struct SweptBox {
+  Vec3 lo;
+  Vec3 hi;
+};
+
+template <size_t N>
+SweptBox BoxOf(std::span<const Vec3> x0, std::span<const Vec3> x1, const std::array<int32_t, N>& v,
+               double pad) {
+  SweptBox b{x0[v[0]], x0[v[0]]};
+  for (int32_t i : v) {
+    b.lo = b.lo.cwiseMin(x0[i]).cwiseMin(x1[i]);
+    b.hi = b.hi.cwiseMax(x0[i]).cwiseMax(x1[i]);
+  }
+  b.lo.array() -= pad;
+  b.hi.array() += pad;
+  return b;
+}
+
+bool BoxesApart(const SweptBox& a, const SweptBox& b) {
+  return (a.hi.array() < b.lo.array()).any() || (b.hi.array() < a.lo.array()).any();
+}
+
+CcdPoints Gather(std::span<const Vec3> x, const std::array<int32_t, 4>& v) {
+  return {x[v[0]], x[v[1]], x[v[2]], x[v[3]]};
+}
+
+}  // namespace
+
+std::vector<MeshEdge> MeshEdges(std::span<const Triangle> triangles) {
+  std::vector<MeshEdge> edges;
+  edges.reserve(3 * triangles.size());
+  for (const Triangle& t : triangles) {
+    for (int k = 0; k < 3; ++k) {
+      const int32_t a = t[k], b = t[(k + 1) % 3];
+      if (a != b) edges.push_back({std::min(a, b), std::max(a, b)});
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  return edges;
+}
+
+std::vector<CcdPairHit> AllPairsCcd(std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                    std::span<const Triangle> triangles,
+                                    const AllPairsCcdOptions& options) {
+  FELT_CHECK(x0.size() == x1.size());
+  const int32_t nv = static_cast<int32_t>(x0.size());
+  for (const Triangle& t : triangles) {
+    for (int32_t v : t) FELT_CHECK(v >= 0 && v < nv);
+  }
+  // Half the thickness on each box: boxes more than h apart hold primitives more than h apart.
+  const double pad = 0.5 * options.ccd.thickness_m;
+  std::vector<CcdPairHit> hits;
+
+  // Vertex-triangle pairs.
+  std::vector<SweptBox> tri_boxes;
+  if (options.box_prefilter) {
+    for (const Triangle& t : triangles) tri_boxes.push_back(BoxOf<3>(x0, x1, t, pad));
+  }
+  for (int32_t v = 0; v < nv; ++v) {
+    const SweptBox vbox = BoxOf<1>(x0, x1, std::array<int32_t, 1>{v}, pad);
+    for (int32_t ti = 0; ti < static_cast<int32_t>(triangles.size()); ++ti) {
+      const Triangle& t = triangles[ti];
+      if (t[0] == v || t[1] == v || t[2] == v) continue;
+      if (options.box_prefilter && BoxesApart(vbox, tri_boxes[ti])) continue;
+      const std::array<int32_t, 4> ids = {v, t[0], t[1], t[2]};
+      const CcdPoints p0 = Gather(x0, ids), p1 = Gather(x1, ids);
+      const VertexTriangleHit r = options.minimal_separation
+                                      ? VertexTriangleSeparation(p0, p1, options.ccd)
+                                      : VertexTriangleCcd(p0, p1, options.ccd);
+      if (!r.hit) continue;
+      CcdPairHit h;
+      h.kind = CcdPairHit::Kind::kVertexTriangle;
+      h.first = v;
+      h.second = ti;
+      h.vertices = ids;
+      h.capped = r.capped;
+      h.toi = r.toi;
+      h.distance_m = r.distance_m;
+      h.normal = r.normal;
+      h.weights = {1.0, -r.barycentric[0], -r.barycentric[1], -r.barycentric[2]};
+      hits.push_back(h);
+    }
+  }
+
+  // Edge-edge pairs.
+  const std::vector<MeshEdge> edges = MeshEdges(triangles);
+  std::vector<SweptBox> edge_boxes;
+  if (options.box_prefilter) {
+    for (const MeshEdge& e : edges) edge_boxes.push_back(BoxOf<2>(x0, x1, e, pad));
+  }
+  const int32_t ne = static_cast<int32_t>(edges.size());
+  for (int32_t i = 0; i < ne; ++i) {
+    for (int32_t j = i + 1; j < ne; ++j) {
+      const MeshEdge& e = edges[i];
+      const MeshEdge& f = edges[j];
+      if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
+      if (options.box_prefilter && BoxesApart(edge_boxes[i], edge_boxes[j])) continue;
+      const std::array<int32_t, 4> ids = {e[0], e[1], f[0], f[1]};
+      const CcdPoints p0 = Gather(x0, ids), p1 = Gather(x1, ids);
+      const EdgeEdgeHit r = options.minimal_separation ? EdgeEdgeSeparation(p0, p1, options.ccd)
+                                                       : EdgeEdgeCcd(p0, p1, options.ccd);
+      if (!r.hit) continue;
+      CcdPairHit h;
+      h.kind = CcdPairHit::Kind::kEdgeEdge;
+      h.first = i;
+      h.second = j;
+      h.vertices = ids;
+      h.capped = r.capped;
+      h.toi = r.toi;
+      h.distance_m = r.distance_m;
+      h.normal = r.normal;
+      h.weights = {1.0 - r.s, r.s, -(1.0 - r.u), -r.u};
+      hits.push_back(h);
+    }
+  }
+  return hits;
 }
 
 }  // namespace felt
