@@ -116,7 +116,7 @@ RepairStats SpatialHash::Rehash(std::span<const Vec3> x0, std::span<const Vec3> 
   std::fill(bucket_start_.begin(), bucket_start_.end(), 0);
   num_oversized_ = 0;
   lo_ = Vec3::Constant(std::numeric_limits<double>::infinity());
-  hi_ = Vec3::Constant(-kInf);
+  hi_ = Vec3::Constant(-std::numeric_limits<double>::infinity());
   // Pass 1: each triangle's cells; count entries per bucket.
   for (size_t i = 0; i < tris.size(); ++i) {
     const Triangle& t = tris[i];
