@@ -1,0 +1,204 @@
+#pragma once
+// Broad phase of continuous self-collision (issue 22): the vertex-triangle and edge-edge pairs of a
+// mesh, sharing no vertex, whose swept boxes (each primitive's axis-aligned box around its
+// vertices at x0 and x1, every side pushed out by half the thickness) overlap. Every pair that
+// AllPairsCcd (collision/ccd_all_pairs.h) can report has overlapping boxes (each point of a
+// primitive stays in its box for all t in [0, 1], and two boxes more than h apart hold primitives
+// more than h apart), so running the narrow phase over the candidates gives exactly its hits.
+//
+// Two culling methods with the same interface:
+// - SelfSpatialHash: spatial hashing of the swept boxes (Teschner, Heidelberger, Mueller,
+//   Pomeranets & Gross 2003, "Optimized Spatial Hashing for Collision Detection of Deformable
+//   Objects"; 000_25210a744b053ca5.txt, the slides on spatial hashing), cells about the mean edge
+//   length;
+// - SelfBvh: a binary AABB tree over the triangles, refitted bottom-up from swept boxes every
+//   step, traversed against itself (000's BVH self-traversal, without normal cones).
+//
+// Allocation: every array is sized at construction; FindCandidates and SelfCcd never allocate.
+// Overflow never drops a pair silently: the candidate buffer has a fixed capacity and a full
+// buffer sets `overflow` (the caller falls back to AllPairsCcd or grows the buffer at set-up);
+// the hash's entry array has a fixed capacity and a primitive that does not fit in it (or spans
+// more than max_cells_per_primitive cells) is tested against every primitive instead.
+//
+// Only vertices referenced by some triangle are considered (AllPairsCcd also tests vertices no
+// triangle uses; the two agree whenever every vertex is a triangle's corner, as in a cloth).
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "collision/ccd_all_pairs.h"
+#include "collision/mesh.h"
+
+namespace felt {
+
+/// A candidate pair: vertex-triangle (first = vertex, second = triangle index) or edge-edge
+/// (first < second, indices into MeshEdges(triangles)), as in CcdPairHit.
+struct SelfCandidate {
+  CcdPairHit::Kind kind = CcdPairHit::Kind::kVertexTriangle;
+  int32_t first = 0;   ///< the vertex, or edge e's index in MeshEdges
+  int32_t second = 0;  ///< the triangle's index, or edge f's index in MeshEdges (e < f)
+};
+
+/// What one FindCandidates call produced.
+struct SelfBroadPhaseStats {
+  int64_t vertex_triangle = 0;  ///< vertex-triangle candidates found (also those not stored)
+  int64_t edge_edge = 0;        ///< edge-edge candidates found (also those not stored)
+  /// True when more candidates were found than the buffer holds: the stored ones are a subset,
+  /// the counts above are the full totals; the caller must fall back (e.g. to AllPairsCcd).
+  bool overflow = false;
+  int32_t oversized = 0;  ///< hash only: primitives tested against all others (too many cells)
+};
+
+/// Construction options shared by both methods.
+struct SelfBroadPhaseOptions {
+  /// Candidate buffer capacity (pairs); 0 = 64 x (vertices + edges) at construction.
+  int64_t max_candidates = 0;
+  /// SelfSpatialHash: grid cell edge [m]; 0 = the mean edge length at construction (Teschner
+  /// 2003 §5: cells about the primitives' size).
+  double cell_size_m = 0.0;
+  /// SelfSpatialHash: a primitive whose box covers more cells is tested against every other.
+  int32_t max_cells_per_primitive = 64;
+  /// SelfSpatialHash: (primitive, cell) entries per step; 0 = 16 x (vertices + edges). A
+  /// primitive whose cells no longer fit is tested against every other instead.
+  int64_t max_entries = 0;
+};
+
+/// The interface of a self-collision broad phase. Not thread-safe (one step at a time).
+class SelfBroadPhase {
+ public:
+  virtual ~SelfBroadPhase() = default;
+  /// Candidates of the step x0 -> x1 [m] with thickness h = thickness_m [m, > 0]: every
+  /// vertex-triangle and edge-edge pair sharing no vertex whose swept boxes padded by
+  /// h (1 + 1e-5) / 2 overlap, each once, in no particular order; stored in candidates() up to
+  /// its capacity. x0, x1 must have as many entries as the positions given at construction.
+  /// Real-time safe (no allocation, no exceptions; aborts on a size mismatch).
+  virtual SelfBroadPhaseStats FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                             double thickness_m) = 0;
+  /// The candidates stored by the last FindCandidates.
+  std::span<const SelfCandidate> candidates() const {
+    return {candidates_.data(), candidates_.size()};
+  }
+  /// The triangles given at construction.
+  std::span<const Triangle> triangles() const { return triangles_; }
+  /// MeshEdges(triangles()): the edge numbering of edge-edge candidates and hits.
+  std::span<const MeshEdge> edges() const { return edges_; }
+
+ protected:
+  /// Copies the mesh, numbers its edges and reserves the candidate buffer. Throws
+  /// std::invalid_argument when an index is out of range for num_vertices or an option is bad.
+  SelfBroadPhase(std::span<const Triangle> triangles, int32_t num_vertices,
+                 const SelfBroadPhaseOptions& options);
+  /// Appends a candidate if there is room, else marks the overflow; counts it either way.
+  void Emit(CcdPairHit::Kind kind, int32_t first, int32_t second, SelfBroadPhaseStats* stats);
+  /// Clears the candidates (capacity kept) and checks the sizes.
+  void BeginStep(std::span<const Vec3> x0, std::span<const Vec3> x1, double thickness_m) const;
+
+  std::vector<Triangle> triangles_;
+  std::vector<MeshEdge> edges_;
+  std::vector<std::array<int32_t, 3>> triangle_edges_;  ///< [triangles] edge ids, -1: degenerate
+  std::vector<int32_t> vertex_owner_;  ///< [vertices] first triangle using it, -1: none
+  std::vector<int32_t> edge_owner_;    ///< [edges] first triangle having it
+  int32_t num_vertices_ = 0;
+  int64_t max_candidates_ = 0;
+  std::vector<SelfCandidate> candidates_;  ///< capacity max_candidates_, never exceeded
+};
+
+/// Method (a): spatial hashing of swept boxes (Teschner et al. 2003). Vertices are hashed into
+/// the cells their boxes cover and every triangle's cells are looked up; edges likewise against
+/// edges. A pair is reported only in the cell holding the low corner of the two boxes'
+/// intersection, so each once. Entries keep their cell, so distinct cells sharing a bucket never
+/// mix.
+class SelfSpatialHash final : public SelfBroadPhase {
+ public:
+  /// Sizes every array for `triangles` over positions x [m] (used for the mean edge length).
+  /// Throws std::invalid_argument on an index out of range or a bad option (names the field).
+  SelfSpatialHash(std::span<const Triangle> triangles, std::span<const Vec3> x,
+                  const SelfBroadPhaseOptions& options = {});
+  /// See SelfBroadPhase::FindCandidates. Real-time safe.
+  SelfBroadPhaseStats FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                     double thickness_m) override;
+  double cell_size_m() const { return cell_size_m_; }  ///< grid cell edge [m]
+  int32_t table_size() const { return table_size_; }   ///< buckets (a prime)
+
+  /// A (primitive, cell) entry of the table.
+  struct Entry {
+    int32_t id = 0;                    ///< vertex or edge index
+    std::array<int32_t, 3> cell = {};  ///< integer cell coordinates
+  };
+
+ private:
+  /// A swept, padded box [m].
+  struct Box {
+    Vec3 lo = Vec3::Zero();
+    Vec3 hi = Vec3::Zero();
+  };
+  double cell_size_m_ = 0.0;
+  int32_t table_size_ = 0;
+  int32_t max_cells_ = 0;
+  int64_t max_entries_ = 0;
+  std::vector<Box> vertex_box_;        ///< [vertices]
+  std::vector<Box> edge_box_;          ///< [edges]
+  std::vector<Box> triangle_box_;      ///< [triangles]
+  std::vector<int32_t> bucket_start_;  ///< [table_size + 1] counting-sort offsets
+  std::vector<int32_t> bucket_fill_;   ///< [table_size] fill cursors
+  std::vector<Entry> entries_;         ///< [max_entries] bucketed entries
+  std::vector<uint8_t> hashed_;        ///< [max(vertices, edges)] 1 if in the table
+  std::vector<int32_t> oversized_;     ///< [max(vertices, edges)] ids not in the table
+};
+
+/// Method (b): a binary AABB tree over the triangles (median split of centroids at
+/// construction), refitted bottom-up every step from the triangles' swept boxes and traversed
+/// against itself: (A, A) -> its children's pairs, overlapping (A, B) -> recurse, leaf pairs ->
+/// vertex-triangle and edge-edge candidates. Each vertex and edge belongs to one triangle (the
+/// first that uses it), and only an owner's primitives are paired with the other leaf's, so every
+/// candidate comes once; pairs sharing a vertex (adjacent triangles' shared features) are
+/// skipped.
+class SelfBvh final : public SelfBroadPhase {
+ public:
+  /// Builds the tree for `triangles` over positions x [m] (rest or current). Throws
+  /// std::invalid_argument on an index out of range or a bad option.
+  SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
+          const SelfBroadPhaseOptions& options = {});
+  /// See SelfBroadPhase::FindCandidates. Real-time safe (recursion depth about 2 log2 T).
+  SelfBroadPhaseStats FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                     double thickness_m) override;
+  int32_t num_nodes() const { return static_cast<int32_t>(node_lo_.size()); }  ///< tree nodes
+
+ private:
+  void Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats);
+  void LeafPair(int32_t ta, int32_t tb, SelfBroadPhaseStats* stats);
+  bool Overlap(int32_t a, int32_t b) const;
+  std::vector<int32_t> left_;         ///< [nodes] left child, -1 for a leaf
+  std::vector<int32_t> right_;        ///< [nodes] right child, or the triangle of a leaf
+  std::vector<Vec3> node_lo_;         ///< [nodes] swept box low corner [m]
+  std::vector<Vec3> node_hi_;         ///< [nodes] swept box high corner [m]
+  std::vector<int32_t> refit_order_;  ///< nodes, children before parents
+  std::vector<Vec3> vertex_lo_;       ///< [vertices] swept, padded vertex box [m]
+  std::vector<Vec3> vertex_hi_;
+  std::vector<Vec3> edge_lo_;  ///< [edges] swept, padded edge box [m]
+  std::vector<Vec3> edge_hi_;
+  std::vector<std::array<int32_t, 3>> owned_vertices_;  ///< [triangles] owned vertices, -1 pad
+  std::vector<std::array<int32_t, 3>> owned_edges_;     ///< [triangles] owned edges, -1 pad
+};
+
+/// Outcome of SelfCcd.
+struct SelfCcdStats {
+  SelfBroadPhaseStats broad;  ///< the broad phase's counts
+  int64_t hits = 0;           ///< colliding pairs found (also those not stored)
+  /// True when the broad phase or the hit buffer overflowed: the hits are incomplete and the
+  /// caller must fall back (AllPairsCcd) or enlarge the buffers at set-up.
+  bool overflow = false;
+};
+
+/// Runs `broad` on the step x0 -> x1 [m] and the narrow phase (VertexTriangleCcd / EdgeEdgeCcd,
+/// or the *Separation tests, per options) on its candidates; writes the colliding pairs to *hits
+/// in AllPairsCcd's form and order (vertex-triangle by (vertex, triangle), then edge-edge by
+/// (e, f)), never growing it beyond hits->capacity() (reserve it at set-up; overflow is
+/// reported). options.box_prefilter is ignored (the broad phase is the filter). Real-time safe
+/// when hits has capacity: no allocation (the sort is in place).
+SelfCcdStats SelfCcd(SelfBroadPhase* broad, std::span<const Vec3> x0, std::span<const Vec3> x1,
+                     const AllPairsCcdOptions& options, std::vector<CcdPairHit>* hits);
+
+}  // namespace felt
