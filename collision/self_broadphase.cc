@@ -89,7 +89,7 @@ SelfBroadPhase::SelfBroadPhase(std::span<const Triangle> triangles, int32_t num_
   }
   max_candidates_ = options.max_candidates > 0
                         ? options.max_candidates
-                        : 64 * (static_cast<int64_t>(num_vertices) + std::ssize(edges_));
+                        : 16 * (static_cast<int64_t>(num_vertices) + std::ssize(edges_));
   candidates_.reserve(static_cast<size_t>(max_candidates_));
 }
 

@@ -53,7 +53,7 @@ struct SelfBroadPhaseStats {
 
 /// Construction options shared by both methods.
 struct SelfBroadPhaseOptions {
-  /// Candidate buffer capacity (pairs); 0 = 64 x (vertices + edges) at construction.
+  /// Candidate buffer capacity (pairs); 0 = 16 x (vertices + edges) at construction.
   int64_t max_candidates = 0;
   /// SelfSpatialHash: grid cell edge [m]; 0 = the mean edge length at construction (Teschner
   /// 2003 §5: cells about the primitives' size).
