@@ -271,6 +271,48 @@ TEST(SelfBroadPhaseTest, DegenerateInputsMatchAllPairs) {
   }
 }
 
+TEST(SelfBroadPhaseTest, LargerGridsGiveTheBoxSetAndTheSameHitsByBothMethods) {
+  // Deeper trees and fuller tables than the cases above; the all-pairs narrow phase would be too
+  // slow here, so the candidates are checked against the brute-force box set and the two
+  // methods' hits against each other.
+  const int32_t w = 40;
+  const double step = 0.02, h = 0.001, pi = std::numbers::pi;
+  const std::vector<Triangle> tris = MakeGridTriangles(w, w);
+  const std::vector<Vec3> rest = BroadFlatGrid(w, w, step);
+  std::vector<Vec3> x0 = BroadFoldedGrid(w, 19, step, pi - 0.1);
+  std::vector<Vec3> x1 = BroadFoldedGrid(w, 19, step, pi + 0.1);
+  for (size_t i = 0; i < x0.size(); ++i) {
+    const double wave = 0.3 * step * std::sin(0.7 * static_cast<double>(i));
+    x0[i].z() += wave;
+    x1[i].z() += 0.5 * wave;
+  }
+  const std::set<PairKey> boxes = BruteForceCandidates(x0, x1, tris, h);
+  AllPairsCcdOptions options;
+  options.ccd.thickness_m = h;
+  std::vector<std::vector<CcdPairHit>> results;
+  for (const Method& m : kMethods) {
+    std::unique_ptr<SelfBroadPhase> broad = m.make(tris, rest, {});
+    std::vector<CcdPairHit> hits;
+    hits.reserve(boxes.size());
+    const SelfCcdStats st = SelfCcd(broad.get(), x0, x1, options, &hits);
+    ASSERT_FALSE(st.overflow) << m.name;
+    std::set<PairKey> cand;
+    for (const SelfCandidate& c : broad->candidates()) {
+      cand.insert({static_cast<int>(c.kind), c.first, c.second});
+    }
+    EXPECT_EQ(cand.size(), broad->candidates().size()) << m.name;
+    EXPECT_EQ(cand, boxes) << m.name;
+    results.push_back(hits);
+  }
+  ASSERT_EQ(results[0].size(), results[1].size());
+  EXPECT_GT(results[0].size(), 100u);
+  for (size_t i = 0; i < results[0].size(); ++i) {
+    EXPECT_EQ(results[0][i].first, results[1][i].first);
+    EXPECT_EQ(results[0][i].second, results[1][i].second);
+    EXPECT_EQ(results[0][i].toi, results[1][i].toi);
+  }
+}
+
 TEST(SelfBroadPhaseTest, OverflowIsReportedNeverSilent) {
   const int32_t w = 8;
   const double step = 0.05, h = 0.002, pi = std::numbers::pi;
