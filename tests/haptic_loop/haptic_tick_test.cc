@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "rt/loop_stats.h"
@@ -131,9 +132,10 @@ TEST(HapticTick, TheContactPlaneReproducesTheForceAtTheTicksPosition) {
     worst_N = std::max(worst_N, (local_N - out.force_D_N).norm());
     ++checked;
   }
+  std::printf("planes %d, checked %d, worst %.3g N\n", planes, checked, worst_N);
   EXPECT_GT(planes, 100);
   EXPECT_GT(checked, 100);
-  EXPECT_LT(worst_N, 1e-3 * spec.devices[0].max_force_N);
+  EXPECT_LT(worst_N, 1e-9);  // measured: 7.3e-16 N over 481 ticks
 }
 
 }  // namespace
