@@ -5,8 +5,13 @@
 // What it does, 1000 times a second, on absolute deadlines:
 //   1. reads the device (ReadDevice: here a simulated tip pressing and stroking the cloth),
 //   2. publishes a PointerSample on felt/pointer (position in m, velocity in m/s, device frame),
-//   3. takes the newest ForceCommand for this device from felt/force and writes it to the motors
-//      (WriteMotorForce: here it only accumulates and prints),
+//   3. takes the newest ForceCommand for this device from felt/force and writes a force to the
+//      motors (WriteMotorForce: here it only accumulates and prints): between messages it renders
+//      the command's local contact model at the tip's CURRENT position (Mark et al. 1996),
+//        F = k * max(0, (contact_point - tip) . contact_normal) * contact_normal,  k > 0,
+//      and the command's force_N as sent when k = 0 (no contact, or the server ramping). Use it
+//      whenever your servo loop runs faster than, or out of step with, the messages: a late message
+//      then costs the plane's motion, not the tip's (transport/local_contact.h, docs/transport.md),
 //   4. SAFETY: when no ForceCommand has arrived for --silence-ms (default 50 ms), or one holds a
 //      non-finite value, it writes ZERO force, every tick, until the server speaks again. It also
 //      clamps to the device's own maximum force and writes zero when it exits.
@@ -30,6 +35,7 @@
 #include <string>
 
 #include "transport/client_transport.h"
+#include "transport/local_contact.h"
 
 namespace {
 
@@ -170,6 +176,7 @@ int main(int argc, char** argv) {
     double last_round_trip_ms = 0;
     bool silent = true;
     std::array<double, 3> force_N{};
+    felt::transport::ForceCommandView newest;  // the newest good ForceCommand (its local model)
 
     while (!g_stop.load() && next_ns < end_ns) {
       // 1-2. Read the device and publish the sample (seq strictly increasing).
@@ -187,14 +194,18 @@ int main(int argc, char** argv) {
       const int64_t now_ns = Now();
       if (client.TakeForce(0, &command) && std::isfinite(command.force_N_D[0]) &&
           std::isfinite(command.force_N_D[1]) && std::isfinite(command.force_N_D[2])) {
-        force_N = command.force_N_D;
+        newest = command;
         last_force_ns = now_ns;
         ++forces;
         // device_time_ns is this driver's own clock, so the round trip needs no clock sync.
         last_round_trip_ms = static_cast<double>(now_ns - command.answers_device_time_ns) * 1e-6;
       }
 
-      // 4. Safety: zero force while the server is silent; the device's own clamp always.
+      // The force at the tip's current position from the newest command's local contact model
+      // (its force_N when it has no plane), clamped to the device's maximum; NaN gives zero.
+      force_N = felt::transport::LocalContactForce(newest, reading.position_m_D, max_force_N);
+
+      // 4. Safety: zero force while the server is silent.
       const bool now_silent = last_force_ns == 0 || now_ns - last_force_ns > silence_ns;
       if (now_silent != silent) {
         std::printf(now_silent ? "server silent for > %.0f ms: ZERO force\n"
@@ -205,11 +216,6 @@ int main(int argc, char** argv) {
       if (silent) {
         force_N = {0.0, 0.0, 0.0};
         ++silent_ticks;
-      }
-      const double norm_N =
-          std::sqrt(force_N[0] * force_N[0] + force_N[1] * force_N[1] + force_N[2] * force_N[2]);
-      if (norm_N > max_force_N) {
-        for (double& f : force_N) f *= max_force_N / norm_N;
       }
       WriteMotorForce(force_N);
 

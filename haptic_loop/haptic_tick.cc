@@ -246,6 +246,16 @@ void HapticLoop::SendForce(uint32_t index, int64_t now_ns, const SafetyOutput& o
   force.in_contact = d->fresh && d->last_result.num_contacts > 0;
   force.flags = out.flags;
   force.tick_time_ns = now_ns;
+  // The local contact model (Mark et al. 1996): the plane through the proxy centre with the first
+  // contact's normal, so that k max(0, (proxy - p) . n) n is the spring force for one frictionless
+  // contact. Sent only while the force is the proxy's own (not ramped, stale or NaN).
+  const GodObject& body = d->proxy.body;
+  const uint32_t not_own = kSafetyStaleInput | kSafetyRamping;
+  if (force.in_contact && body.num_contacts > 0 && (out.flags & not_own) == 0 && !out.nan) {
+    force.contact_point_D_m = force.proxy_D_m;
+    force.contact_normal_D = d->model.rotation_WD.transpose() * body.contacts[0].normal_W;
+    force.contact_stiffness_N_per_m = d->model.stiffness_N_per_m;
+  }
   sink_->Push(index, force);
 
   // Counters.

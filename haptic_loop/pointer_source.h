@@ -44,6 +44,11 @@ struct ForceOutput {
   bool in_contact = false;             ///< the proxy touches the cloth
   uint32_t flags = 0;                  ///< SafetyFlag bits (= transport kForce* bits)
   int64_t tick_time_ns = 0;            ///< CLOCK_MONOTONIC of the tick that made it
+  /// Local contact model (Mark et al. 1996): F(p_D) = k max(0, (point - p_D) . n) n.
+  Vec3 contact_point_D_m = Vec3::Zero();   ///< a point of the contact plane (proxy), device, m
+  Vec3 contact_normal_D = Vec3::Zero();    ///< unit, toward the free side, device frame (0: none)
+  double contact_stiffness_N_per_m = 0.0;  ///< k, device frame, N/m (0: not in contact, or the
+                                           ///< force is ramped, stale or NaN: hold force_D_N)
 };
 
 /// Where forces go, written by the haptic thread only.

@@ -53,6 +53,11 @@ class TransportForceSink final : public ForceSink {
     view.proxy_position_m_D = {force.proxy_D_m.x(), force.proxy_D_m.y(), force.proxy_D_m.z()};
     view.in_contact = force.in_contact;
     view.flags = force.flags;
+    for (int k = 0; k < 3; ++k) {
+      view.contact_point_m_D[k] = force.contact_point_D_m[k];
+      view.contact_normal_D[k] = force.contact_normal_D[k];
+    }
+    view.contact_stiffness_N_per_m = force.contact_stiffness_N_per_m;
     transport_->PushForce(view);
   }
 

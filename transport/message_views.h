@@ -39,9 +39,12 @@ inline ForceCommandView ForceViewOf(const felt_msgs_ForceCommand& m, uint32_t de
   for (int k = 0; k < 3; ++k) {
     v.force_N_D[k] = m.force_N[k];
     v.proxy_position_m_D[k] = m.proxy_position_m[k];
+    v.contact_point_m_D[k] = m.contact_point_m[k];
+    v.contact_normal_D[k] = m.contact_normal[k];
   }
   v.in_contact = m.in_contact;
   v.flags = m.flags;
+  v.contact_stiffness_N_per_m = m.contact_stiffness_N_per_m;
   v.receive_time_ns = receive_time_ns;
   return v;
 }
@@ -71,9 +74,12 @@ inline void FillForceMessage(const ForceCommandView& v, const char* device_id,
   for (int k = 0; k < 3; ++k) {
     m->force_N[k] = v.force_N_D[k];
     m->proxy_position_m[k] = v.proxy_position_m_D[k];
+    m->contact_point_m[k] = v.contact_point_m_D[k];
+    m->contact_normal[k] = v.contact_normal_D[k];
   }
   m->in_contact = v.in_contact;
   m->flags = v.flags;
+  m->contact_stiffness_N_per_m = v.contact_stiffness_N_per_m;
 }
 
 }  // namespace felt::transport

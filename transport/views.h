@@ -38,6 +38,9 @@ struct ForceCommandView {
   std::array<double, 3> proxy_position_m_D{};  ///< god-object proxy, device frame, m
   bool in_contact = false;                     ///< proxy touches the cloth
   uint32_t flags = 0;                          ///< bit mask of kForce* above
+  std::array<double, 3> contact_point_m_D{};   ///< a point of the contact plane, device frame, m
+  std::array<double, 3> contact_normal_D{};    ///< unit plane normal to the free side, device frame
+  double contact_stiffness_N_per_m = 0;  ///< local model spring k, device frame, N/m (0: none)
   int64_t receive_time_ns = 0;                 ///< receiver side only: CLOCK_MONOTONIC at take, ns
 };
 

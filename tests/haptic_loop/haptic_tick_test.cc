@@ -6,7 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "rt/loop_stats.h"
@@ -92,6 +94,48 @@ TEST(HapticTick, ANonFiniteSampleIsCountedAndGivesZeroForce) {
   EXPECT_TRUE(out.force_D_N.allFinite());
   EXPECT_EQ(out.force_D_N, Vec3::Zero());
   EXPECT_EQ(loops.haptic.device_counters(0).nan_events.load(), 1u);
+}
+
+// The local contact model sent with each force (Mark et al. 1996) reproduces the force at the
+// tick's own position: k max(0, (point - p) . n) n = F_D for one frictionless contact without
+// force shading, damping or clamp. Its plane is zero out of contact and during the ramp-in.
+TEST(HapticTick, TheContactPlaneReproducesTheForceAtTheTicksPosition) {
+  ServerSpec spec = SmallCurtain();
+  spec.proxy.force_shading = false;
+  spec.proxy.friction_static = 0.0;
+  spec.proxy.friction_dynamic = 0.0;
+  spec.devices[0].damping_N_s_per_m = 0.0;
+  spec.haptic.safety.ramp_in_s = 0.05;
+  spec.haptic.safety.max_force_rate_N_per_s = 1e9;
+  Loops loops(spec);
+  int planes = 0, checked = 0;
+  double worst_N = 0.0;
+  for (int k = 0; k < 600; ++k) {
+    const Vec3 p_D = PressPosition(k);
+    loops.Tick(k, true, p_D);
+    ForceOutput out;
+    ASSERT_TRUE(loops.sink.Newest(0, &out));
+    if (out.contact_stiffness_N_per_m <= 0.0) {
+      EXPECT_EQ(out.contact_normal_D, Vec3::Zero());
+      EXPECT_TRUE(!out.in_contact || (out.flags & kSafetyRamping) != 0)
+          << k << " flags " << out.flags;
+      continue;
+    }
+    ++planes;
+    EXPECT_TRUE(out.in_contact);
+    EXPECT_EQ(out.flags & (kSafetyRamping | kSafetyStaleInput), 0u);
+    EXPECT_NEAR(out.contact_normal_D.norm(), 1.0, 1e-9);
+    EXPECT_EQ(out.contact_stiffness_N_per_m, spec.devices[0].stiffness_N_per_m);
+    if (out.flags & kSafetyClamped) continue;
+    const double depth_m = std::max(0.0, (out.contact_point_D_m - p_D).dot(out.contact_normal_D));
+    const Vec3 local_N = out.contact_stiffness_N_per_m * depth_m * out.contact_normal_D;
+    worst_N = std::max(worst_N, (local_N - out.force_D_N).norm());
+    ++checked;
+  }
+  std::printf("planes %d, checked %d, worst %.3g N\n", planes, checked, worst_N);
+  EXPECT_GT(planes, 100);
+  EXPECT_GT(checked, 100);
+  EXPECT_LT(worst_N, 1e-9);  // measured: 7.3e-16 N over 481 ticks
 }
 
 }  // namespace

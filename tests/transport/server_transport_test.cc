@@ -118,6 +118,9 @@ TEST_P(ServerTransportTest, ForcesReachTheClientReader) {
   force.proxy_position_m_D = {0.1, 0.2, 0.3};
   force.in_contact = true;
   force.flags = kForceClamped | kForceRamping;
+  force.contact_point_m_D = {0.1, 0.2, 0.29};
+  force.contact_normal_D = {0.0, 0.6, 0.8};
+  force.contact_stiffness_N_per_m = 400.0;
   ASSERT_TRUE(server_->PushForce(force));
   ForceCommandView received;
   ASSERT_TRUE(client_->WaitForce(0, kWait, &received));
@@ -130,6 +133,9 @@ TEST_P(ServerTransportTest, ForcesReachTheClientReader) {
   EXPECT_DOUBLE_EQ(received.proxy_position_m_D[2], 0.3);
   EXPECT_TRUE(received.in_contact);
   EXPECT_EQ(received.flags, kForceClamped | kForceRamping);
+  EXPECT_EQ(received.contact_point_m_D, force.contact_point_m_D);
+  EXPECT_EQ(received.contact_normal_D, force.contact_normal_D);
+  EXPECT_EQ(received.contact_stiffness_N_per_m, 400.0);
   // A force for the other device is not this client's; a bad index is refused and counted.
   force.device_index = 1;
   ASSERT_TRUE(server_->PushForce(force));
