@@ -548,6 +548,47 @@ std::vector<MeshEdge> MeshEdges(std::span<const Triangle> triangles) {
   return edges;
 }
 
+bool VertexTrianglePairHit(std::span<const Vec3> x0, std::span<const Vec3> x1, int32_t v,
+                           int32_t ti, const Triangle& triangle, const AllPairsCcdOptions& options,
+                           CcdPairHit* hit) {
+  const std::array<int32_t, 4> ids = {v, triangle[0], triangle[1], triangle[2]};
+  const CcdPoints p0 = Gather(x0, ids), p1 = Gather(x1, ids);
+  const VertexTriangleHit r = options.minimal_separation
+                                  ? VertexTriangleSeparation(p0, p1, options.ccd)
+                                  : VertexTriangleCcd(p0, p1, options.ccd);
+  if (!r.hit) return false;
+  hit->kind = CcdPairHit::Kind::kVertexTriangle;
+  hit->first = v;
+  hit->second = ti;
+  hit->vertices = ids;
+  hit->capped = r.capped;
+  hit->toi = r.toi;
+  hit->distance_m = r.distance_m;
+  hit->normal = r.normal;
+  hit->weights = {1.0, -r.barycentric[0], -r.barycentric[1], -r.barycentric[2]};
+  return true;
+}
+
+bool EdgeEdgePairHit(std::span<const Vec3> x0, std::span<const Vec3> x1, int32_t ei,
+                     const MeshEdge& e, int32_t fi, const MeshEdge& f,
+                     const AllPairsCcdOptions& options, CcdPairHit* hit) {
+  const std::array<int32_t, 4> ids = {e[0], e[1], f[0], f[1]};
+  const CcdPoints p0 = Gather(x0, ids), p1 = Gather(x1, ids);
+  const EdgeEdgeHit r = options.minimal_separation ? EdgeEdgeSeparation(p0, p1, options.ccd)
+                                                   : EdgeEdgeCcd(p0, p1, options.ccd);
+  if (!r.hit) return false;
+  hit->kind = CcdPairHit::Kind::kEdgeEdge;
+  hit->first = ei;
+  hit->second = fi;
+  hit->vertices = ids;
+  hit->capped = r.capped;
+  hit->toi = r.toi;
+  hit->distance_m = r.distance_m;
+  hit->normal = r.normal;
+  hit->weights = {1.0 - r.s, r.s, -(1.0 - r.u), -r.u};
+  return true;
+}
+
 std::vector<CcdPairHit> AllPairsCcd(std::span<const Vec3> x0, std::span<const Vec3> x1,
                                     std::span<const Triangle> triangles,
                                     const AllPairsCcdOptions& options) {
@@ -571,23 +612,8 @@ std::vector<CcdPairHit> AllPairsCcd(std::span<const Vec3> x0, std::span<const Ve
       const Triangle& t = triangles[ti];
       if (t[0] == v || t[1] == v || t[2] == v) continue;
       if (options.box_prefilter && BoxesApart(vbox, tri_boxes[ti])) continue;
-      const std::array<int32_t, 4> ids = {v, t[0], t[1], t[2]};
-      const CcdPoints p0 = Gather(x0, ids), p1 = Gather(x1, ids);
-      const VertexTriangleHit r = options.minimal_separation
-                                      ? VertexTriangleSeparation(p0, p1, options.ccd)
-                                      : VertexTriangleCcd(p0, p1, options.ccd);
-      if (!r.hit) continue;
       CcdPairHit h;
-      h.kind = CcdPairHit::Kind::kVertexTriangle;
-      h.first = v;
-      h.second = ti;
-      h.vertices = ids;
-      h.capped = r.capped;
-      h.toi = r.toi;
-      h.distance_m = r.distance_m;
-      h.normal = r.normal;
-      h.weights = {1.0, -r.barycentric[0], -r.barycentric[1], -r.barycentric[2]};
-      hits.push_back(h);
+      if (VertexTrianglePairHit(x0, x1, v, ti, t, options, &h)) hits.push_back(h);
     }
   }
 
@@ -604,22 +630,8 @@ std::vector<CcdPairHit> AllPairsCcd(std::span<const Vec3> x0, std::span<const Ve
       const MeshEdge& f = edges[j];
       if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
       if (options.box_prefilter && BoxesApart(edge_boxes[i], edge_boxes[j])) continue;
-      const std::array<int32_t, 4> ids = {e[0], e[1], f[0], f[1]};
-      const CcdPoints p0 = Gather(x0, ids), p1 = Gather(x1, ids);
-      const EdgeEdgeHit r = options.minimal_separation ? EdgeEdgeSeparation(p0, p1, options.ccd)
-                                                       : EdgeEdgeCcd(p0, p1, options.ccd);
-      if (!r.hit) continue;
       CcdPairHit h;
-      h.kind = CcdPairHit::Kind::kEdgeEdge;
-      h.first = i;
-      h.second = j;
-      h.vertices = ids;
-      h.capped = r.capped;
-      h.toi = r.toi;
-      h.distance_m = r.distance_m;
-      h.normal = r.normal;
-      h.weights = {1.0 - r.s, r.s, -(1.0 - r.u), -r.u};
-      hits.push_back(h);
+      if (EdgeEdgePairHit(x0, x1, i, e, j, f, options, &h)) hits.push_back(h);
     }
   }
   return hits;

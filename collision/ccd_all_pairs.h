@@ -50,6 +50,20 @@ struct AllPairsCcdOptions {
   bool box_prefilter = false;
 };
 
+/// The narrow phase of one vertex-triangle pair, vertex `v` against triangle `triangle` (index
+/// `ti`), over the step x0 -> x1 [m] by VertexTriangleCcd (or VertexTriangleSeparation with
+/// options.minimal_separation): true with *hit filled when they collide. Real-time safe.
+bool VertexTrianglePairHit(std::span<const Vec3> x0, std::span<const Vec3> x1, int32_t v,
+                           int32_t ti, const Triangle& triangle, const AllPairsCcdOptions& options,
+                           CcdPairHit* hit);
+
+/// The narrow phase of one edge-edge pair, edges `e` (index `ei`) and `f` (index `fi`), over the
+/// step x0 -> x1 [m] by EdgeEdgeCcd (or EdgeEdgeSeparation): true with *hit filled when they
+/// collide. Real-time safe.
+bool EdgeEdgePairHit(std::span<const Vec3> x0, std::span<const Vec3> x1, int32_t ei,
+                     const MeshEdge& e, int32_t fi, const MeshEdge& f,
+                     const AllPairsCcdOptions& options, CcdPairHit* hit);
+
 /// Every vertex-triangle pair (the vertex not a corner of the triangle) and every edge-edge pair
 /// (no shared vertex) of the mesh that collides over the step x0 -> x1 [m] by VertexTriangleCcd /
 /// EdgeEdgeCcd (or the separation tests), in order: vertex-triangle pairs by (vertex, triangle),

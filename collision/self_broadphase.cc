@@ -523,42 +523,15 @@ SelfCcdStats SelfCcd(SelfBroadPhase* broad, std::span<const Vec3> x0, std::span<
   }
   const std::span<const Triangle> triangles = broad->triangles();
   const std::span<const MeshEdge> edges = broad->edges();
-  const auto gather = [](std::span<const Vec3> x, const std::array<int32_t, 4>& v) {
-    return CcdPoints{x[v[0]], x[v[1]], x[v[2]], x[v[3]]};
-  };
-  // Narrow phase over every candidate (collision/ccd.h).
+  // Narrow phase over every candidate (collision/ccd_all_pairs.h's per-pair tests).
   for (const SelfCandidate& c : broad->candidates()) {
     CcdPairHit h;
-    h.kind = c.kind;
-    h.first = c.first;
-    h.second = c.second;
-    if (c.kind == CcdPairHit::Kind::kVertexTriangle) {
-      const Triangle& t = triangles[c.second];
-      h.vertices = {c.first, t[0], t[1], t[2]};
-      const CcdPoints p0 = gather(x0, h.vertices), p1 = gather(x1, h.vertices);
-      const VertexTriangleHit r = options.minimal_separation
-                                      ? VertexTriangleSeparation(p0, p1, options.ccd)
-                                      : VertexTriangleCcd(p0, p1, options.ccd);
-      if (!r.hit) continue;
-      h.capped = r.capped;
-      h.toi = r.toi;
-      h.distance_m = r.distance_m;
-      h.normal = r.normal;
-      h.weights = {1.0, -r.barycentric[0], -r.barycentric[1], -r.barycentric[2]};
-    } else {
-      const MeshEdge& e = edges[c.first];
-      const MeshEdge& f = edges[c.second];
-      h.vertices = {e[0], e[1], f[0], f[1]};
-      const CcdPoints p0 = gather(x0, h.vertices), p1 = gather(x1, h.vertices);
-      const EdgeEdgeHit r = options.minimal_separation ? EdgeEdgeSeparation(p0, p1, options.ccd)
-                                                       : EdgeEdgeCcd(p0, p1, options.ccd);
-      if (!r.hit) continue;
-      h.capped = r.capped;
-      h.toi = r.toi;
-      h.distance_m = r.distance_m;
-      h.normal = r.normal;
-      h.weights = {1.0 - r.s, r.s, -(1.0 - r.u), -r.u};
-    }
+    const bool hit =
+        c.kind == CcdPairHit::Kind::kVertexTriangle
+            ? VertexTrianglePairHit(x0, x1, c.first, c.second, triangles[c.second], options, &h)
+            : EdgeEdgePairHit(x0, x1, c.first, edges[c.first], c.second, edges[c.second],
+                              options, &h);
+    if (!hit) continue;
     ++stats.hits;
     if (hits->size() < hits->capacity()) {
       hits->push_back(h);
