@@ -105,9 +105,8 @@ class ServerTransport::Impl {
     // Receive path only.
     double tokens = 0;
     int64_t last_refill_ns = 0;
-    bool has_last = false;
+    bool has_last = false;  // last_seq holds the owner's last accepted seq
     uint64_t last_seq = 0;
-    dds_instance_handle_t last_writer = 0;
     dds_instance_handle_t owner = 0;  // the writer that owns the device (0: none)
     int64_t owner_last_ns = 0;        // when the owner's last sample arrived
     // Haptic thread only.
@@ -127,8 +126,9 @@ class ServerTransport::Impl {
   // An instance state change (invalid sample): the owner that disposed or unregistered its
   // device's instance gives the device up at once.
   void Release(const felt_msgs_PointerSample& key, const dds_sample_info_t& info);
-  // The first sample of a device the scene does not have, logged once (receive thread).
-  void LogFirstUnknownDevice(const char* id) const;
+  // Counts a sample of a device the scene does not have (any receive thread: a read-modify-write)
+  // and logs the first one, with the ids the scene has.
+  void CountUnknownDevice(const char* id);
   // Index of device `id` in devices_, or devices_.size() when the scene does not have it.
   size_t DeviceIndex(const char* id) const;
   // The pointer topic's filter (Cyclone's receive threads): true for a device of the scene; an
@@ -291,7 +291,8 @@ void ServerTransport::Impl::DrainPointers() {
   receive_hop_.Record(MonotonicNowNs() - start_ns);
 }
 
-void ServerTransport::Impl::LogFirstUnknownDevice(const char* id) const {
+void ServerTransport::Impl::CountUnknownDevice(const char* id) {
+  if (unknown_.fetch_add(1, std::memory_order_relaxed) != 0) return;
   std::string known;
   for (const Device& d : devices_) known += std::string(known.empty() ? "'" : ", '") + d.id + "'";
   spdlog::warn(
@@ -302,29 +303,27 @@ void ServerTransport::Impl::LogFirstUnknownDevice(const char* id) const {
 
 uint64_t ServerTransport::Impl::IncompatibleQos() const {
   uint64_t total = 0;
-  const auto note = [&](size_t k, const char* what, uint32_t count, uint32_t policy) {
+  const auto note = [&](size_t k, const char* role, const std::string& topic, uint32_t count,
+                        uint32_t policy) {
     total += count;
     if (count > 0 && !qos_logged_[k].exchange(true)) {
       spdlog::warn(
-          "{}: a DDS peer's QoS does not match ({} policy): no data flows between them; counted "
-          "in felt/status (incompatible_qos), logged once (docs/transport.md, QoS)",
-          what, QosPolicyName(policy));
+          "{} of {}: a DDS peer's QoS does not match ({} policy): no data flows between them; "
+          "counted in felt/status (incompatible_qos), logged once (docs/transport.md, QoS)",
+          role, topic, QosPolicyName(policy));
     }
   };
   dds_requested_incompatible_qos_status_t requested{};
   if (dds_get_requested_incompatible_qos_status(pointer_reader_.get(), &requested) >= 0) {
-    note(0, ("reader of " + config_.topics.pointer).c_str(), requested.total_count,
-         requested.last_policy_id);
+    note(0, "reader", config_.topics.pointer, requested.total_count, requested.last_policy_id);
   }
   dds_offered_incompatible_qos_status_t offered{};
   if (dds_get_offered_incompatible_qos_status(force_writer_.get(), &offered) >= 0) {
-    note(1, ("writer of " + config_.topics.force).c_str(), offered.total_count,
-         offered.last_policy_id);
+    note(1, "writer", config_.topics.force, offered.total_count, offered.last_policy_id);
   }
   offered = {};
   if (dds_get_offered_incompatible_qos_status(status_writer_.get(), &offered) >= 0) {
-    note(2, ("writer of " + config_.topics.status).c_str(), offered.total_count,
-         offered.last_policy_id);
+    note(2, "writer", config_.topics.status, offered.total_count, offered.last_policy_id);
   }
   return total;
 }
@@ -358,8 +357,7 @@ bool ServerTransport::Impl::KnownDeviceFilter(const void* sample, void* arg) {
   Impl& impl = *static_cast<Impl*>(arg);
   const char* id = static_cast<const felt_msgs_PointerSample*>(sample)->device_id;
   if (impl.DeviceIndex(id) < impl.devices_.size()) return true;
-  // Several receive threads may filter at once: a read-modify-write, not Bump.
-  if (impl.unknown_.fetch_add(1, std::memory_order_relaxed) == 0) impl.LogFirstUnknownDevice(id);
+  impl.CountUnknownDevice(id);
   return false;
 }
 
@@ -368,10 +366,7 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
   // Unknown device: the topic's filter drops those (KnownDeviceFilter); checked again here.
   const size_t index = DeviceIndex(sample.device_id);
   if (index == devices_.size()) {
-    if (unknown_.fetch_add(1, std::memory_order_relaxed) == 0) {
-      LogFirstUnknownDevice(sample.device_id);
-    }
-    return;
+    return CountUnknownDevice(sample.device_id);
   }
   Device& device = devices_[index];
 
@@ -382,6 +377,8 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
     if (now_ns - device.owner_last_ns < config_.ownership_timeout_ns) return Bump(not_owner_);
     Bump(ownership_changes_);
   }
+  // A new owner (a restarted driver, or after a silence) numbers its samples afresh.
+  if (writer != device.owner) device.has_last = false;
   device.owner = writer;
   device.owner_last_ns = now_ns;
 
@@ -406,13 +403,10 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
     }
   }
 
-  // Sequence: strictly increasing per writer; a new writer (a restarted driver) starts afresh.
-  if (device.has_last && writer == device.last_writer && sample.seq <= device.last_seq) {
-    return Bump(seq_);
-  }
+  // Sequence: strictly increasing for the owner.
+  if (device.has_last && sample.seq <= device.last_seq) return Bump(seq_);
   device.has_last = true;
   device.last_seq = sample.seq;
-  device.last_writer = writer;
 
   // Accepted: into the device's slot for the haptic thread.
   TripleBuffer<PointerSampleView>& slot = slots_[index];
