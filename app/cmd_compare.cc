@@ -1,21 +1,24 @@
 // `felt compare --trace FILE --scene FILE --variants LIST [--truth] [--json FILE] [--csv FILE]
-// [--md FILE] [--duration S]`: variants of a scene on the same recorded pointer motion, offline
-// (issues 7 and 20; docs/compare.md). The trace drives the real server code (compare/lockstep.h)
-// in lock-step virtual time, one variant after the other, on this thread, without DDS; the first
-// variant is the reference (with --truth: the truth, the cloth stepped every haptic tick, as
-// variant 0). Prints a Markdown table (costs per tick and per frame, force error against the
-// reference, force jumps and spikes, contacts, pop-through and reach into the cloth) and writes
-// the same per-variant fields as JSON and CSV.
+// [--md FILE] [--plot DIR] [--duration S]`: variants of a scene on the same recorded pointer
+// motion, offline (issues 7 and 20; docs/compare.md). The trace drives the real server code
+// (compare/lockstep.h) in lock-step virtual time, one variant after the other, on this thread,
+// without DDS; the first variant is the reference (with --truth: the truth, the cloth stepped every
+// haptic tick, as variant 0). Prints a Markdown table (costs per tick and per frame, force error
+// against the reference, force jumps and spikes, contacts, pop-through and reach into the cloth)
+// and writes the same per-variant fields as JSON and CSV.
 #include <spdlog/fmt/fmt.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "app/command.h"
 #include "base/report.h"
+#include "compare/compare_plot.h"
 #include "compare/lockstep.h"
 #include "recordings/trace.h"
 #include "scene/scene_file.h"
@@ -30,6 +33,7 @@ struct CompareArgs {
   std::string json;
   std::string csv;
   std::string md;
+  std::string plot_dir;
   double duration_s = 0.0;
   bool truth = false;
 };
@@ -43,6 +47,7 @@ std::string CommandLine(const CompareArgs& a) {
   if (!a.json.empty()) line += " --json " + a.json;
   if (!a.csv.empty()) line += " --csv " + a.csv;
   if (!a.md.empty()) line += " --md " + a.md;
+  if (!a.plot_dir.empty()) line += " --plot " + a.plot_dir;
   return line;
 }
 
@@ -114,6 +119,11 @@ int Compare(const CompareArgs& args) {
   LockstepOptions options;
   options.max_duration_s = args.duration_s;
   options.prepend_truth = args.truth;
+  if (!args.plot_dir.empty()) {  // before the run: a directory that cannot be made fails now
+    std::error_code ec;
+    std::filesystem::create_directories(args.plot_dir, ec);
+    if (ec) throw std::invalid_argument("--plot " + args.plot_dir + ": " + ec.message());
+  }
   std::vector<std::string> warnings;
   if (args.truth) warnings = TruthClothMismatches(variants);
   for (const std::string& w : warnings)
@@ -154,6 +164,13 @@ int Compare(const CompareArgs& args) {
     for (const std::string& w : warnings) warned.append("**Warning**: ").append(w).append(".\n\n");
     report::WriteTextFile(args.md, header + "\n" + what + warned + table);
   }
+  if (!args.plot_dir.empty()) {
+    const ComparePlotFiles plots = WriteComparePlots(
+        args.plot_dir, result, "felt compare: " + args.trace + " on " + args.scene);
+    for (size_t d = 0; d < plots.csv.size(); ++d) {
+      std::printf("plot data %s, script %s\n", plots.csv[d].c_str(), plots.script[d].c_str());
+    }
+  }
   return 0;
 }
 
@@ -180,6 +197,10 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--json", args->json, "write the per-variant figures as JSON here");
   cmd.add_option("--csv", args->csv, "write the per-variant figures as CSV here");
   cmd.add_option("--md", args->md, "write the table with the command and machine header here");
+  cmd.add_option("--plot", args->plot_dir,
+                 "draw force against time per variant (the reference behind it, the error below) "
+                 "and contact state into this directory: per device forces_d<N>.csv, .gp and .png "
+                 "(gnuplot)");
   cmd.add_option("--duration", args->duration_s,
                  "replay at most this many seconds of the trace (default: all of it)")
       ->check(CLI::NonNegativeNumber);

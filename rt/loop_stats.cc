@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "base/json.h"
+#include "rt/histogram_plot.h"
 
 namespace felt {
 
@@ -233,6 +234,7 @@ Json HapticJson(const LoopStatsSnapshot& haptic) {
   Json json = LoopCountsJson(haptic, "ticks", "period_nominal_us", 1e3);
   json["period_us"] = HistogramJson(haptic.period, 1e3);
   json["lateness_us"] = HistogramJson(haptic.lateness, 1e3);
+  json["lateness_bins_us"] = PlotBinsJson(haptic.lateness, 1e3);
   json["compute_us"] = HistogramJson(haptic.compute, 1e3);
   json["snapshot_age_us"] = HistogramJson(haptic.snapshot_age, 1e3);
   return json;
@@ -242,6 +244,7 @@ Json SimJson(const LoopStatsSnapshot& sim) {
   Json json = LoopCountsJson(sim, "frames", "period_nominal_ms", 1e6);
   json["period_ms"] = HistogramJson(sim.period, 1e6);
   json["lateness_us"] = HistogramJson(sim.lateness, 1e3);
+  json["lateness_bins_us"] = PlotBinsJson(sim.lateness, 1e3);
   json["frame_ms"] = HistogramJson(sim.compute, 1e6);
   return json;
 }

@@ -161,11 +161,12 @@ class LoopStats {
 nlohmann::ordered_json HistogramJson(const HistogramSnapshot& h, double ns_per_unit);
 
 /// The haptic loop: ticks, overruns, skipped_periods, period_nominal_us, period_us, lateness_us,
-/// compute_us, snapshot_age_us (percentiles in us). Not real-time safe.
+/// lateness_bins_us (the non-empty bins, rt/histogram_plot.h PlotBinsJson), compute_us,
+/// snapshot_age_us (percentiles in us). Not real-time safe.
 nlohmann::ordered_json HapticJson(const LoopStatsSnapshot& haptic);
 
 /// The sim loop: frames, overruns, skipped_periods, period_nominal_ms, period_ms, lateness_us,
-/// frame_ms (the work time of a frame). Not real-time safe.
+/// lateness_bins_us (as HapticJson's), frame_ms (the work time of a frame). Not real-time safe.
 nlohmann::ordered_json SimJson(const LoopStatsSnapshot& sim);
 
 /// The server's stats document (issue 5): {"realtime", "haptic": {... "lateness_us", "overruns",
