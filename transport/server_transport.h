@@ -13,6 +13,7 @@
 
 #include "base/non_copyable.h"
 #include "rt/clock.h"
+#include "transport/ros2_profile.h"
 #include "transport/settings.h"
 #include "transport/views.h"
 
@@ -31,6 +32,12 @@ struct DeviceLimits {
   std::array<double, 3> workspace_max_m_D{1.0, 1.0, 1.0};     ///< opposite corner, m
   double max_rate_hz = 2000.0;  ///< token-bucket rate: sustained samples per second accepted
   double burst_samples = 50.0;  ///< token-bucket depth: samples accepted back to back
+  /// The topics that carry this device (transport/ros2_profile.h): Felt's own, or ROS 2's.
+  TransportProfile profile = TransportProfile::kFelt;
+  /// The ROS 2 topics when profile is kRos2 (ParseTransportConfig starts from
+  /// DefaultRos2Topics(device_id)); an empty pose or wrench name takes the default, an empty
+  /// twist name means none (velocity by finite difference of the poses).
+  Ros2DeviceTopics ros2;
 };
 
 /// Everything the server transport needs; validated by the ServerTransport constructor.

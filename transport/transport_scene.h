@@ -12,9 +12,15 @@
 //   workspace_max_m = [0.2, 0.2, 0.2]
 //   max_rate_hz = 2000.0                # default flood limit: sustained samples per second
 //   burst_samples = 50.0                # default flood limit: samples back to back
+//   profile = "felt"                    # or "ros2": every device's topics (ros2_profile.h)
 //   [[transport.devices]]               # optional per-device overrides
 //   id = "left"                         # one of the scene's device ids
 //   workspace_min_m = [-0.1, -0.2, -0.2]
+//   profile = "ros2"                    # this device's profile
+//   pose_topic = "/left/measured_cp"    # ROS 2 names (these are the defaults for id "left")
+//   twist_topic = "/left/measured_cv"   # "" = none: velocity by finite difference
+//   wrench_topic = "/left/servo_cf"
+//   frame_id = ""                       # of each force; "" echoes the answered pose's
 
 #include <vector>
 
