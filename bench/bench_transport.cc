@@ -38,6 +38,8 @@
 #include "base/report.h"
 #include "haptic_loop/pointer_source.h"
 #include "recordings/trace.h"
+#include "rt/periodic_loop.h"
+#include "rt/phase_lock.h"
 #include "scene/scene_file.h"
 #include "server/server.h"
 #include "server/server_spec.h"
@@ -176,6 +178,7 @@ class AgeRecordingSource final : public PointerSource {
  public:
   AgeRecordingSource(PointerSource* inner, size_t capacity) : inner_(inner) {
     age_us_.reserve(capacity);
+    arrival_ns_.reserve(capacity);
   }
   bool Latest(uint32_t device_index, int64_t now_ns, PointerInput* out) override {
     if (!inner_->Latest(device_index, now_ns, out)) return false;
@@ -184,6 +187,7 @@ class AgeRecordingSource final : public PointerSource {
       if (recording_.load(std::memory_order_relaxed)) {
         if (age_us_.size() < age_us_.capacity()) {
           age_us_.push_back(static_cast<double>(now_ns - out->receive_time_ns) / 1e3);
+          arrival_ns_.push_back(out->receive_time_ns);  // same capacity
         } else {
           ++overflow_;
         }
@@ -199,12 +203,15 @@ class AgeRecordingSource final : public PointerSource {
   void SetRecording(bool on) { recording_.store(on, std::memory_order_relaxed); }
   /// The ages, us. Only after the server stopped.
   std::vector<double>* ages() { return &age_us_; }
+  /// The transport receive times of the same samples, CLOCK_MONOTONIC ns. After the stop.
+  const std::vector<int64_t>& arrivals() const { return arrival_ns_; }
 
  private:
   PointerSource* inner_;
   uint64_t last_seq_ = 0;
   std::atomic<bool> recording_{false};
   std::vector<double> age_us_;
+  std::vector<int64_t> arrival_ns_;
   uint64_t overflow_ = 0;
 };
 
@@ -328,6 +335,7 @@ struct E2eResult {
   int32_t cloth_w = 0, cloth_h = 0;
   HapticTickTrigger tick = HapticTickTrigger::kArrival;  // the server's tick
   std::unique_ptr<LoopStatsSnapshot> haptic;  // the haptic loop's statistics over the run
+  std::vector<int64_t> arrivals_ns;           // receive times of the samples the ticks read
 };
 
 // The server in this process, the client in a child process (this program re-executed: fork+exec
@@ -412,6 +420,7 @@ E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& 
   result.sample_age_us = Summarise(*source.ages());
   result.tick = tick;
   result.haptic = std::make_unique<LoopStatsSnapshot>(report->haptic);
+  result.arrivals_ns = source.arrivals();
   return result;
 }
 
@@ -498,6 +507,88 @@ Json TickModesJson(const TickModeRuns& runs) {
               {"e2e_p99_ratio", runs.arrival.e2e_us.p99 / runs.periodic.e2e_us.p99}};
 }
 
+// ---- The phase-locked tick, simulated on the same arrivals (issue 23) ---------------------------
+
+// Each rule's tick times over the slots of a 1 ms grid starting at `start_ns`, applied to the
+// recorded `arrivals_ns`: per sample a tick read (the newest before the tick), its age at that
+// tick, us. Ticks fall exactly at their planned times (no wake-up cost: the rules, not the
+// machine). `tick_of(open, next)` gives slot (open, open + 1 ms]'s tick from the first arrival
+// not yet read, index `next`.
+template <typename TickOf>
+std::vector<double> SimulatedAges(const std::vector<int64_t>& arrivals_ns, int64_t start_ns,
+                                  TickOf&& tick_of) {
+  constexpr int64_t kPeriodNs = 1'000'000;
+  std::vector<double> ages;
+  size_t next = 0;
+  for (int64_t open = start_ns; next < arrivals_ns.size(); open += kPeriodNs) {
+    const int64_t tick = tick_of(open, next);
+    size_t read = next;
+    while (read < arrivals_ns.size() && arrivals_ns[read] <= tick) ++read;
+    if (read > next) ages.push_back(static_cast<double>(tick - arrivals_ns[read - 1]) / 1e3);
+    next = read;
+  }
+  return ages;
+}
+
+struct SimulatedRule {
+  std::string name;
+  Percentiles age_us;
+};
+
+// The tick on arrival (ArrivalTickNs) and the phase-locked tick (PhaseLock, three margins, 20 us
+// slew) on the arrivals of the tick-on-arrival run: the sample's age at the tick that reads it.
+std::vector<SimulatedRule> SimulateTickRules(const std::vector<int64_t>& arrivals_ns) {
+  std::vector<SimulatedRule> rules;
+  if (arrivals_ns.size() < 2) return rules;
+  constexpr int64_t kPeriodNs = 1'000'000;
+  const int64_t start = arrivals_ns.front() - kPeriodNs / 2;
+  rules.push_back({"tick on arrival (rule, no wake-up cost)",
+                   Summarise(SimulatedAges(arrivals_ns, start, [&](int64_t open, size_t next) {
+                     size_t in_slot = next;
+                     while (in_slot < arrivals_ns.size() && arrivals_ns[in_slot] <= open) {
+                       ++in_slot;
+                     }
+                     const int64_t pending = in_slot > next ? arrivals_ns[in_slot - 1] : INT64_MIN;
+                     const int64_t first =
+                         in_slot < arrivals_ns.size() ? arrivals_ns[in_slot] : INT64_MAX;
+                     return ArrivalTickNs(open, open + kPeriodNs, kPeriodNs / 10, pending, first);
+                   }))});
+  for (const int64_t margin_us : {50, 100, 200}) {
+    PhaseLockSpec spec;
+    spec.margin_ns = margin_us * 1000;
+    PhaseLock lock(spec, start);
+    size_t observed = 0;
+    const std::vector<double> ages =
+        SimulatedAges(arrivals_ns, start, [&](int64_t open, size_t /*next*/) {
+          const int64_t tick = lock.TickNs(open);
+          // The tick reads (and the lock observes) what arrived before it.
+          while (observed < arrivals_ns.size() && arrivals_ns[observed] <= tick) {
+            lock.Observe(arrivals_ns[observed++]);
+          }
+          return tick;
+        });
+    rules.push_back(
+        {"phase-locked, margin " + std::to_string(margin_us) + " us, slew 20 us", Summarise(ages)});
+  }
+  return rules;
+}
+
+void PrintSimulatedRules(const std::vector<SimulatedRule>& rules) {
+  std::printf(
+      "\nSample age at the tick, each rule simulated on the arrivals of the tick-on-arrival run "
+      "(ticks exactly on time):\n\n");
+  std::printf("| %-44s | %8s | %8s | %8s | %8s | %7s |\n", "us", "p50", "p99", "p99.9", "max", "n");
+  std::printf("|%s|---------:|---------:|---------:|---------:|--------:|\n",
+              std::string(46, '-').c_str());
+  for (const SimulatedRule& r : rules) Row(r.name.c_str(), r.age_us);
+}
+
+Json SimulatedRulesJson(const std::vector<SimulatedRule>& rules) {
+  Json out = Json::object();
+  for (const SimulatedRule& r : rules) out[r.name] = ToJson(r.age_us);
+  return out;
+}
+
 struct Options {
   bool raw_only = false;
   std::string scene = "scenes/curtain.toml";
@@ -568,6 +659,7 @@ int Run(const Options& options) {
         MeasureTickModes(options.dds, options.scene, options.trace, options.seconds, options.fifo);
   }
   const E2eResult& e2e = tick_runs.arrival;
+  const std::vector<SimulatedRule> simulated = SimulateTickRules(e2e.arrivals_ns);
   if (dma_fd >= 0) close(dma_fd);
 
   // The table.
@@ -606,6 +698,7 @@ int Run(const Options& options) {
         static_cast<unsigned long long>(e2e.answered),
         static_cast<unsigned long long>(e2e.forces_received));
     PrintTickModes(tick_runs);
+    PrintSimulatedRules(simulated);
   }
 
   if (!options.json.empty()) {
@@ -631,6 +724,7 @@ int Run(const Options& options) {
              {"forces_received", e2e_ran ? Json(e2e.forces_received) : absent},
              {"server_realtime", e2e_ran ? Json(e2e.realtime) : absent},
              {"tick_modes", e2e_ran ? TickModesJson(tick_runs) : absent},
+             {"simulated_tick_rules_age_us", e2e_ran ? SimulatedRulesJson(simulated) : absent},
              {"seconds", options.seconds},
              {"cpu_dma_latency_zero", options.dma_latency},
              {"sched_fifo", options.fifo}});

@@ -6,12 +6,14 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <thread>
 #include <vector>
 
 #include "rt/arrival_signal.h"
 #include "rt/periodic_loop.h"
+#include "rt/phase_lock.h"
 #include "rt/realtime.h"
 #include "tests/test_env.h"
 
@@ -156,6 +158,45 @@ TEST(ArrivalTick, SilenceFallsBackToThePeriodicDeadlines) {
   const StreamOutcome o = Simulate(arrivals, slots);
   ExpectTicksInTheirSlots(o);
   for (int k = 100; k < slots; ++k) EXPECT_EQ(o.ticks_ns[k], (k + 1) * kTickNs) << "tick " << k;
+}
+
+// The phase-locked alternative (rt/phase_lock.h): its estimate converges on a drifting stream, and
+// its ticks stay in their slots with the period within the slew bound.
+TEST(PhaseLock, EstimateConvergesOnADeviceClockOneHundredPpmFast) {
+  const int slots = 6'000;
+  const double device_period = kTickNs * (1.0 - 100e-6);
+  const std::vector<int64_t> arrivals = Stream(300'000, device_period, 20'000, slots * kTickNs);
+  PhaseLockSpec spec;
+  PhaseLock lock(spec, 0);
+  size_t observed = 0;
+  int64_t previous_tick = -1;
+  double drift_sum = 0;  // over the second half (the estimate is noisy: 20 us of jitter)
+  for (int k = 1; k <= slots; ++k) {
+    const int64_t open = (k - 1) * kTickNs;
+    const int64_t tick = lock.TickNs(open);
+    if (k > slots / 2) drift_sum += lock.drift_ns_per_period();
+    ASSERT_GE(tick, open) << "slot " << k;
+    ASSERT_LE(tick, open + kTickNs) << "slot " << k;
+    if (previous_tick >= 0) {
+      ASSERT_LE(std::abs(tick - previous_tick - kTickNs), spec.max_slew_ns) << "slot " << k;
+    }
+    previous_tick = tick;
+    while (observed < arrivals.size() && arrivals[observed] <= tick) {
+      lock.Observe(arrivals[observed++]);
+    }
+  }
+  // The true phase at the end: the last arrival's, plus the jitter's mean (10 us), modulo 1 ms.
+  const int64_t last = static_cast<int64_t>(
+      300'000 + static_cast<double>(arrivals.size() - 1) * device_period + 10'000);
+  double error = lock.phase_ns() - static_cast<double>(last % kTickNs);
+  error -= kTickNs * std::floor(error / kTickNs + 0.5);
+  EXPECT_LT(std::abs(error), 10'000.0);
+  EXPECT_NEAR(drift_sum / (slots / 2), -100.0, 30.0);
+}
+
+TEST(PhaseLock, WithoutArrivalsTicksAtTheDeadline) {
+  PhaseLock lock(PhaseLockSpec{}, 0);
+  for (int k = 1; k <= 10; ++k) EXPECT_EQ(lock.TickNs((k - 1) * kTickNs), k * kTickNs);
 }
 
 TEST(ArrivalSignal, WaitTimesOutAtTheDeadlineAndWakesOnNotify) {
