@@ -111,6 +111,8 @@ struct LoopStatsSnapshot {
   HistogramSnapshot lateness;      ///< wake-up minus deadline
   HistogramSnapshot compute;       ///< work time per tick (wake-up to end of work)
   HistogramSnapshot snapshot_age;  ///< age of the sim snapshot used at each tick (haptic loop)
+  uint64_t arrival_ticks = 0;      ///< ticks woken by an arrival (PeriodicLoop::WakeOnArrival)
+  HistogramSnapshot arrival_wake;  ///< those ticks' wake-up minus the arrival's Notify()
 
   /// What happened between `earlier` (of the same LoopStats) and this snapshot; counters are
   /// differences, histograms as HistogramSnapshot::Minus.
@@ -154,6 +156,8 @@ class LoopStats {
   Histogram lateness_;
   Histogram compute_;
   Histogram snapshot_age_;
+  std::atomic<uint64_t> arrival_ticks_{0};
+  Histogram arrival_wake_;
 };
 
 /// `{"p50", "p99", "p999", "max", "mean", "count"}` of `h`, values in ns divided by `ns_per_unit`
@@ -162,7 +166,7 @@ nlohmann::ordered_json HistogramJson(const HistogramSnapshot& h, double ns_per_u
 
 /// The haptic loop: ticks, overruns, skipped_periods, period_nominal_us, period_us, lateness_us,
 /// lateness_bins_us (the non-empty bins, rt/histogram_plot.h PlotBinsJson), compute_us,
-/// snapshot_age_us (percentiles in us). Not real-time safe.
+/// snapshot_age_us, arrival_ticks, arrival_wake_us (percentiles in us). Not real-time safe.
 nlohmann::ordered_json HapticJson(const LoopStatsSnapshot& haptic);
 
 /// The sim loop: frames, overruns, skipped_periods, period_nominal_ms, period_ms, lateness_us,

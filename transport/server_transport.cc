@@ -167,6 +167,7 @@ class ServerTransport::Impl {
   ServerTransportConfig config_;
   std::vector<Device> devices_;
   std::unique_ptr<TripleBuffer<PointerSampleView>[]> slots_;
+  std::unique_ptr<ArrivalSignal[]> arrivals_;  // per device: counts what reaches its slot
   SpscQueue<ForceCommandView> forces_;
 
   // DDS entities, deleted in reverse order by the destructor.
@@ -201,6 +202,7 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
     : config_((ValidateConfig(config), std::move(config))),
       devices_(config_.devices.size()),
       slots_(new TripleBuffer<PointerSampleView>[config_.devices.size()]),
+      arrivals_(new ArrivalSignal[config_.devices.size()]),
       forces_(config_.force_queue_capacity),
       participant_(AcquireDomain(config_.dds)) {
   // Devices: ids as fixed C strings for allocation-free comparison; full token buckets.
@@ -482,6 +484,7 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
   TripleBuffer<PointerSampleView>& slot = slots_[index];
   slot.write_slot() = PointerViewOf(sample, static_cast<uint32_t>(index), now_ns);
   slot.Publish();
+  arrivals_[index].Notify(now_ns);  // after the publication: a woken haptic tick reads it
   Bump(accepted_);
 }
 
@@ -655,6 +658,10 @@ bool ServerTransport::LatestPointer(uint32_t device_index, PointerSampleView* ou
   if (newest.receive_time_ns == 0) return false;  // nothing accepted yet
   *out = newest;
   return true;
+}
+
+const ArrivalSignal* ServerTransport::Arrivals(uint32_t device_index) const {
+  return device_index < impl_->devices_.size() ? &impl_->arrivals_[device_index] : nullptr;
 }
 
 bool ServerTransport::PushForce(const ForceCommandView& force) {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "base/non_copyable.h"
+#include "rt/arrival_signal.h"
 #include "rt/clock.h"
 #include "transport/ros2_profile.h"
 #include "transport/settings.h"
@@ -112,6 +113,12 @@ class ServerTransport : NonCopyable {
   /// `out->receive_time_ns` tell whether it is new and how old it is. Haptic thread only.
   /// Real-time safe: one atomic exchange and a copy.
   bool LatestPointer(uint32_t device_index, PointerSampleView* out);
+
+  /// Counts the samples of device `device_index` accepted into its slot, each notified right
+  /// after LatestPointer can read it (on the receive path's thread), so the haptic thread can
+  /// tick on arrival (docs/server.md); nullptr for an index out of range. Lives as long as the
+  /// transport. Any thread.
+  const ArrivalSignal* Arrivals(uint32_t device_index) const;
 
   /// Queues `force` for publication; its `seq` is replaced by the device's next sequence number
   /// (assigned even when refused, so a refused force shows as a gap to the device). False when
