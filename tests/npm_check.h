@@ -12,7 +12,9 @@
 namespace felt::testing {
 
 /// The folder of the npm checkers.
-inline std::string NpmDir() { return std::string(FELT_SOURCE_DIR) + "/tools/npm"; }
+inline std::string NpmDir() {
+  return (std::filesystem::path(FELT_SOURCE_DIR) / "tools" / "npm").string();
+}
 
 /// Why the npm checkers cannot run here ("" when they can).
 inline std::string NpmUnavailableReason() {
