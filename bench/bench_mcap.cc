@@ -51,7 +51,9 @@ int Run(const Args& args) {
   if (!(seconds >= 0.01)) throw std::invalid_argument("--seconds/--minutes must be > 0");
   const report::MachineInfo machine = report::ReadMachineInfo();
   const auto ticks = static_cast<int64_t>(seconds * 1000.0);
-  std::string command = fmt::format("felt bench mcap --seconds {:g}", seconds);
+  std::string command = args.minutes > 0.0
+                            ? fmt::format("felt bench mcap --minutes {:g}", args.minutes)
+                            : fmt::format("felt bench mcap --seconds {:g}", seconds);
   if (!args.json.empty()) command += " --json " + args.json;
 
   // Feed: on absolute 1 ms deadlines, a pointer sample and a force per tick, a status per second.
@@ -143,7 +145,12 @@ int Run(const Args& args) {
   };
   std::string md =
       report::ReportHeader("felt bench mcap: MCAP recorder endurance", command, machine, load_end);
-  md += "\n" + report::MarkdownTable({"quantity", "value"}, {false, true}, rows);
+  md +=
+      "\nThreads: the feeding thread (the DDS thread's part: two queue offers per 1 ms tick, a "
+      "status per second) and the sink's writer thread (CDR, MCAP chunks, file). Lateness and "
+      "producer-cost maxima are the machine's scheduling under its load (see the load "
+      "averages), not waits: the producer never waits on the queue.\n\n";
+  md += report::MarkdownTable({"quantity", "value"}, {false, true}, rows);
   std::printf("%s", md.c_str());
   if (!args.json.empty()) {
     Json j{{"command", command},

@@ -112,6 +112,7 @@ McapSink::McapSink(const std::string& path, const std::string& device_id, size_t
                    size_t chunk_size_bytes)
     : path_(path),
       device_id_(device_id),
+      frame_(device_id + "/device"),
       topics_(McapTopics::ForDevice(device_id)),
       queue_(queue_capacity),
       status_queue_(64) {
@@ -163,7 +164,7 @@ bool McapSink::OfferStatus(const ServerStatusView& status) {
 void McapSink::WriteItem(const Item& item) {
   // Serialise into reused buffers (they stop growing after the first messages).
   thread_local std::vector<uint8_t> bytes;
-  const std::string frame = device_id_ + "/device";
+  const std::string& frame = frame_;
   if (const auto* p = std::get_if<PointerSampleView>(&item)) {
     const uint64_t log = McapLogTime(p->receive_time_ns + realtime_minus_monotonic_ns_);
     const uint64_t stamp_ns = McapLogTime(p->device_time_ns);

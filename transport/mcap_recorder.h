@@ -88,6 +88,7 @@ class McapSink : NonCopyable {
 
   std::string path_;
   std::string device_id_;
+  std::string frame_;  // "<device_id>/device"
   McapTopics topics_;
   std::unique_ptr<McapWriter> writer_;
   uint16_t ch_pose_ = 0, ch_twist_ = 0, ch_wrench_ = 0, ch_diag_ = 0;
