@@ -4,8 +4,11 @@
 // they are absent (no node, or the registry was unreachable) the tests that need them skip and
 // say why.
 
+#include <sys/wait.h>
+
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <string>
 
