@@ -20,6 +20,7 @@
 #include "base/report.h"
 #include "compare/compare_plot.h"
 #include "compare/lockstep.h"
+#include "recordings/mcap_trace.h"
 #include "recordings/trace.h"
 #include "scene/scene_file.h"
 
@@ -36,12 +37,14 @@ struct CompareArgs {
   std::string plot_dir;
   double duration_s = 0.0;
   bool truth = false;
+  std::string topic;
 };
 
 // The command as it can be typed again (for report headers).
 std::string CommandLine(const CompareArgs& a) {
   std::string line = "felt compare --trace " + a.trace + " --scene " + a.scene + " --variants '" +
                      a.variants + "'";
+  if (!a.topic.empty()) line += " --topic " + a.topic;
   if (a.truth) line += " --truth";
   if (a.duration_s > 0.0) line += " --duration " + FormatSceneNumber(a.duration_s);
   if (!a.json.empty()) line += " --json " + a.json;
@@ -112,7 +115,7 @@ std::string CompareJson(const CompareArgs& args, const report::MachineInfo& mach
 int Compare(const CompareArgs& args) {
   // Set-up: every input is checked before anything runs (errors exit 2 through main).
   const report::MachineInfo machine = report::ReadMachineInfo();
-  const Trace trace = ReadTrace(args.trace);
+  const Trace trace = ReadAnyTrace(args.trace, args.topic);
   const SceneDocument scene = LoadSceneDocument(args.scene);
   ParseServerSpec(scene);  // the scene as written must be valid (errors with line and column)
   const std::vector<LockstepVariant> variants = ParseVariantList(args.variants);
@@ -180,8 +183,12 @@ CommandRun Setup(CLI::App& cmd) {
   for (const auto& [key, scene_key] : VariantShorthands()) {
     shorthands += "\n  " + key + " -> " + scene_key;
   }
-  cmd.add_option("--trace", args->trace, "pointer trace (felt-trace v1), fed to every device")
+  cmd.add_option("--trace", args->trace,
+                 "pointer trace (felt-trace v1, or .mcap: a PoseStamped or OmniState topic), fed "
+                 "to every device")
       ->required();
+  cmd.add_option("--topic", args->topic,
+                 "MCAP trace: the pose topic (default: the first PoseStamped, else OmniState)");
   cmd.add_option("--scene", args->scene, "scene file (TOML) the variants start from")->required();
   cmd.add_option("--variants", args->variants,
                  "variants separated by ';', each [NAME:] key=value[,key=value...]; the first is "
