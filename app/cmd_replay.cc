@@ -33,6 +33,7 @@ struct ReplayArgs {
   double discovery_timeout_s = 15.0;
   uint32_t domain = 0;
   std::string dds_config;
+  std::string security, identity;  // DDS Security (default identity "device-<device>")
 };
 
 int Replay(const ReplayArgs& args) {
@@ -45,6 +46,8 @@ int Replay(const ReplayArgs& args) {
   transport::ReplayConfig config;
   config.dds.domain_id = args.domain;
   config.dds.config_file = args.dds_config;
+  config.dds.security_dir = args.security;
+  config.dds.identity = args.identity;
   config.device_id = args.device;
   config.rate = args.rate;
   config.loops = args.loops;
@@ -107,6 +110,7 @@ CommandRun Setup(CLI::App& cmd) {
                  "seconds to wait for a server (default 15)")
       ->check(CLI::PositiveNumber);
   AddDdsOptions(cmd, &args->domain, &args->dds_config);
+  AddSecurityOptions(cmd, &args->security, &args->identity);
   return [args]() -> int { return Replay(*args); };
 }
 
