@@ -4,10 +4,10 @@ SHELL := /bin/bash
 
 # Debian packages the build, tests and plots need. libbullet-dev: Bullet's btSoftBody, the peer
 # of `felt bench cloth --tradeoff` only (Felt's libraries never link it; without it the bench skips
-# its Bullet rows).
+# its Bullet rows). openssl: `felt security init` (DDS Security identities) and its tests.
 PACKAGES := cmake ninja-build g++ gcc make pkg-config libeigen3-dev cyclonedds-dev \
             cyclonedds-tools libddsc0debian libspdlog-dev libcli11-dev libtomlplusplus-dev \
-            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev
+            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev openssl
 JOBS ?= $(shell nproc)
 BUILD ?= build
 CMAKE_FLAGS ?=
