@@ -418,7 +418,7 @@ struct Options {
 
 int Run(const Options& options) {
   if (options.security_cost) {
-    SecurityCostOptions cost{options.dds, options.seconds, 2, options.security_out,
+    SecurityCostOptions cost{options.dds, options.seconds, 4, options.security_out,
                              "felt bench transport --security-cost --seconds " +
                                  report::Sig(options.seconds) + " --domain " +
                                  std::to_string(options.dds.domain_id)};

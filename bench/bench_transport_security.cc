@@ -118,9 +118,15 @@ int RunSecurityCost(const SecurityCostOptions& options) {
       options.seconds, options.rounds, options.dds.domain_id, table.c_str());
 
   const std::string md =
-      report::ReportHeader("felt bench transport --security-cost (issue 23)", options.command,
-                           machine, report::LoadAverage()) +
-      "\nThe raw round trip of `felt bench transport` (a PointerSample from this process answered "
+      "# felt bench transport --security-cost (issue 23)\n\nCommand: `" + options.command +
+      "` (Release build, run from the repository root)\n\n- Machine: " +
+      std::to_string(machine.cpus_online) + " CPUs online (nproc), " + machine.cpu_model +
+      "; this process: niceness " + std::to_string(machine.niceness) + ", CPUs " +
+      machine.affinity + "\n- Date: " + machine.date_utc +
+      "\n- Load average (1, 5, 15 min) at the start: " + machine.load_average +
+      "; at the end: " + report::LoadAverage() +
+      " (a machine shared with other sessions)\n\nThe raw round trip of `felt bench transport` (a "
+      "PointerSample from this process answered "
       "with a ForceCommand by a forked echo process; Felt's types, QoS and loopback "
       "configuration, echo by listener) at 1 kHz, without and with DDS Security, alternating " +
       std::to_string(options.rounds) + " times, " + report::Fixed(run_s, 1) +

@@ -144,15 +144,14 @@ Participant::Participant(const DdsSettings& settings, const std::string& default
   if (handle < 0) {
     std::string files;
     for (const auto& [name, value] : properties) {
-      if (value.rfind("file:", 0) == 0) files += "\n  " + name + " = " + value.substr(5);
+      if (value.rfind("file:", 0) == 0) files += (files.empty() ? "" : ", ") + value.substr(5);
     }
     throw std::runtime_error(
         what + " with DDS Security (--security " + settings.security_dir +
         "): " + dds_strretcode(handle) +
-        ". Cyclone refused the identity: a certificate or permissions document not signed by "
-        "the CA, expired, or a subject that does not match; or a plugin that failed to load "
-        "(Cyclone's "
-        "trace, category security, names it). Files:" +
+        ": Cyclone refused the identity (its message above says why: a certificate or "
+        "permissions document not signed by the CA, expired, a subject the permissions do not "
+        "name, or a plugin that failed to load); files: " +
         files);
   }
   entity_ = Entity(handle);

@@ -216,6 +216,17 @@ TEST_F(SecurityTest, MissingOrBadFilesAreNamed) {
   EXPECT_NE(error.find((copy / "server" / "cert.pem").string() + ": not a PEM certificate"),
             std::string::npos)
       << error;
+  // A certificate of another CA: the files look right, Cyclone refuses it, the error names them.
+  SecurityInitOptions other;
+  other.dir = copy.string() + "_other";
+  other.identities = ParseSecurityParticipants("server");
+  InitSecurityDir(other);
+  fs::copy_file(fs::path(other.dir) / "server" / "cert.pem", copy / "server" / "cert.pem",
+                fs::copy_options::overwrite_existing);
+  fs::remove_all(other.dir);
+  error = ErrorOf([&] { Participant p(dds, "server"); });
+  EXPECT_NE(error.find("Cyclone refused the identity"), std::string::npos) << error;
+  EXPECT_NE(error.find((copy / "server" / "cert.pem").string()), std::string::npos) << error;
   fs::remove(copy / "governance.p7s");
   error = ErrorOf([&] { Participant p(dds, "device:sec"); });
   EXPECT_NE(error.find((copy / "governance.p7s").string() + ": cannot read the file"),
