@@ -37,8 +37,10 @@ TEST(BenchTransportSecurity, WritesBothConditionsAndTheRatio) {
       const double v = c.at(key).get<double>();
       EXPECT_TRUE(std::isfinite(v) && v > 0.0) << condition << "." << key << "\n" << json;
     }
-    // 1 s at 1 kHz after the warm-up; loose: a loaded machine still answers most pings.
-    EXPECT_EQ(c.at("pings_sent").get<uint64_t>(), 1000u) << json;
+    // 1 s at 1 kHz after the warm-ups, in 4 runs (each may round up a ping); loose: a loaded
+    // machine still answers most pings.
+    const auto sent = c.at("pings_sent").get<uint64_t>();
+    EXPECT_TRUE(sent >= 1000u && sent <= 1004u) << json;
     EXPECT_GT(c.at("pongs_received").get<uint64_t>(), 500u) << json;
   }
   EXPECT_GT(json.at("ratio_p50").get<double>(), 0.0);
