@@ -51,7 +51,9 @@ const bool kRegistered = RegisterCommand({
       cmd.add_option("--participants", args->participants,
                      "comma-separated identities: server, recorder, device:ID (default "
                      "server,device:default,recorder)");
-      cmd.add_flag("--force", args->force, "replace the CA and existing identities' keys");
+      cmd.add_flag("--force", args->force,
+                   "make a new CA and replace existing keys (then list every identity: the "
+                   "others' certificates no longer verify)");
       cmd.add_option("--days", args->days, "validity of certificates and permissions (3650)")
           ->check(CLI::Range(1, 36500));
       return [args] { return SecurityInit(*args); };
