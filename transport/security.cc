@@ -352,7 +352,13 @@ std::string SecurityPluginDir() {
 
 std::vector<std::pair<std::string, std::string>> SecurityProperties(
     const DdsSettings& settings, const std::string& default_identity) {
-  if (settings.security_dir.empty()) return {};
+  if (settings.security_dir.empty()) {
+    if (!settings.identity.empty()) {
+      throw std::runtime_error("--identity " + settings.identity +
+                               ": an identity needs --security DIR (or [transport] security)");
+    }
+    return {};
+  }
   const std::string name =
       SecurityIdentityName(settings.identity.empty() ? default_identity : settings.identity);
   const std::string what = "--security " + settings.security_dir + ": ";

@@ -77,7 +77,7 @@ std::vector<std::string> InitSecurityDir(const SecurityInitOptions& options);
 /// dds.sec.auth.*, dds.sec.access.*, dds.sec.crypto.* with the plugins' full paths.
 /// Empty when settings.security_dir is empty. Throws std::runtime_error naming the file that is
 /// missing, unreadable or not what it should be (a PEM certificate or key, an S/MIME document),
-/// or the plugin library that is not installed.
+/// or when an identity is given without a security directory.
 std::vector<std::pair<std::string, std::string>> SecurityProperties(
     const DdsSettings& settings, const std::string& default_identity);
 

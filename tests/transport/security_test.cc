@@ -201,6 +201,10 @@ TEST_F(SecurityTest, InitMakesEveryFileAndKeepsKeysWithoutForce) {
 }
 
 TEST_F(SecurityTest, MissingOrBadFilesAreNamed) {
+  DdsSettings plain;
+  plain.identity = "server";
+  EXPECT_NE(ErrorOf([&] { Participant p(plain, "server"); }).find("needs --security"),
+            std::string::npos);
   DdsSettings dds = Secure("nobody");
   EXPECT_NE(ErrorOf([&] { Participant p(dds, "server"); }).find("no identity 'nobody'"),
             std::string::npos);
