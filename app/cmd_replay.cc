@@ -31,9 +31,9 @@ struct ReplayArgs {
   std::string device = "default";
   double late_us = 1000.0;
   double discovery_timeout_s = 15.0;
+  std::string security, identity;  // DDS Security (default identity "device-<device>")
   uint32_t domain = 0;
   std::string dds_config;
-  std::string security, identity;  // DDS Security (default identity "device-<device>")
 };
 
 int Replay(const ReplayArgs& args) {
