@@ -5,10 +5,10 @@ SHELL := /bin/bash
 # Debian packages the build, tests and plots need. libbullet-dev: Bullet's btSoftBody, the peer
 # of `felt bench cloth --tradeoff` only (Felt's libraries never link it; without it the bench skips
 # its Bullet rows). nodejs (and npm, see npm-deps): the independent MCAP and ROS 2 CDR checkers of
-# the tests (tools/npm).
+# the tests (tools/npm). openssl: `felt security init` (DDS Security identities) and its tests.
 PACKAGES := cmake ninja-build g++ gcc make pkg-config libeigen3-dev cyclonedds-dev \
             cyclonedds-tools libddsc0debian libspdlog-dev libcli11-dev libtomlplusplus-dev \
-            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev nodejs
+            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev nodejs openssl
 JOBS ?= $(shell nproc)
 BUILD ?= build
 CMAKE_FLAGS ?=

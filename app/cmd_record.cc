@@ -32,6 +32,7 @@ struct RecordArgs {
   std::string device;
   uint32_t domain = 0;
   std::string dds_config;
+  std::string security, identity;  // DDS Security (default identity "recorder")
   double rate_hz = 1000.0;
 };
 
@@ -110,6 +111,8 @@ int Record(const RecordArgs& args) {
   transport::RecorderConfig config;
   config.dds.domain_id = args.domain;
   config.dds.config_file = args.dds_config;
+  config.dds.security_dir = args.security;
+  config.dds.identity = args.identity;
   config.out_path = args.out;
   config.forces_path = args.no_forces
                            ? std::string()
@@ -180,6 +183,7 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_flag("--no-forces", args->no_forces, "do not record the forces");
   cmd.add_option("--device", args->device, "record this device id (default: the first heard)");
   AddDdsOptions(cmd, &args->domain, &args->dds_config);
+  AddSecurityOptions(cmd, &args->security, &args->identity);
   cmd.add_option("--rate-hz", args->rate_hz, "nominal rate written into the trace header")
       ->check(CLI::PositiveNumber);
   return [args]() -> int { return Record(*args); };

@@ -32,6 +32,7 @@ struct ReplayArgs {
   std::string device = "default";
   double late_us = 1000.0;
   double discovery_timeout_s = 15.0;
+  std::string security, identity;  // DDS Security (default identity "device-<device>")
   uint32_t domain = 0;
   std::string dds_config;
   std::string topic;
@@ -47,6 +48,8 @@ int Replay(const ReplayArgs& args) {
   transport::ReplayConfig config;
   config.dds.domain_id = args.domain;
   config.dds.config_file = args.dds_config;
+  config.dds.security_dir = args.security;
+  config.dds.identity = args.identity;
   config.device_id = args.device;
   config.rate = args.rate;
   config.loops = args.loops;
@@ -114,6 +117,7 @@ CommandRun Setup(CLI::App& cmd) {
                  "seconds to wait for a server (default 15)")
       ->check(CLI::PositiveNumber);
   AddDdsOptions(cmd, &args->domain, &args->dds_config);
+  AddSecurityOptions(cmd, &args->security, &args->identity);
   return [args]() -> int { return Replay(*args); };
 }
 

@@ -182,6 +182,7 @@ struct SoakArgs {
   std::string md;
   std::string plot_dir;
   std::optional<uint32_t> domain;
+  std::string security;  // DDS Security directory for both children ("" = off)
   bool no_realtime = false;
   bool verbose = false;
   bool keep_files = false;
@@ -250,18 +251,24 @@ std::pair<Child, Child> SpawnChildren(const SoakArgs& args, const SoakPlan& plan
       "serve",        "--scene",      args.scene, "--domain", std::to_string(plan.domain),
       "--stats-json", plan.serve_json};
   if (args.no_realtime) serve_args.push_back("--no-realtime");
-  const std::vector<std::string> replay_args = {"replay",
-                                                args.trace,
-                                                "--domain",
-                                                std::to_string(plan.domain),
-                                                "--device",
-                                                plan.device_id,
-                                                "--duration",
-                                                fmt::format("{}", plan.duration_s),
-                                                "--json",
-                                                plan.replay_json,
-                                                "--discovery-timeout",
-                                                fmt::format("{}", args.discovery_timeout_s)};
+  std::vector<std::string> replay_args = {"replay",
+                                          args.trace,
+                                          "--domain",
+                                          std::to_string(plan.domain),
+                                          "--device",
+                                          plan.device_id,
+                                          "--duration",
+                                          fmt::format("{}", plan.duration_s),
+                                          "--json",
+                                          plan.replay_json,
+                                          "--discovery-timeout",
+                                          fmt::format("{}", args.discovery_timeout_s)};
+  if (!args.security.empty()) {  // identities "server" and "device-<the scene's first device>"
+    for (auto* list : {&serve_args, &replay_args}) {
+      list->push_back("--security");
+      list->push_back(args.security);
+    }
+  }
   Child serve = SpawnChild("serve", plan.exe, serve_args, args.verbose);
   Child replay = SpawnChild("replay", plan.exe, replay_args, args.verbose);
   return {std::move(serve), std::move(replay)};
@@ -655,6 +662,9 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--md", args->md, "write the markdown table here (default: the JSON path, .md)");
   cmd.add_option("--domain", args->domain, "DDS domain id (default 100 + pid % 100)")
       ->check(CLI::Range(0, 230));
+  cmd.add_option("--security", args->security,
+                 "DDS Security directory of `felt security init` for the server and the replay "
+                 "(identities server and device-<the scene's device>)");
   cmd.add_flag("--no-realtime", args->no_realtime, "run the server without real-time settings");
   cmd.add_flag("--verbose", args->verbose, "echo the children's output");
   cmd.add_flag("--keep-files", args->keep_files, "keep the children's JSON files (path printed)");

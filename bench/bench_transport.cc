@@ -36,6 +36,7 @@
 #include "base/json.h"
 #include "base/process.h"
 #include "base/report.h"
+#include "bench/bench_transport_security.h"
 #include "haptic_loop/pointer_source.h"
 #include "recordings/trace.h"
 #include "rt/periodic_loop.h"
@@ -599,9 +600,18 @@ struct Options {
   transport::DdsSettings dds;
   bool dma_latency = false;
   bool fifo = false;
+  bool security_cost = false;  // only the DDS Security on/off comparison (its own file)
+  std::string security_out = "bench/results/transport_security";
 };
 
 int Run(const Options& options) {
+  if (options.security_cost) {
+    SecurityCostOptions cost{options.dds, options.seconds, 4, options.security_out,
+                             "felt bench transport --security-cost --seconds " +
+                                 report::Sig(options.seconds) + " --domain " +
+                                 std::to_string(options.dds.domain_id)};
+    return RunSecurityCost(cost);
+  }
   if (!options.client.out.empty()) {
     if (options.fifo) {
       const sched_param param{10};
@@ -758,6 +768,11 @@ const bool kRegistered = app::RegisterCommand({
                      "CYCLONEDDS_URI)");
       cmd.add_flag("--cpu-dma-latency", options->dma_latency,
                    "hold /dev/cpu_dma_latency at 0 while measuring (root)");
+      cmd.add_flag("--security-cost", options->security_cost,
+                   "only the raw round trip without and with DDS Security (--seconds each); "
+                   "writes --security-out PREFIX.md and .json");
+      cmd.add_option("--security-out", options->security_out,
+                     "where --security-cost writes (default bench/results/transport_security)");
       cmd.add_flag("--fifo", options->fifo,
                    "run the bench, its echo process and Cyclone's threads under SCHED_FIFO 10");
       return [options] {

@@ -204,7 +204,7 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
       slots_(new TripleBuffer<PointerSampleView>[config_.devices.size()]),
       arrivals_(new ArrivalSignal[config_.devices.size()]),
       forces_(config_.force_queue_capacity),
-      participant_(AcquireDomain(config_.dds)) {
+      participant_(config_.dds, "server") {
   // Devices: ids as fixed C strings for allocation-free comparison; full token buckets.
   const int64_t now_ns = MonotonicNowNs();
   for (size_t i = 0; i < devices_.size(); ++i) {

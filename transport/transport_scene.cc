@@ -61,11 +61,13 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
   const std::optional<SceneTable> table = SceneTable::Section(doc, "transport");
   std::vector<DeviceLimits> limits(devices.size());
   if (table) {
-    table->ExpectKeys({"domain", "dds_config", "receive_mode", "force_queue_capacity",
-                       "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples",
-                       "profile", "devices"});
+    table->ExpectKeys({"domain", "dds_config", "security", "identity", "receive_mode",
+                       "force_queue_capacity", "workspace_min_m", "workspace_max_m", "max_rate_hz",
+                       "burst_samples", "profile", "devices"});
     config.dds.domain_id = static_cast<uint32_t>(table->Integer("domain", 0, InRange(0, 230)));
     config.dds.config_file = table->String("dds_config", std::string());
+    config.dds.security_dir = table->String("security", std::string());
+    config.dds.identity = table->String("identity", std::string());
     static constexpr NamedValue<ReceiveMode> kModes[] = {{"listener", ReceiveMode::kListener},
                                                          {"waitset", ReceiveMode::kWaitset}};
     config.receive_mode = table->Choice<ReceiveMode>(

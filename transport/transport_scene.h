@@ -1,11 +1,14 @@
 #pragma once
 // The [transport] section of a scene (docs/transport.md, "Scene section"): the DDS domain and
 // configuration, the receive mode, and what the server accepts from each device (workspace box,
-// flood limit). `felt serve` reads it; --domain and --dds-config override the scene's values.
+// flood limit). `felt serve` reads it; --domain, --dds-config, --security and --identity override
+// the scene's values.
 //
 //   [transport]
 //   domain = 0                          # DDS domain id, 0..230
 //   dds_config = ""                     # Cyclone XML file ("" = CYCLONEDDS_URI, else loopback)
+//   security = ""                       # DDS Security dir of `felt security init` ("" = off)
+//   identity = ""                       # its identity the server uses ("" = "server")
 //   receive_mode = "listener"           # or "waitset"
 //   force_queue_capacity = 256          # forces between the haptic thread and the writer
 //   workspace_min_m = [-0.2, -0.2, -0.2]  # default workspace box of every device, device frame

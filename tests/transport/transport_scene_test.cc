@@ -37,6 +37,7 @@ TEST(TransportSceneTest, AbsentSectionGivesTheDefaultsForEveryDevice) {
   const ServerTransportConfig c = Parse("", Devices({"left", "right"}));
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_EQ(c.dds.config_file, "");
+  EXPECT_EQ(c.dds.security_dir, "");  // no DDS Security unless asked for
   EXPECT_EQ(c.receive_mode, ReceiveMode::kListener);
   EXPECT_EQ(c.force_queue_capacity, 256u);
   ASSERT_EQ(c.devices.size(), 2u);
@@ -54,6 +55,8 @@ TEST(TransportSceneTest, EveryKeyIsRead) {
 [transport]
 domain = 7
 dds_config = "net.xml"
+security = "sec"
+identity = "server-2"
 receive_mode = "waitset"
 force_queue_capacity = 64
 workspace_min_m = [-0.1, -0.2, -0.3]
@@ -68,6 +71,8 @@ max_rate_hz = 1100.0
                                         Devices({"left", "right"}));
   EXPECT_EQ(c.dds.domain_id, 7u);
   EXPECT_EQ(c.dds.config_file, "net.xml");
+  EXPECT_EQ(c.dds.security_dir, "sec");
+  EXPECT_EQ(c.dds.identity, "server-2");
   EXPECT_EQ(c.receive_mode, ReceiveMode::kWaitset);
   EXPECT_EQ(c.force_queue_capacity, 64u);
   const std::array<double, 3> min{-0.1, -0.2, -0.3}, max{0.1, 0.2, 0.3};
