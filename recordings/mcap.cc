@@ -668,34 +668,40 @@ void McapReader::ReadChunk(uint64_t offset,
       throw McapError(path_, at, McapOpName(op),
                       "length " + std::to_string(rlen) + " runs past the end of its Chunk");
     }
-    McapCursor r(head.Take(rlen, "body"), at + kRecordPrefix, path_, McapOpName(op));
-    if (op == kOpSchema) {
-      McapSchema s = McapParseSchema(r);
-      if (!schemas_.count(s.id)) schemas_[s.id] = std::move(s);
-    } else if (op == kOpChannel) {
-      McapChannel ch = McapParseChannel(r);
-      if (!channels_.count(ch.id)) channels_[ch.id] = std::move(ch);
-    } else if (op == kOpMessage) {
-      McapMessage m;
-      m.channel_id = r.Get<uint16_t>("channel_id");
-      m.sequence = r.Get<uint32_t>("sequence");
-      m.log_time_ns = r.Get<uint64_t>("log_time");
-      m.publish_time_ns = r.Get<uint64_t>("publish_time");
-      m.data = r.Take(r.left(), "data");
-      m.file_offset = at;
-      if (!channels_.count(m.channel_id)) {
-        throw McapError(
-            path_, at, "Message",
-            "channel " + std::to_string(m.channel_id) + " has no Channel record before it");
-      }
-      if (on_message == nullptr) {
-        ++message_count_;
-      } else if (channel_ids.empty() || std::find(channel_ids.begin(), channel_ids.end(),
-                                                  m.channel_id) != channel_ids.end()) {
-        (*on_message)(m);
-      }
-    }
+    ReadRecord(op, head.Take(rlen, "body"), at, on_message, channel_ids);
     pos += kRecordPrefix + rlen;
+  }
+}
+
+void McapReader::ReadRecord(uint8_t op, std::span<const uint8_t> body, uint64_t at,
+                            const std::function<void(const McapMessage&)>* on_message,
+                            const std::vector<uint16_t>& channel_ids) {
+  McapCursor c(body, at + kRecordPrefix, path_, McapOpName(op));
+  if (op == kOpSchema) {
+    McapSchema s = McapParseSchema(c);
+    if (!schemas_.count(s.id)) schemas_[s.id] = std::move(s);
+  } else if (op == kOpChannel) {
+    McapChannel ch = McapParseChannel(c);
+    if (!channels_.count(ch.id)) channels_[ch.id] = std::move(ch);
+  } else if (op == kOpMessage) {
+    McapMessage m;
+    m.channel_id = c.Get<uint16_t>("channel_id");
+    m.sequence = c.Get<uint32_t>("sequence");
+    m.log_time_ns = c.Get<uint64_t>("log_time");
+    m.publish_time_ns = c.Get<uint64_t>("publish_time");
+    m.data = c.Take(c.left(), "data");
+    m.file_offset = at;
+    if (!channels_.count(m.channel_id)) {
+      throw McapError(path_, at, "Message",
+                      "channel " + std::to_string(m.channel_id) +
+                          " has no Channel record before it");
+    }
+    if (on_message == nullptr) {
+      ++message_count_;
+    } else if (channel_ids.empty() || std::find(channel_ids.begin(), channel_ids.end(),
+                                                m.channel_id) != channel_ids.end()) {
+      (*on_message)(m);
+    }
   }
 }
 
@@ -740,33 +746,7 @@ void McapReader::Scan(const std::function<void(const McapMessage&)>* on_message,
     } else {
       ReadAt(pos + kRecordPrefix, len, &body, McapOpName(op));
       crc = Crc32(body, Crc32(head, crc));
-      McapCursor c(body, pos + kRecordPrefix, path_, McapOpName(op));
-      if (op == kOpSchema) {
-        McapSchema s = McapParseSchema(c);
-        if (!schemas_.count(s.id)) schemas_[s.id] = std::move(s);
-      } else if (op == kOpChannel) {
-        McapChannel ch = McapParseChannel(c);
-        if (!channels_.count(ch.id)) channels_[ch.id] = std::move(ch);
-      } else if (op == kOpMessage) {
-        McapMessage m;
-        m.channel_id = c.Get<uint16_t>("channel_id");
-        m.sequence = c.Get<uint32_t>("sequence");
-        m.log_time_ns = c.Get<uint64_t>("log_time");
-        m.publish_time_ns = c.Get<uint64_t>("publish_time");
-        m.data = c.Take(c.left(), "data");
-        m.file_offset = pos;
-        if (!channels_.count(m.channel_id)) {
-          throw McapError(
-              path_, pos, "Message",
-              "channel " + std::to_string(m.channel_id) + " has no Channel record before it");
-        }
-        if (on_message == nullptr) {
-          ++message_count_;
-        } else if (channel_ids.empty() || std::find(channel_ids.begin(), channel_ids.end(),
-                                                    m.channel_id) != channel_ids.end()) {
-          (*on_message)(m);
-        }
-      }
+      ReadRecord(op, body, pos, on_message, channel_ids);
     }
     pos += kRecordPrefix + len;
   }

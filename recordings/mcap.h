@@ -185,6 +185,13 @@ class McapReader {
   void ReadChunk(uint64_t offset, const std::function<void(const McapMessage&)>* on_message,
                  const std::vector<uint16_t>& channel_ids);
   void ReadAt(uint64_t offset, size_t n, std::vector<uint8_t>* out, const char* record);
+  // A Schema, Channel or Message record's `body` (the record at file offset `at`; other ops are
+  // skipped), in a chunk or the data section alike: schemas and channels kept (the first of an
+  // id wins), a message counted (on_message null) or handed to on_message when its channel is
+  // wanted (channel_ids empty: every channel).
+  void ReadRecord(uint8_t op, std::span<const uint8_t> body, uint64_t at,
+                  const std::function<void(const McapMessage&)>* on_message,
+                  const std::vector<uint16_t>& channel_ids);
 
   std::string path_;
   std::FILE* file_ = nullptr;
