@@ -248,35 +248,7 @@ bool ClientTransport::LatestStatus(ServerStatusView* out) {
     }
   }
   if (newest == nullptr) return false;
-  const felt_msgs_ServerStatus& m = *newest;
-  const auto copy = [](const felt_msgs_Percentiles& in) {
-    return PercentilesView{in.p50, in.p99, in.p999, in.max};
-  };
-  out->server_id.assign(m.server_id, strnlen(m.server_id, sizeof(m.server_id)));
-  out->wall_time_ns = m.wall_time_ns;
-  out->realtime = m.realtime;
-  out->haptic_ticks = m.haptic_ticks;
-  out->haptic_overruns = m.haptic_overruns;
-  out->haptic_lateness_us = copy(m.haptic_lateness_us);
-  out->haptic_compute_us = copy(m.haptic_compute_us);
-  out->sim_frames = m.sim_frames;
-  out->sim_frame_ms = copy(m.sim_frame_ms);
-  out->snapshot_age_ms = copy(m.snapshot_age_ms);
-  out->sim_stalled = m.sim_stalled;
-  out->rejected_nonfinite = m.rejected_nonfinite;
-  out->rejected_workspace = m.rejected_workspace;
-  out->rejected_seq = m.rejected_seq;
-  out->rejected_unknown_device = m.rejected_unknown_device;
-  out->rejected_flood = m.rejected_flood;
-  out->rejected_not_owner = m.rejected_not_owner;
-  out->pointer_accepted = m.pointer_accepted;
-  out->forces_published = m.forces_published;
-  out->forces_queue_full = m.forces_queue_full;
-  out->dds_errors = m.dds_errors;
-  out->incompatible_qos = m.incompatible_qos;
-  out->nan_events = m.nan_events;
-  out->devices_connected = m.devices_connected;
-  out->passivity_energy_J = m.passivity_energy_J;
+  *out = StatusViewOf(*newest);
   return true;
 }
 

@@ -82,4 +82,39 @@ inline void FillForceMessage(const ForceCommandView& v, const char* device_id,
   m->contact_stiffness_N_per_m = v.contact_stiffness_N_per_m;
 }
 
+/// The view of a received ServerStatus (every field; the server id up to its terminating NUL).
+/// Allocates (the id is a std::string): not for the haptic thread.
+inline ServerStatusView StatusViewOf(const felt_msgs_ServerStatus& m) {
+  const auto copy = [](const felt_msgs_Percentiles& in) {
+    return PercentilesView{in.p50, in.p99, in.p999, in.max};
+  };
+  ServerStatusView v;
+  v.server_id.assign(m.server_id, strnlen(m.server_id, sizeof(m.server_id)));
+  v.wall_time_ns = m.wall_time_ns;
+  v.realtime = m.realtime;
+  v.haptic_ticks = m.haptic_ticks;
+  v.haptic_overruns = m.haptic_overruns;
+  v.haptic_lateness_us = copy(m.haptic_lateness_us);
+  v.haptic_compute_us = copy(m.haptic_compute_us);
+  v.sim_frames = m.sim_frames;
+  v.sim_frame_ms = copy(m.sim_frame_ms);
+  v.snapshot_age_ms = copy(m.snapshot_age_ms);
+  v.sim_stalled = m.sim_stalled;
+  v.rejected_nonfinite = m.rejected_nonfinite;
+  v.rejected_workspace = m.rejected_workspace;
+  v.rejected_seq = m.rejected_seq;
+  v.rejected_unknown_device = m.rejected_unknown_device;
+  v.rejected_flood = m.rejected_flood;
+  v.rejected_not_owner = m.rejected_not_owner;
+  v.pointer_accepted = m.pointer_accepted;
+  v.forces_published = m.forces_published;
+  v.forces_queue_full = m.forces_queue_full;
+  v.dds_errors = m.dds_errors;
+  v.incompatible_qos = m.incompatible_qos;
+  v.nan_events = m.nan_events;
+  v.devices_connected = m.devices_connected;
+  v.passivity_energy_J = m.passivity_energy_J;
+  return v;
+}
+
 }  // namespace felt::transport
