@@ -23,6 +23,26 @@ Vec3 SelfResponseEdgeNormal(const Vec3& a, const Vec3& b) {
   return len > 1e-20 ? Vec3(c / len) : Vec3(Vec3::Zero());
 }
 
+// True when the boxes of points a (na of them) and b (nb) at one time are more than `gap` [m]
+// apart on some axis: the primitives are then more than gap apart (a cheap rejection before the
+// closest points; the candidates come from swept boxes, many of which are far apart at x_before).
+bool SelfResponseBoxesApart(const Vec3* const* a, int na, const Vec3* const* b, int nb,
+                            double gap) {
+  for (int k = 0; k < 3; ++k) {
+    double alo = (*a[0])[k], ahi = alo, blo = (*b[0])[k], bhi = blo;
+    for (int i = 1; i < na; ++i) {
+      alo = std::min(alo, (*a[i])[k]);
+      ahi = std::max(ahi, (*a[i])[k]);
+    }
+    for (int i = 1; i < nb; ++i) {
+      blo = std::min(blo, (*b[i])[k]);
+      bhi = std::max(bhi, (*b[i])[k]);
+    }
+    if (blo - ahi > gap || alo - bhi > gap) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 std::optional<SelfCullingMethod> SelfCullingMethodFromName(std::string_view name) {
@@ -69,8 +89,8 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   // Colliding pairs per detection: a vertex touches a handful of faces in a fold; 8 per primitive
   // is far above what the hard scenes reach (an overflow is counted and handled by the fail-safe).
   hits_.reserve(8 * (static_cast<size_t>(n) + edges));
-  for (std::vector<Vec3>* a :
-       {&x_before_, &x_trial_, &vel_, &zone_mx_, &zone_mv_, &zone_l_, &zone_pin_v_, &zone_omega_}) {
+  for (std::vector<Vec3>* a : {&x_before_, &x_trial_, &vel_, &candidates_end_, &zone_mx_, &zone_mv_,
+                               &zone_l_, &zone_pin_v_, &zone_omega_}) {
     a->assign(static_cast<size_t>(n), Vec3::Zero());
   }
   dirty_.assign(static_cast<size_t>(n), 0);
@@ -102,13 +122,37 @@ void SelfCollisionResponse::BeginStep(std::span<const Vec3> x) {
   std::copy(x.begin(), x.end(), x_before_.begin());
 }
 
+// The broad phase runs with the full thickness as padding, the narrow phase with the CCD
+// thickness: the candidates then also hold every pair within the thickness at x1 (each box
+// contains its primitive at x1 padded by h / 2), which the next substep's proximity pass reuses
+// when it starts from x1 (Resolve).
 int64_t SelfCollisionResponse::Detect(std::span<const Vec3> x1, SelfCollisionStats* stats) {
+  SelfBroadPhase* broad = Broad();
+  hits_.clear();
+  const SelfBroadPhaseStats bs = broad->FindCandidates(x_before_, x1, settings_.thickness_m);
+  candidates_end_valid_ = !bs.overflow;
+  if (candidates_end_valid_) std::copy(x1.begin(), x1.end(), candidates_end_.begin());
+  if (bs.overflow) {
+    ++stats->overflows;
+    return std::max<int64_t>(bs.vertex_triangle + bs.edge_edge, 1);  // unseen pairs: fail-safe
+  }
   AllPairsCcdOptions options;
   options.ccd.thickness_m = settings_.thickness_m * settings_.ccd_thickness_fraction;
-  const SelfCcdStats s = SelfCcd(Broad(), x_before_, x1, options, &hits_);
-  if (s.overflow) ++stats->overflows;
-  // An overflow leaves pairs unseen: report at least one so the caller keeps going.
-  return s.overflow ? std::max<int64_t>(s.hits, 1) : s.hits;
+  const std::span<const MeshEdge> edges = broad->edges();
+  int64_t hits = 0;
+  for (const SelfCandidate& c : broad->candidates()) {
+    CcdPairHit h;
+    const bool hit = c.kind == CcdPairHit::Kind::kVertexTriangle
+                         ? VertexTrianglePairHit(x_before_, x1, c.first, c.second,
+                                                 triangles_[c.second], options, &h)
+                         : EdgeEdgePairHit(x_before_, x1, c.first, edges[c.first], c.second,
+                                           edges[c.second], options, &h);
+    if (!hit) continue;
+    ++hits;
+    if (hits_.size() < hits_.capacity()) hits_.push_back(h);
+  }
+  if (static_cast<size_t>(hits) > hits_.size()) ++stats->overflows;
+  return hits;
 }
 
 void SelfCollisionResponse::SetVelocity(int32_t p, const Vec3& vel) {
@@ -167,8 +211,14 @@ Vec3 SelfResponsePairDelta(const Vec3& v_rel, const Vec3& n, double extra_normal
 void SelfCollisionResponse::Proximity(double h_s, SelfCollisionStats* stats) {
   SelfBroadPhase* broad = Broad();
   const double thick = settings_.thickness_m;
-  const SelfBroadPhaseStats bs = broad->FindCandidates(x_before_, x_before_, thick);
-  if (bs.overflow) ++stats->overflows;
+  // The last detection's candidates cover every pair within the thickness at its end positions;
+  // when this substep starts exactly there (the common case), no broad phase is needed.
+  const bool reuse = candidates_end_valid_ &&
+                     std::equal(x_before_.begin(), x_before_.end(), candidates_end_.begin());
+  if (!reuse) {
+    const SelfBroadPhaseStats bs = broad->FindCandidates(x_before_, x_before_, thick);
+    if (bs.overflow) ++stats->overflows;
+  }
   const std::span<const MeshEdge> edges = broad->edges();
   const double k_over_m = settings_.repulsion_stiffness_N_per_m / particle_mass_kg_;
   for (const SelfCandidate& c : broad->candidates()) {
@@ -180,6 +230,9 @@ void SelfCollisionResponse::Proximity(double h_s, SelfCollisionStats* stats) {
       const Triangle& t = triangles_[c.second];
       vid = {c.first, t[0], t[1], t[2]};
       const Vec3& p = x_before_[c.first];
+      const Vec3* pv[1] = {&p};
+      const Vec3* tv[3] = {&x_before_[t[0]], &x_before_[t[1]], &x_before_[t[2]]};
+      if (SelfResponseBoxesApart(pv, 1, tv, 3, thick)) continue;
       const TrianglePoint tp =
           ClosestPointOnTriangle(p, x_before_[t[0]], x_before_[t[1]], x_before_[t[2]]);
       if (tp.distance_sq >= thick * thick) continue;
@@ -195,6 +248,9 @@ void SelfCollisionResponse::Proximity(double h_s, SelfCollisionStats* stats) {
       const MeshEdge& e = edges[c.first];
       const MeshEdge& f = edges[c.second];
       vid = {e[0], e[1], f[0], f[1]};
+      const Vec3* ev[2] = {&x_before_[e[0]], &x_before_[e[1]]};
+      const Vec3* fv[2] = {&x_before_[f[0]], &x_before_[f[1]]};
+      if (SelfResponseBoxesApart(ev, 2, fv, 2, thick)) continue;
       const SegmentsClosest sc = ClosestPointsOfSegments(x_before_[e[0]], x_before_[e[1]],
                                                          x_before_[f[0]], x_before_[f[1]]);
       if (sc.distance_sq >= thick * thick) continue;

@@ -122,6 +122,8 @@ class SelfCollisionResponse {
   std::optional<SelfBvh> bvh_;
   std::vector<CcdPairHit> hits_;  ///< capacity fixed at construction
   std::vector<Vec3> x_before_;    ///< [n] substep start
+  std::vector<Vec3> candidates_end_;   ///< [n] x1 of the last detection (its candidates cover it)
+  bool candidates_end_valid_ = false;  ///< the broad phase holds that detection's candidates
   std::vector<Vec3> x_trial_;     ///< [n] x_before + h vel (exactly x where vel is untouched)
   std::vector<Vec3> vel_;         ///< [n] candidate average velocity of the substep, m/s
   std::vector<uint8_t> dirty_;    ///< [n] 1 if vel_ changed since x_trial_ was updated

@@ -77,7 +77,13 @@ TEST(SelfResponse, SheetDrivenThroughAPinnedSheetStopsOnIt) {
   EXPECT_EQ(CountSelfIntersections(x, sheets.triangles), 0);
   // The pinned sheet did not move; the upper one ends above it.
   for (size_t p = 0; p < x.size() / 2; ++p) EXPECT_EQ(x[p], sheets.x[p]);
-  for (size_t p = x.size() / 2; p < x.size(); ++p) EXPECT_GT(x[p].y(), 0.0) << p;
+  // The upper sheet's vertices over the lower one end above it (those past its edge, offset by a
+  // third of a cell, may pass beside it).
+  for (size_t p = x.size() / 2; p < x.size(); ++p) {
+    if (x[p].x() < 0.1 && x[p].z() < 0.1) {
+      EXPECT_GT(x[p].y(), 0.0) << p;
+    }
+  }
   EXPECT_EQ(st.zone_rounds, 0) << "the impulse rounds alone should stop a sheet on a pinned one";
 }
 
