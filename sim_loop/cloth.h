@@ -258,8 +258,9 @@ struct FrameResult {
 /// `external` forces (held constant over the frame), pins, obstacles and Provot constraints, then
 /// recomputes normals. The frame is cut into ceil(dt / h_nominal) substeps, h_nominal = (1 /
 /// frame_rate_hz) / model.substeps, so a substep never exceeds the nominal one. Each substep:
-/// integrate, Provot, obstacles, pins. Non-finite results restore the last good state (x, v,
-/// time_s of the end of the last good frame; counted in counters.nan_events, logged once per
+/// integrate, Provot, obstacles, pins, then (with [self_collision]) the self-collision response on
+/// the substep's motion (collision/self_response.h). Non-finite results restore the last good state
+/// (x, v, time_s of the end of the last good frame; counted in counters.nan_events, logged once per
 /// state). A frame_dt_s that is not > 0 (or NaN) does nothing. External forces with a triangle
 /// out of range or non-finite values are skipped and counted. Does not allocate (the one-time
 /// NaN log line aside); does not throw.

@@ -107,8 +107,9 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
     s.history_valid = false;
     result.recovered = true;
   }
-  if (self && model.self_collision_count_intersections)
+  if (self && model.self_collision_count_intersections) {
     CountFrameIntersections(model, state, &result);
+  }
   ComputeVertexNormals(state->x, model.triangles, state->normals);
   ++state->counters.frames;
   return result;
