@@ -51,7 +51,7 @@ enum class SelfCullingMethod : uint8_t {
 /// Settings of the response (SelfCollisionSpec in sim_loop/cloth_spec.h, validated).
 struct SelfCollisionSettings {
   double thickness_m = 0.002;  ///< cloth thickness h: primitives are kept this far apart, m (> 0)
-  SelfCullingMethod method = SelfCullingMethod::kSpatialHash;
+  SelfCullingMethod method = SelfCullingMethod::kBvh;  ///< broad phase (measured cheaper)
   int32_t iterations = 4;  ///< CCD impulse rounds per substep before the fail-safe (>= 0)
   double friction = 0.1;   ///< Coulomb coefficient mu between layers (>= 0)
   bool fail_safe = true;   ///< rigid impact zones after the impulse rounds

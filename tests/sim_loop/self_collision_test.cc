@@ -188,6 +188,12 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_EQ(spec.self_collision->friction, 0.4);
   EXPECT_FALSE(spec.self_collision->fail_safe);
   EXPECT_FALSE(ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n", "x.toml")).self_collision);
+  const SimSpec defaults =
+      ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n[self_collision]\n", "d.toml"));
+  ASSERT_TRUE(defaults.self_collision.has_value());
+  EXPECT_EQ(defaults.self_collision->method, SelfCullingMethod::kBvh);  // measured cheaper
+  EXPECT_EQ(defaults.self_collision->thickness_m, 0.002);
+  EXPECT_TRUE(defaults.self_collision->fail_safe);
 
   std::string e = SelfSceneError("[self_collision]\nthickness_m = 0.01\n");
   EXPECT_NE(e.find("test.toml:6"), std::string::npos) << e;
