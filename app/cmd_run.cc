@@ -1,6 +1,8 @@
-// `felt run --scene FILE [--duration S] [--fast] [--json FILE]`: runs a scene's cloth headless at
-// its frame rate (60 Hz by default) for a few seconds and prints frame statistics. `make run`
-// calls it until the server exists.
+// `felt run --scene FILE [--duration S] [--fast] [--json FILE] [--count-intersections]`: runs a
+// scene's cloth headless at its frame rate (60 Hz by default) for a few seconds and prints frame
+// statistics (with --count-intersections also self_intersections_max, the exact count of
+// intersecting non-adjacent triangle pairs at the end of the worst frame). `make run` calls it
+// until the server exists.
 //
 // Each frame steps the nominal 1 / frame_rate_hz, so a run's physics is deterministic; in real
 // time the frames run in rt/loop_runner.h's RunLoop (absolute deadlines, overruns counted, missed

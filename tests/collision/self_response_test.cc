@@ -124,6 +124,23 @@ TEST(SelfResponse, FailSafeAloneResolvesAndIsNeededWithoutRounds) {
   EXPECT_GT(CountSelfIntersections(x, sheets.triangles), 0);
 }
 
+// A zone holding pinned vertices (infinite mass) moves with its pins: here they are fixed, so the
+// zone's free vertices keep x_before and the pinned sheet is never moved.
+TEST(SelfResponse, FailSafeZoneWithPinsStaysWithThem) {
+  const TwoSheets sheets = MakeTwoSheets(6, 0.01);
+  std::vector<double> inv_mass(sheets.x.size(), 100.0);
+  for (size_t p = 0; p < sheets.x.size() / 2; ++p) inv_mass[p] = 0.0;
+  SelfCollisionSettings settings;
+  settings.thickness_m = 1e-3;
+  settings.iterations = 0;
+  std::vector<Vec3> x, v;
+  const SelfCollisionStats st = DriveThrough(sheets, inv_mass, settings, 0.03, 0.0, &x, &v);
+  EXPECT_GT(st.impact_zones, 0);
+  EXPECT_EQ(st.unresolved, 0);
+  EXPECT_EQ(CountSelfIntersections(x, sheets.triangles), 0);
+  for (size_t p = 0; p < x.size() / 2; ++p) EXPECT_EQ(x[p], sheets.x[p]);
+}
+
 TEST(SelfResponse, ProximityRepelsLayersWithinTheThickness) {
   const TwoSheets sheets = MakeTwoSheets(5, 0.0005);  // 0.5 mm apart, thickness 1 mm
   const std::vector<double> inv_mass(sheets.x.size(), 100.0);
