@@ -1,6 +1,8 @@
-// `felt run --scene FILE [--duration S] [--fast] [--json FILE]`: runs a scene's cloth headless at
-// its frame rate (60 Hz by default) for a few seconds and prints frame statistics. `make run`
-// calls it until the server exists.
+// `felt run --scene FILE [--duration S] [--fast] [--json FILE] [--count-intersections]`: runs a
+// scene's cloth headless at its frame rate (60 Hz by default) for a few seconds and prints frame
+// statistics (with --count-intersections also self_intersections_max, the exact count of
+// intersecting non-adjacent triangle pairs at the end of the worst frame). `make run` calls it
+// until the server exists.
 //
 // Each frame steps the nominal 1 / frame_rate_hz, so a run's physics is deterministic; in real
 // time the frames run in rt/loop_runner.h's RunLoop (absolute deadlines, overruns counted, missed
@@ -24,6 +26,7 @@
 #include "app/command.h"
 #include "base/json.h"
 #include "base/report.h"
+#include "collision/self_intersection.h"
 #include "rt/loop_runner.h"
 #include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
@@ -40,6 +43,7 @@ struct RunArgs {
   std::optional<double> duration_s;
   std::string json;
   bool fast = false;
+  bool count_intersections = false;
 };
 
 // What a run measured.
@@ -57,6 +61,8 @@ struct RunStats {
   double energy_max_J = 0.0;
   int64_t overruns = 0;         // frames that ended after their deadline (real time only)
   int64_t skipped_periods = 0;  // periods skipped after overruns
+  // Most intersecting non-adjacent triangle pairs at a frame's end (exact test), -1: not counted.
+  int64_t self_intersections_max = -1;
 };
 
 // The nearest-rank percentile of the frame times [ms] (p in [0, 100]); 0 when no frame ran, as
@@ -66,8 +72,14 @@ double FrameMsPercentile(const RunStats& stats, double p) {
 }
 
 // Steps `model` for `frames` frames of nominal length, in real time unless `fast`.
-RunStats RunFrames(const ClothModel& model, int64_t frames, bool fast, ClothState* state) {
+// With count_intersections, every frame's end is checked by the exact O(T^2) triangle test
+// (collision/self_intersection.h) after the frame's timing, unless the sim counts them itself
+// ([self_collision] count_intersections).
+RunStats RunFrames(const ClothModel& model, int64_t frames, bool fast, bool count_intersections,
+                   ClothState* state) {
   RunStats stats;
+  const bool count_here = count_intersections && !model.self_collision_count_intersections;
+  if (count_here) stats.self_intersections_max = CountSelfIntersections(state->x, model.triangles);
   stats.frame_ms.reserve(static_cast<size_t>(frames));
   const double frame_dt_s = 1.0 / model.frame_rate_hz;
   const int64_t period_ns = std::max<int64_t>(1, std::llround(frame_dt_s * 1e9));
@@ -82,6 +94,10 @@ RunStats RunFrames(const ClothModel& model, int64_t frames, bool fast, ClothStat
     const int64_t begin_ns = MonotonicNowNs();
     const FrameResult result = StepFrame(model, no_external, frame_dt_s, state);
     stats.frame_ms.push_back(static_cast<double>(MonotonicNowNs() - begin_ns) * 1e-6);
+    if (count_here) {
+      stats.self_intersections_max =
+          std::max(stats.self_intersections_max, CountSelfIntersections(state->x, model.triangles));
+    }
     stats.substeps += result.substeps;
     stats.sim_time_s += result.dt_s;
     stats.final_stretch = MaxStretch(model, *state);
@@ -113,6 +129,7 @@ RunStats RunFrames(const ClothModel& model, int64_t frames, bool fast, ClothStat
     stats.skipped_periods = static_cast<int64_t>(snapshot.skipped_periods);
   }
   stats.wall_s = static_cast<double>(MonotonicNowNs() - start_ns) * 1e-9;
+  if (!count_here) stats.self_intersections_max = state->counters.self_intersections_max;
   return stats;
 }
 
@@ -145,6 +162,24 @@ void PrintStats(const SceneInfo& info, const std::string& file, const ClothModel
     std::printf("cg not converged   %llu\n",
                 static_cast<unsigned long long>(state.counters.cg_not_converged));
   }
+  if (model.self_collision_enabled) {
+    const ClothCounters& c = state.counters;
+    std::printf(
+        "self-collision     %s, thickness %s m: %llu proximity pairs, %llu impulses, %llu "
+        "CCD hits, %llu impact zones, %llu frozen / %llu unresolved substeps\n",
+        std::string(SelfCullingMethodName(model.self_collision.method)).c_str(),
+        FormatSceneNumber(model.self_collision.thickness_m).c_str(),
+        static_cast<unsigned long long>(c.self_proximity_pairs),
+        static_cast<unsigned long long>(c.self_impulses),
+        static_cast<unsigned long long>(c.self_ccd_hits),
+        static_cast<unsigned long long>(c.self_impact_zones),
+        static_cast<unsigned long long>(c.self_frozen_substeps),
+        static_cast<unsigned long long>(c.self_unresolved_substeps));
+  }
+  if (stats.self_intersections_max >= 0) {
+    std::printf("self intersections max %lld (exact test, end of every frame)\n",
+                static_cast<long long>(stats.self_intersections_max));
+  }
   if (!fast) {
     std::printf("overruns           %lld (%lld periods skipped)\n",
                 static_cast<long long>(stats.overruns),
@@ -163,28 +198,37 @@ void WriteJson(std::ofstream& out, const std::string& json_path, const SceneInfo
                       {"end", stats.energy_end_J},
                       {"min", stats.energy_min_J},
                       {"max", stats.energy_max_J}};
-  out << JsonText(Json{{"scene", info.name},
-                       {"file", file},
-                       {"width", model.width},
-                       {"height", model.height},
-                       {"integrator", ToName(model.integrator)},
-                       {"substeps_per_frame", model.substeps},
-                       {"auto_substeps", model.auto_substeps},
-                       {"frame_rate_hz", model.frame_rate_hz},
-                       {"realtime", !fast},
-                       {"frames", stats.frames},
-                       {"substeps", stats.substeps},
-                       {"sim_time_s", stats.sim_time_s},
-                       {"wall_s", stats.wall_s},
-                       {"frame_ms", frame_ms},
-                       {"max_stretch", stats.max_stretch},
-                       {"final_stretch", stats.final_stretch},
-                       {"energy_J", energy_J},
-                       {"nan_events", state.counters.nan_events},
-                       {"clamped_frames", state.counters.clamped_frames},
-                       {"cg_not_converged", state.counters.cg_not_converged},
-                       {"overruns", stats.overruns},
-                       {"skipped_periods", stats.skipped_periods}});
+  out << JsonText(Json{
+      {"scene", info.name},
+      {"file", file},
+      {"width", model.width},
+      {"height", model.height},
+      {"integrator", ToName(model.integrator)},
+      {"substeps_per_frame", model.substeps},
+      {"auto_substeps", model.auto_substeps},
+      {"frame_rate_hz", model.frame_rate_hz},
+      {"realtime", !fast},
+      {"frames", stats.frames},
+      {"substeps", stats.substeps},
+      {"sim_time_s", stats.sim_time_s},
+      {"wall_s", stats.wall_s},
+      {"frame_ms", frame_ms},
+      {"max_stretch", stats.max_stretch},
+      {"final_stretch", stats.final_stretch},
+      {"energy_J", energy_J},
+      {"nan_events", state.counters.nan_events},
+      {"clamped_frames", state.counters.clamped_frames},
+      {"cg_not_converged", state.counters.cg_not_converged},
+      {"overruns", stats.overruns},
+      {"skipped_periods", stats.skipped_periods},
+      {"self_collision", model.self_collision_enabled},
+      {"self_proximity_pairs", state.counters.self_proximity_pairs},
+      {"self_impulses", state.counters.self_impulses},
+      {"self_ccd_hits", state.counters.self_ccd_hits},
+      {"self_impact_zones", state.counters.self_impact_zones},
+      {"self_unresolved_substeps", state.counters.self_unresolved_substeps},
+      {"self_intersections_max",
+       stats.self_intersections_max >= 0 ? Json(stats.self_intersections_max) : Json(nullptr)}});
   out.flush();
   if (!out) throw std::runtime_error("--json " + json_path + ": write failed");
 }
@@ -196,6 +240,9 @@ CommandRun SetupRun(CLI::App& cmd) {
                  "seconds of simulated time (default: the scene's [scene] duration_s, else 5)");
   cmd.add_flag("--fast", args->fast, "run as fast as possible instead of in real time");
   cmd.add_option("--json", args->json, "also write the statistics to this JSON file");
+  cmd.add_flag("--count-intersections", args->count_intersections,
+               "check every frame's end for intersecting non-adjacent triangle pairs with the "
+               "exact O(T^2) test and report self_intersections_max (slow on large cloths)");
   return [args]() {
     // Everything is read and validated before anything starts: a bad scene throws (exit 2).
     const SceneDocument doc = LoadSceneDocument(args->scene);
@@ -225,7 +272,7 @@ CommandRun SetupRun(CLI::App& cmd) {
     ClothState state = MakeClothState(*model);
     const int64_t frames =
         std::max<int64_t>(1, std::llround(duration_s * spec.integration.frame_rate_hz));
-    const RunStats stats = RunFrames(*model, frames, args->fast, &state);
+    const RunStats stats = RunFrames(*model, frames, args->fast, args->count_intersections, &state);
     PrintStats(info, doc.source_name, *model, state, stats, args->fast);
     if (json.is_open()) {
       WriteJson(json, args->json, info, doc.source_name, *model, state, stats, args->fast);

@@ -16,12 +16,13 @@ namespace felt {
 namespace {
 
 // The one list of top-level sections (see KnownSceneSections in the header).
-constexpr std::array<SceneSectionInfo, 10> kSceneSections = {{
+constexpr std::array<SceneSectionInfo, 11> kSceneSections = {{
     {"scene", SectionShape::kTable, "ParseSceneInfo (scene/scene_file.h)"},
     {"cloth", SectionShape::kTable, "ParseSimSpec (sim_loop/cloth_scene.h)"},
     {"obstacles", SectionShape::kArrayOfTables, "ParseSimSpec (sim_loop/cloth_scene.h)"},
     {"integration", SectionShape::kTable, "ParseSimSpec (sim_loop/cloth_scene.h)"},
     {"provot", SectionShape::kTable, "ParseSimSpec (sim_loop/cloth_scene.h)"},
+    {"self_collision", SectionShape::kTable, "ParseSimSpec (sim_loop/cloth_scene.h)"},
     {"device", SectionShape::kTable, "ParseDeviceSpecs (proxy/proxy_scene.h)"},
     {"devices", SectionShape::kArrayOfTables, "ParseDeviceSpecs (proxy/proxy_scene.h)"},
     {"proxy", SectionShape::kTable, "ParseProxySpec (proxy/proxy_scene.h)"},

@@ -142,6 +142,11 @@ struct ClothModel {
   bool provot_enabled = false;    ///< Provot's constraints are applied after each substep
   int32_t provot_iterations = 0;  ///< Gauss-Seidel sweeps per substep
 
+  // Self-collision (SelfCollisionSpec, validated; issue 22). Nothing is built without it.
+  bool self_collision_enabled = false;              ///< the scene declared [self_collision]
+  SelfCollisionSettings self_collision;             ///< its settings (k resolved)
+  bool self_collision_count_intersections = false;  ///< exact end-of-frame count (O(T^2))
+
   // Derived constants (filled by BuildClothModel; read by the kernels and the benchmarks).
   double particle_mass_kg = 0.0;      ///< mass of every particle (pinned ones included)
   std::vector<uint8_t> pin_scripted;  ///< [pinned.size()] 1 if that pin's motion is not all zero
@@ -188,6 +193,17 @@ struct ClothCounters {
   uint64_t coupling_overflows = 0;       ///< contact springs dropped: more than 16 in a frame
   uint64_t coupling_substepped_frames = 0;  ///< frames cut into more substeps for a contact
                                             ///< spring (CouplingSubsteps)
+  // Self-collision (only with [self_collision]; sums over all substeps, see SelfCollisionStats).
+  uint64_t self_proximity_pairs = 0;      ///< pairs closer than the thickness at a substep start
+  uint64_t self_impulses = 0;             ///< repulsion and CCD impulses applied
+  uint64_t self_ccd_hits = 0;             ///< colliding pairs of the first CCD pass
+  uint64_t self_impact_zones = 0;         ///< impact zones formed by the fail-safe
+  uint64_t self_frozen_substeps = 0;      ///< substeps whose zones were frozen at x_before
+  uint64_t self_unresolved_substeps = 0;  ///< substeps that ended with a collision left
+  uint64_t self_overflows = 0;            ///< detections whose buffers overflowed
+  /// Most intersecting non-adjacent triangle pairs at the end of a frame, by the exact test
+  /// (only with SelfCollisionSpec::count_intersections; -1 when not counted).
+  int64_t self_intersections_max = -1;
 };
 
 /// Everything that changes while stepping, sized once by MakeClothState.
@@ -227,14 +243,24 @@ struct FrameResult {
   double dt_s = 0.0;       ///< time integrated (after clamping)
   bool clamped = false;    ///< frame_dt_s was larger than max_frame_dt_s
   bool recovered = false;  ///< non-finite values appeared and the last good state was restored
+  // Self-collision, summed over the frame's substeps (zero without [self_collision]).
+  int64_t self_proximity_pairs = 0;  ///< pairs within the thickness at substep starts
+  int64_t self_impulses = 0;         ///< repulsion and CCD impulses
+  int64_t self_ccd_hits = 0;         ///< colliding pairs of the first CCD pass
+  int64_t self_impact_zones = 0;     ///< impact zones of the fail-safe
+  int64_t self_unresolved = 0;       ///< collisions left at substep ends (0 with the fail-safe)
+  double self_collision_s = 0.0;     ///< wall time spent in the response over the frame, s
+  /// Intersecting non-adjacent triangle pairs at the frame's end (exact test), -1 if not counted.
+  int64_t self_intersections = -1;
 };
 
 /// Advances the cloth by `frame_dt_s` (clamped to spec.integration.max_frame_dt_s), applying
 /// `external` forces (held constant over the frame), pins, obstacles and Provot constraints, then
 /// recomputes normals. The frame is cut into ceil(dt / h_nominal) substeps, h_nominal = (1 /
 /// frame_rate_hz) / model.substeps, so a substep never exceeds the nominal one. Each substep:
-/// integrate, Provot, obstacles, pins. Non-finite results restore the last good state (x, v,
-/// time_s of the end of the last good frame; counted in counters.nan_events, logged once per
+/// integrate, Provot, obstacles, pins, then (with [self_collision]) the self-collision response on
+/// the substep's motion (collision/self_response.h). Non-finite results restore the last good state
+/// (x, v, time_s of the end of the last good frame; counted in counters.nan_events, logged once per
 /// state). A frame_dt_s that is not > 0 (or NaN) does nothing. External forces with a triangle
 /// out of range or non-finite values are skipped and counted. Does not allocate (the one-time
 /// NaN log line aside); does not throw.

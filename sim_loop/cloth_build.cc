@@ -567,6 +567,31 @@ ClothModel BuildClothModel(const SimSpec& spec) {
   model.cg_tolerance = is.cg_tolerance;
   model.provot_enabled = spec.provot.enabled;
   model.provot_iterations = spec.provot.iterations;
+  if (spec.self_collision) {
+    const SelfCollisionSpec& sc = *spec.self_collision;
+    if (!(sc.thickness_m > 0.0) || !(sc.thickness_m < 0.5 * cs.spacing_m)) {
+      Fail("self_collision.thickness_m",
+           "must be in (0, cloth.spacing_m / 2), got " + Show(sc.thickness_m));
+    }
+    if (sc.iterations < 0 || sc.iterations > 100) {
+      Fail("self_collision.iterations", "must be in [0, 100], got " + Show(sc.iterations));
+    }
+    if (!(sc.friction >= 0.0)) Fail("self_collision.friction", "must be >= 0");
+    if (sc.repulsion_stiffness_N_per_m && !(*sc.repulsion_stiffness_N_per_m >= 0.0)) {
+      Fail("self_collision.repulsion_stiffness_N_per_m", "must be >= 0");
+    }
+    model.self_collision_enabled = true;
+    model.self_collision_count_intersections = sc.count_intersections;
+    SelfCollisionSettings& set = model.self_collision;
+    set.thickness_m = sc.thickness_m;
+    set.method = sc.method;
+    set.iterations = sc.iterations;
+    set.friction = sc.friction;
+    set.fail_safe = sc.fail_safe;
+    // Bridson et al. 2002 §7.2 take the repulsion spring's k from the cloth's stretch stiffness.
+    set.repulsion_stiffness_N_per_m = sc.repulsion_stiffness_N_per_m.value_or(
+        cs.structural ? cs.structural->stiffness_N_per_m : 1.0);
+  }
   const int32_t n = model.num_particles();
 
   // Rest places and uniform masses (001 §6.1: the cloth's mass is divided uniformly).
@@ -675,6 +700,10 @@ ClothState MakeClothState(const ClothModel& model) {
   }
   // Pins start where their script puts them at t = 0; that is the first good state.
   ApplyPins(model, 0.0, &state);
+  if (model.self_collision_enabled) {
+    s.self_collision.emplace(model.triangles, state.x, model.inv_mass_per_kg, model.self_collision);
+    if (model.self_collision_count_intersections) state.counters.self_intersections_max = 0;
+  }
   s.good_x = state.x;
   s.good_v = state.v;
   return state;

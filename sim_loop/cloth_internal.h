@@ -6,9 +6,11 @@
 #include <Eigen/SparseCore>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
+#include "collision/self_response.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_coupling.h"
 
@@ -30,6 +32,8 @@ struct ClothState::Scratch {
   std::vector<Vec3> kv_sum;      ///< RK4: weighted sum of velocity slopes
   std::vector<Vec3> x_start;     ///< positions at the start of the substep (obstacle sweeps)
   CouplingSprings coupling;      ///< contact springs of this frame (fixed capacity)
+  /// Self-collision response (collision/self_response.h), built only with [self_collision].
+  std::optional<SelfCollisionResponse> self_collision;
   /// [12 SoaStride(n)] structure-of-arrays work space of the force kernel: x, y, z, vx, vy, vz,
   /// then the force fx, fy, fz, then one spring family's forces (cloth_forces.cc).
   std::vector<double> soa;
@@ -113,6 +117,15 @@ void ApplyPins(const ClothModel& model, double t_s, ClothState* state);
 /// basic Verlet's previous position is re-derived from the corrected velocity so the two stay
 /// consistent; leapfrog restarts the particle from it at the next substep (scratch.restart).
 void SyncVerletHistory(const ClothModel& model, int32_t particle, double h_s, ClothState* state);
+
+/// Runs the self-collision response on the substep just taken (length h_s) and adds its counts to
+/// state->counters and *result (sim_loop/cloth_self_collision.cc). Real-time safe.
+void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* state,
+                        FrameResult* result);
+
+/// The exact count of intersecting non-adjacent triangle pairs at the frame's end into
+/// result->self_intersections and counters.self_intersections_max (O(T^2); opt-in diagnostic).
+void CountFrameIntersections(const ClothModel& model, ClothState* state, FrameResult* result);
 
 /// Builds the implicit Euler matrix pattern and offsets in `scratch` (once, in MakeClothState).
 void BuildImplicitPattern(const ClothModel& model, ClothState::Scratch* scratch);

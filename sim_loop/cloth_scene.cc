@@ -242,6 +242,31 @@ ProvotSpec ParseProvot(const SceneTable& table) {
   return spec;
 }
 
+SelfCollisionSpec ParseSelfCollision(const SceneTable& table, const ClothSpec& cloth) {
+  table.ExpectKeys({"thickness_m", "method", "iterations", "friction", "fail_safe",
+                    "repulsion_stiffness_N_per_m", "count_intersections"});
+  SelfCollisionSpec spec;
+  spec.thickness_m = table.Number("thickness_m", spec.thickness_m, Positive());
+  // Thicker than half the spacing, a flat cloth's own non-adjacent primitives would repel.
+  if (spec.thickness_m >= 0.5 * cloth.spacing_m) {
+    table.Fail("thickness_m",
+               "must be < cloth.spacing_m / 2 = " + FormatSceneNumber(0.5 * cloth.spacing_m) +
+                   " m, got " + FormatSceneNumber(spec.thickness_m));
+  }
+  static constexpr std::array<NamedValue<SelfCullingMethod>, 2> kMethods = {
+      {{"spatial_hash", SelfCullingMethod::kSpatialHash}, {"bvh", SelfCullingMethod::kBvh}}};
+  spec.method = table.Choice<SelfCullingMethod>("method", spec.method, kMethods);
+  spec.iterations = table.Integer("iterations", spec.iterations, InRange(0, 100));
+  spec.friction = table.Number("friction", spec.friction, AtLeast(0.0));
+  spec.fail_safe = table.Bool("fail_safe", spec.fail_safe);
+  if (table.Node("repulsion_stiffness_N_per_m")) {
+    spec.repulsion_stiffness_N_per_m =
+        table.Number("repulsion_stiffness_N_per_m", 0.0, AtLeast(0.0));
+  }
+  spec.count_intersections = table.Bool("count_intersections", spec.count_intersections);
+  return spec;
+}
+
 }  // namespace
 
 SimSpec ParseSimSpec(const SceneDocument& doc) {
@@ -262,6 +287,10 @@ SimSpec ParseSimSpec(const SceneDocument& doc) {
   }
   if (const std::optional<SceneTable> provot = SceneTable::Section(doc, "provot")) {
     spec.provot = ParseProvot(*provot);
+  }
+  // Self-collision: built only when declared.
+  if (const std::optional<SceneTable> self = SceneTable::Section(doc, "self_collision")) {
+    spec.self_collision = ParseSelfCollision(*self, spec.cloth);
   }
   return spec;
 }

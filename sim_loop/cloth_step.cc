@@ -71,7 +71,9 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   const bool obstacles = !model.obstacles.empty();
   const bool provot = model.provot_enabled && !model.provot_families.empty();
   const double t0 = state->time_s;
+  SelfCollisionResponse* self = s.self_collision ? &*s.self_collision : nullptr;
   for (int32_t k = 0; k < substeps; ++k) {
+    if (self) self->BeginStep(state->x);  // self-collision: the substep's start positions
     // Integrate, then constrain: Provot (000 slide 9), obstacles, pins at the substep's end time.
     if (obstacles) std::copy(state->x.begin(), state->x.end(), s.x_start.begin());
     if (k > 0) AdvanceCouplingSprings(k * h, &s.coupling);  // predicted hands (zero: held)
@@ -79,6 +81,9 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
     if (provot) ApplyProvot(model, h, state);
     if (obstacles) ApplyObstacles(model, h, state);
     ApplyPins(model, t0 + (k + 1) * h, state);
+    // Self-collision (issue 22) on the substep's whole motion x_before -> x, after every other
+    // constraint (collision/self_response.h; sim_loop/cloth_self_collision.cc).
+    if (self) ApplySelfCollision(h, self, state, &result);
   }
   state->time_s = t0 + dt;
 
@@ -101,6 +106,9 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
     state->time_s = s.good_time_s;
     s.history_valid = false;
     result.recovered = true;
+  }
+  if (self && model.self_collision_count_intersections) {
+    CountFrameIntersections(model, state, &result);
   }
   ComputeVertexNormals(state->x, model.triangles, state->normals);
   ++state->counters.frames;

@@ -217,5 +217,19 @@ TEST(BenchSmoke, LoopsOneSecondWritesTheIssueKeys) {
   EXPECT_EQ(outcome.output.find("\nnormal "), std::string::npos) << outcome.output;
 }
 
+// Issue 22's self-collision bench on one small grid: the files and the JSON keys the issue names.
+TEST(BenchSmoke, SelfCollisionQuickWritesItsFiles) {
+  const std::string dir = FreshDir("felt_bench_self_collision");
+  const std::string json = dir + "/self_collision.json";
+  const Outcome outcome = RunFelt("bench self-collision --quick --out " + dir + " --json " + json +
+                                  " --scene " + kSource + "/scenes/self_fold_drop.toml");
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  ExpectKeys(ReadFile(json), {"command", "machine", "rows", "method", "case", "triangles",
+                              "frame_ms_median", "intersections_end_of_frame"});
+  const std::string md = ReadFile(dir + "/self_collision.md");
+  EXPECT_NE(md.find("| bvh | 16 |"), std::string::npos) << md;
+  EXPECT_EQ(ReadFile(dir + "/self_collision.csv").rfind("# felt bench self-collision", 0), 0u);
+}
+
 }  // namespace
 }  // namespace felt::test

@@ -366,7 +366,8 @@ TEST(SceneFileErrors, UnknownKey) {
 TEST(SceneFileErrors, UnknownSection) {
   EXPECT_EQ(ErrorOf("[clth]\nwidth = 3\n"),
             "t.toml:1:2: unknown section [clth] (did you mean [cloth]?); known sections: scene, "
-            "cloth, obstacles, integration, provot, device, devices, proxy, haptic, transport");
+            "cloth, obstacles, integration, provot, self_collision, device, devices, proxy, haptic, "
+            "transport");
   EXPECT_EQ(ErrorOf("name = \"x\"\n[cloth]\n"),
             "t.toml:1:1: unknown top-level key 'name'; every setting belongs in a section such "
             "as [scene] or [cloth]");

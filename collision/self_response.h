@@ -1,0 +1,150 @@
+#pragma once
+// Self-collision response of a cloth over one substep (issue 22; Bridson, Fedkiw & Anderson 2002,
+// "Robust treatment of collisions, contact and friction for cloth animation",
+// 003_b6c1450a5a1611e7.txt). The integrator (and Provot's constraints, obstacles, pins) has moved
+// the cloth x_before -> x over a substep of length h; the response treats v_avg = (x - x_before) /
+// h as each particle's candidate velocity and corrects it in three stages:
+//  1. proximity repulsion (Bridson §7.2): every vertex-triangle and edge-edge pair closer than the
+//     thickness at x_before gets an inelastic impulse (its approach velocity removed) and a spring
+//     impulse min(h k d, m (0.1 d / h - v_N)) with d the overlap, plus Coulomb friction (§7.3);
+//  2. continuous collisions (Bridson §7.4): the exact CCD of collision/ccd.h over x_before ->
+//     x_before + h v_avg, culled by a broad phase of collision/self_broadphase.h; each colliding
+//     pair gets an inelastic impulse with friction, and detection is repeated up to `iterations`
+//     times while collisions remain;
+//  3. the fail-safe, rigid impact zones (Provot 1997; Bridson §7.4): the vertices of every
+//     remaining collision are merged into zones (union-find) which move rigidly, with the
+//     momentum-preserving linear and angular velocity of their vertices, detection is repeated and
+//     zones merged until no collision remains (at most max_zone_iterations rounds, then every free
+//     vertex of a zone keeps its x_before: see SelfCollisionStats::frozen).
+// Why a zone cannot collide with itself: its free vertices move by x_before + h (v_cm + w x r),
+// an affine map I + t h [w]x of the start positions along the substep, whose singular values are
+// all >= 1 and determinant > 0: no quadruple of the zone that is not coplanar at t = 0 becomes
+// coplanar, and no distance shrinks. A zone holding a pinned particle (infinite mass) moves with
+// the mean velocity of its pins (exact for fixed pins and for pins translating together).
+// Since x_before holds no intersection, a substep whose final motion has no CCD collision ends
+// without a new intersection (a new intersection needs a contact, i.e. a coplanar time at
+// distance 0, which the CCD never misses).
+//
+// Velocities are changed the way Provot's constraints change them in sim_loop (v += dx / h): the
+// particle's position moves by dx = h dv_avg and its velocity by dv_avg. Pinned particles
+// (inverse mass 0) never move. Allocation only at construction; Resolve is real-time safe.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "collision/ccd_all_pairs.h"
+#include "collision/mesh.h"
+#include "collision/self_broadphase.h"
+
+namespace felt {
+
+/// The broad phases a scene may choose (collision/self_broadphase.h).
+enum class SelfCullingMethod : uint8_t {
+  kSpatialHash,  ///< SelfSpatialHash (Teschner et al. 2003)
+  kBvh,          ///< SelfBvh (AABB tree self-traversal)
+};
+
+/// Settings of the response (SelfCollisionSpec in sim_loop/cloth_spec.h, validated).
+struct SelfCollisionSettings {
+  double thickness_m = 0.002;  ///< cloth thickness h: primitives are kept this far apart, m (> 0)
+  SelfCullingMethod method = SelfCullingMethod::kBvh;  ///< broad phase (measured cheaper)
+  int32_t iterations = 4;  ///< CCD impulse rounds per substep before the fail-safe (>= 0)
+  double friction = 0.1;   ///< Coulomb coefficient mu between layers (>= 0)
+  bool fail_safe = true;   ///< rigid impact zones after the impulse rounds
+  /// Spring constant of the repulsion (Bridson §7.2's k), N/m (>= 0; 0 turns the spring off).
+  double repulsion_stiffness_N_per_m = 1.0;
+  int32_t max_zone_iterations = 64;  ///< fail-safe merge rounds before freezing the zones (>= 1)
+  /// The continuous test's thickness as a fraction of thickness_m (in (0, 1]): a collision is a
+  /// coplanar time within this distance. Smaller than the cloth's thickness, so that layers the
+  /// repulsion holds about thickness_m apart (parallel edges of a fold lying flat are coplanar
+  /// at every time) are not collisions; any contact (distance 0) still is (Bridson et al. 2002
+  /// run the collision pass with a smaller proximity than the repulsion's).
+  double ccd_thickness_fraction = 0.1;
+};
+
+/// What one Resolve call did.
+struct SelfCollisionStats {
+  int64_t proximity_pairs = 0;     ///< pairs closer than the thickness at x_before
+  int64_t proximity_impulses = 0;  ///< of those, pairs whose velocity was changed
+  int64_t ccd_hits = 0;            ///< colliding pairs found by the first CCD pass
+  int64_t ccd_impulses = 0;        ///< inelastic impulses applied over the CCD rounds
+  int32_t ccd_rounds = 0;          ///< CCD detections run before the fail-safe
+  int32_t zone_rounds = 0;         ///< fail-safe detections run
+  int64_t impact_zones = 0;        ///< distinct impact zones at the end of the fail-safe
+  int64_t zone_vertices = 0;       ///< vertices in impact zones
+  bool frozen = false;             ///< the zones did not settle: their free vertices kept x_before
+  /// Collisions left after everything (only when the fail-safe is off, or frozen zones met moving
+  /// pins): the substep may end with a new intersection.
+  int64_t unresolved = 0;
+  int64_t overflows = 0;  ///< detections whose candidate or hit buffer overflowed (then fail-safe)
+};
+
+/// The response of one cloth mesh. Copyable (a copy owns its own buffers); not thread-safe.
+class SelfCollisionResponse {
+ public:
+  /// Sizes every buffer for the mesh (triangles over inv_mass.size() particles, rest positions x
+  /// [m] for the broad phase's cell size). inv_mass [1/kg], 0 for a pinned particle. Throws
+  /// std::invalid_argument on a bad setting or index.
+  SelfCollisionResponse(std::span<const Triangle> triangles, std::span<const Vec3> x,
+                        std::span<const double> inv_mass, const SelfCollisionSettings& settings);
+
+  /// Remembers x as the substep's start positions x_before [m]. Real-time safe.
+  void BeginStep(std::span<const Vec3> x);
+
+  /// Corrects the substep x_before -> x of length h_s [s]: positions x [m] and velocities v [m/s]
+  /// of free particles change by dx and dx / h_s. Real-time safe.
+  SelfCollisionStats Resolve(double h_s, std::span<Vec3> x, std::span<Vec3> v);
+
+  /// The substep's start positions (from BeginStep) [m].
+  std::span<const Vec3> x_before() const { return x_before_; }
+  const SelfCollisionSettings& settings() const { return settings_; }
+
+ private:
+  SelfBroadPhase* Broad();
+  int64_t Detect(std::span<const Vec3> x1, SelfCollisionStats* stats);
+  void Proximity(double h_s, SelfCollisionStats* stats);
+  bool ApplyPairImpulse(const std::array<int32_t, 4>& vid, const std::array<double, 4>& w,
+                        const Vec3& dv);
+  void SetVelocity(int32_t p, const Vec3& vel);
+  void FlushTrial(double h_s);
+  int32_t Find(int32_t p);
+  void Union(int32_t a, int32_t b);
+  void RigidZones(double h_s, SelfCollisionStats* stats);
+
+  SelfCollisionSettings settings_;
+  std::vector<Triangle> triangles_;
+  std::vector<double> inv_mass_;
+  std::optional<SelfSpatialHash> hash_;
+  std::optional<SelfBvh> bvh_;
+  std::vector<CcdPairHit> hits_;  ///< capacity fixed at construction
+  std::vector<Vec3> x_before_;    ///< [n] substep start
+  std::vector<Vec3> candidates_end_;   ///< [n] x1 of the last detection (its candidates cover it)
+  bool candidates_end_valid_ = false;  ///< the broad phase holds that detection's candidates
+  std::vector<Vec3> x_trial_;     ///< [n] x_before + h vel (exactly x where vel is untouched)
+  std::vector<Vec3> vel_;         ///< [n] candidate average velocity of the substep, m/s
+  std::vector<uint8_t> dirty_;    ///< [n] 1 if vel_ changed since x_trial_ was updated
+  std::vector<int32_t> dirty_list_;
+  // Impact zones (union-find over vertices) and their per-root sums.
+  std::vector<int32_t> parent_;
+  std::vector<uint8_t> in_zone_;
+  std::vector<int32_t> zone_list_;  ///< vertices in some zone, in the order they joined
+  std::vector<double> zone_mass_;
+  std::vector<Vec3> zone_mx_, zone_mv_, zone_l_, zone_pin_v_, zone_omega_;
+  std::vector<Eigen::Matrix3d> zone_inertia_;
+  std::vector<int32_t> zone_pins_;
+  std::vector<int32_t> zone_stamp_;
+  int32_t stamp_ = 0;
+  double particle_mass_kg_ = 0.0;  ///< mass of a free particle for the spring impulse, kg
+};
+
+/// Parses a culling method name ("spatial_hash", "bvh"); nullopt for any other.
+std::optional<SelfCullingMethod> SelfCullingMethodFromName(std::string_view name);
+
+/// The name of a culling method ("spatial_hash" or "bvh").
+std::string_view SelfCullingMethodName(SelfCullingMethod method);
+
+}  // namespace felt

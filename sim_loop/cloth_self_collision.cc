@@ -1,0 +1,41 @@
+// The cloth step's self-collision hook (issue 22): the response of collision/self_response.h on
+// each substep, and the opt-in exact intersection count at the end of a frame.
+
+#include <algorithm>
+#include <chrono>
+
+#include "collision/self_intersection.h"
+#include "sim_loop/cloth.h"
+#include "sim_loop/cloth_internal.h"
+
+namespace felt {
+
+void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* state,
+                        FrameResult* result) {
+  const auto start = std::chrono::steady_clock::now();
+  const SelfCollisionStats st = self->Resolve(h_s, state->x, state->v);
+  result->self_collision_s +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ClothCounters& c = state->counters;
+  const int64_t impulses = st.proximity_impulses + st.ccd_impulses;
+  c.self_proximity_pairs += static_cast<uint64_t>(st.proximity_pairs);
+  c.self_impulses += static_cast<uint64_t>(impulses);
+  c.self_ccd_hits += static_cast<uint64_t>(st.ccd_hits);
+  c.self_impact_zones += static_cast<uint64_t>(st.impact_zones);
+  c.self_frozen_substeps += st.frozen ? 1 : 0;
+  c.self_unresolved_substeps += st.unresolved > 0 ? 1 : 0;
+  c.self_overflows += static_cast<uint64_t>(st.overflows);
+  result->self_proximity_pairs += st.proximity_pairs;
+  result->self_impulses += impulses;
+  result->self_ccd_hits += st.ccd_hits;
+  result->self_impact_zones += st.impact_zones;
+  result->self_unresolved += st.unresolved;
+}
+
+void CountFrameIntersections(const ClothModel& model, ClothState* state, FrameResult* result) {
+  const int64_t count = CountSelfIntersections(state->x, model.triangles);
+  result->self_intersections = count;
+  state->counters.self_intersections_max = std::max(state->counters.self_intersections_max, count);
+}
+
+}  // namespace felt
