@@ -24,6 +24,7 @@
 #include "rt/loop_stats.h"
 #include "rt/realtime.h"
 #include "server/server_spec.h"
+#include "server/view_tap.h"
 #include "sim_loop/sim_frame.h"
 
 namespace felt {
@@ -151,6 +152,13 @@ class Server : NonCopyable {
   /// Total reaction impulse the sim has applied to the cloth, N s (any thread).
   double applied_impulse_N_s() const { return sim_.counters().applied_impulse_N_s.load(); }
 
+  /// Makes the loops publish the cloth (each frame) and the devices (each tick) into a tap for
+  /// one observer thread (server/view_tap.h, the live view) and returns it; idempotent. Call
+  /// before Start or while driving the loops yourself (set-up: allocates). Lives with the server.
+  ViewTap* EnableViewTap();
+  /// The tap (null unless EnableViewTap was called). Its read sides belong to one observer thread.
+  ViewTap* view_tap() const { return view_tap_.get(); }
+
  private:
   void HapticThread();
   void SimThread();
@@ -169,6 +177,7 @@ class Server : NonCopyable {
   SimLoop sim_;
   HapticLoop haptic_;
   std::atomic<int64_t> stall_request_ns_{0};
+  std::unique_ptr<ViewTap> view_tap_;  // null unless EnableViewTap (written before the threads)
 
   // Threads and their real-time outcome (written before `*_ready_`, read after).
   std::atomic<bool> stop_{false};
