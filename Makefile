@@ -2,12 +2,15 @@
 SHELL := /bin/bash
 .DEFAULT_GOAL := run
 
-# Debian packages the build, tests and plots need. libbullet-dev: Bullet's btSoftBody, the peer
+# Debian packages the build, tests and plots need. libcivetweb-dev: the live view's HTTP and
+# WebSocket server; libjs-three: three.js r111, which the view serves (docs/view.md); chromium and
+# libpng-dev: the view's browser test (headless screenshots, decoded in the test). libbullet-dev: Bullet's btSoftBody, the peer
 # of `felt bench cloth --tradeoff` only (Felt's libraries never link it; without it the bench skips
 # its Bullet rows).
 PACKAGES := cmake ninja-build g++ gcc make pkg-config libeigen3-dev cyclonedds-dev \
             cyclonedds-tools libddsc0debian libspdlog-dev libcli11-dev libtomlplusplus-dev \
-            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev
+            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev \
+            libcivetweb-dev libjs-three libpng-dev chromium
 JOBS ?= $(shell nproc)
 BUILD ?= build
 CMAKE_FLAGS ?=
@@ -72,9 +75,9 @@ test-asan: deps
 test-tsan: deps
 	@echo "== make test-tsan: start $$(date -u +%H:%M:%S)"
 	cmake -S . -B $(BUILD)-tsan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=thread \
-	  "-DFELT_TEST_MODULES=rt;haptic_loop;server;transport" $(CMAKE_FLAGS)
+	  "-DFELT_TEST_MODULES=rt;haptic_loop;server;transport;view" $(CMAKE_FLAGS)
 	cmake --build $(BUILD)-tsan -j $(JOBS) --target felt_rt_tests felt_haptic_loop_tests felt_server_tests \
-	  felt_transport_tests
+	  felt_transport_tests felt_view_tests
 	cd $(BUILD)-tsan && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$(CURDIR)/tests/transport/tsan.supp" \
 	  FELT_SANITIZER=thread ctest --output-on-failure -j $(JOBS)
 
