@@ -45,9 +45,12 @@ build: deps $(BUILD)/build.ninja
 
 # The demo: the server and a replay of a bundled trace over loopback DDS for about ten seconds,
 # then a short summary (docs/replay.md). Thresholds are reported, not enforced (--report-only).
+# VIEW_PORT=8080 make run: the server also serves the live 3-D view (docs/view.md) during the run.
 run: build
+	@echo "make run: to watch it live, run VIEW_PORT=8080 make run and open http://127.0.0.1:8080/"
+	@echo "          (or: ./$(BUILD)/felt view --scene $(SCENE) --trace recordings/poke_hold.trace --port 8080)"
 	./$(BUILD)/felt soak --minutes 0.17 --scene $(SCENE) --trace recordings/poke_hold.trace \
-	  --report-only
+	  --report-only $(if $(VIEW_PORT),--view $(VIEW_PORT))
 
 # Every test: the release build, then ASan+UBSan on everything, then TSan on threaded code.
 test: deps test-release test-asan test-tsan

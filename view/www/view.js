@@ -16,6 +16,7 @@
   const container = document.getElementById('scene');
   const statusEl = document.getElementById('status');
   const stretchBox = document.getElementById('stretch');
+  if (/[?&]stretch=1/.test(location.search)) stretchBox.checked = true;  // ?stretch=1
   const renderer = new THREE.WebGLRenderer({antialias: true, preserveDrawingBuffer: true});
   renderer.setPixelRatio(window.devicePixelRatio || 1);
   renderer.setSize(window.innerWidth, window.innerHeight);
