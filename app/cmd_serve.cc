@@ -1,8 +1,9 @@
 // `felt serve --scene FILE [--duration S] [--stats-json FILE] [--trace FILE] [--domain N]
-// [--dds-config FILE] [--view PORT [--view-bind ADDR]] [--no-realtime]`: the real-time server (issue 5, docs/server.md). Devices
-// connect over the DDS transport (issue 6, docs/transport.md) unless --trace replays a pointer
-// trace in-process to every device of the scene. SIGINT/SIGTERM stop it cleanly: a signal-safe
-// flag, the loops stop, the final statistics are printed and spdlog is flushed.
+// [--dds-config FILE] [--view PORT [--view-bind ADDR]] [--no-realtime]`: the real-time server
+// (issue 5, docs/server.md). Devices connect over the DDS transport (issue 6, docs/transport.md)
+// unless --trace replays a pointer trace in-process to every device of the scene. SIGINT/SIGTERM
+// stop it cleanly: a signal-safe flag, the loops stop, the final statistics are printed and spdlog
+// is flushed.
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 

@@ -69,7 +69,8 @@ int Play(const ViewArgs& args) {
   const auto wall0 = std::chrono::steady_clock::now();
   int64_t frame = 1;
   for (int64_t tick = 1; !StopRequested().load(); ++tick) {
-    const auto tick_ns = static_cast<int64_t>(std::llround(static_cast<double>(tick) * 1e9 / tick_hz));
+    const auto tick_ns =
+        static_cast<int64_t>(std::llround(static_cast<double>(tick) * 1e9 / tick_hz));
     if (static_cast<double>(tick_ns) * 1e-9 > length_s) break;
     for (;;) {
       const auto frame_ns =
@@ -81,9 +82,8 @@ int Play(const ViewArgs& args) {
     server.HapticTick(kLockstepEpochNs + tick_ns, 1.0 / tick_hz);
     // Paced to the wall clock (every 4 ticks: a sleep per 1 ms tick costs more than it gains).
     if (tick % 4 == 0) {
-      std::this_thread::sleep_until(
-          wall0 + std::chrono::nanoseconds(
-                      static_cast<int64_t>(static_cast<double>(tick_ns) / args.speed)));
+      std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(static_cast<int64_t>(
+                                                static_cast<double>(tick_ns) / args.speed)));
     }
   }
   std::printf("felt view: trace played (%.2f s)%s\n", length_s,

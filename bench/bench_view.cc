@@ -151,7 +151,8 @@ std::vector<PhaseRow> RunGrid(const Args& args, int grid) {
       const uint64_t bytes_a = viewer ? viewer->bytes() : 0;
       const uint64_t sent_a = view->stats().frames_sent;
       const int64_t wall_a = MonotonicNowNs();
-      std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int64_t>(args.seconds * 1e3)));
+      std::this_thread::sleep_for(
+          std::chrono::milliseconds(static_cast<int64_t>(args.seconds * 1e3)));
       const std::unique_ptr<ServerReport> b = server->Report();
       const double seconds = static_cast<double>(MonotonicNowNs() - wall_a) * 1e-9;
       PhaseRow row;
@@ -163,15 +164,15 @@ std::vector<PhaseRow> RunGrid(const Args& args, int grid) {
       row.seconds = seconds;
       if (viewer) {
         row.viewer_bytes_per_s = static_cast<double>(viewer->bytes() - bytes_a) / seconds;
-        row.viewer_frames_per_s =
-            static_cast<double>(view->stats().frames_sent - sent_a) / seconds;
+        row.viewer_frames_per_s = static_cast<double>(view->stats().frames_sent - sent_a) / seconds;
       }
-      std::printf("grid %d round %d %-9s lateness p99 %.1f us max %.1f us, sim frame p50 %.2f ms "
-                  "p99 %.2f ms, viewer %.2f MB/s (%.1f frames/s, frame %zu B)\n",
-                  grid, round, with_viewer ? "viewer" : "no viewer",
-                  Us(row.haptic.lateness.PercentileNs(0.99)), Us(row.haptic.lateness.max_ns),
-                  Ms(row.sim.compute.PercentileNs(0.5)), Ms(row.sim.compute.PercentileNs(0.99)),
-                  row.viewer_bytes_per_s / 1e6, row.viewer_frames_per_s, frame_bytes);
+      std::printf(
+          "grid %d round %d %-9s lateness p99 %.1f us max %.1f us, sim frame p50 %.2f ms "
+          "p99 %.2f ms, viewer %.2f MB/s (%.1f frames/s, frame %zu B)\n",
+          grid, round, with_viewer ? "viewer" : "no viewer",
+          Us(row.haptic.lateness.PercentileNs(0.99)), Us(row.haptic.lateness.max_ns),
+          Ms(row.sim.compute.PercentileNs(0.5)), Ms(row.sim.compute.PercentileNs(0.99)),
+          row.viewer_bytes_per_s / 1e6, row.viewer_frames_per_s, frame_bytes);
       std::fflush(stdout);
       rows.push_back(std::move(row));
     }
@@ -193,10 +194,22 @@ int Run(const Args& args, const std::string& command) {
   for (int grid : grids) {
     for (PhaseRow& r : RunGrid(args, grid)) rows.push_back(std::move(r));
   }
-  const std::vector<std::string> header = {
-      "grid", "round", "viewer", "seconds", "haptic_ticks", "lateness_p50_us", "lateness_p99_us",
-      "lateness_p999_us", "lateness_max_us", "overruns", "sim_frames", "sim_frame_p50_ms",
-      "sim_frame_p99_ms", "sim_frame_max_ms", "viewer_MB_per_s", "viewer_frames_per_s"};
+  const std::vector<std::string> header = {"grid",
+                                           "round",
+                                           "viewer",
+                                           "seconds",
+                                           "haptic_ticks",
+                                           "lateness_p50_us",
+                                           "lateness_p99_us",
+                                           "lateness_p999_us",
+                                           "lateness_max_us",
+                                           "overruns",
+                                           "sim_frames",
+                                           "sim_frame_p50_ms",
+                                           "sim_frame_p99_ms",
+                                           "sim_frame_max_ms",
+                                           "viewer_MB_per_s",
+                                           "viewer_frames_per_s"};
   std::vector<std::vector<std::string>> cells;
   for (const PhaseRow& r : rows) {
     cells.push_back({std::to_string(r.grid), std::to_string(r.round), r.viewer ? "yes" : "no",
@@ -222,7 +235,8 @@ int Run(const Args& args, const std::string& command) {
 
 app::CommandRun Setup(CLI::App& cmd) {
   auto args = std::make_shared<Args>();
-  cmd.add_option("--scene", args->scene, "the curtain scene to resize (default scenes/curtain.toml)");
+  cmd.add_option("--scene", args->scene,
+                 "the curtain scene to resize (default scenes/curtain.toml)");
   cmd.add_option("--seconds", args->seconds, "seconds per phase (default 10)");
   cmd.add_option("--rounds", args->rounds, "rounds of (no viewer, viewer) per grid (default 2)");
   cmd.add_option("--grids", args->grids, "cloth grids, comma-separated (default 64,128)");
@@ -230,9 +244,9 @@ app::CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--csv", args->csv_path, "write the table as CSV here");
   return [args]() -> int {
     std::string line = "felt bench view";
-    for (const std::string& a : {std::string("--seconds ") + fmt::format("{}", args->seconds),
-                                 "--rounds " + std::to_string(args->rounds),
-                                 "--grids " + args->grids}) {
+    for (const std::string& a :
+         {std::string("--seconds ") + fmt::format("{}", args->seconds),
+          "--rounds " + std::to_string(args->rounds), "--grids " + args->grids}) {
       line += " " + a;
     }
     if (!args->md_path.empty()) line += " --md " + args->md_path;

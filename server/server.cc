@@ -149,6 +149,8 @@ void Server::HapticTick(int64_t now_ns, double dt_s) {
 
 ViewTap* Server::EnableViewTap() {
   if (view_tap_ == nullptr) {
+    // The loop threads read view_tap_ without synchronisation: it must exist before they start.
+    if (running_) throw std::logic_error("Server::EnableViewTap: call it before Start()");
     view_tap_ = std::make_unique<ViewTap>(model().num_particles(), haptic_.device_count());
     // The cloth as it is now (the rest state before Start), so a viewer has a cloth at once.
     ViewCloth& out = view_tap_->cloth.write_slot();

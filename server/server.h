@@ -154,7 +154,8 @@ class Server : NonCopyable {
 
   /// Makes the loops publish the cloth (each frame) and the devices (each tick) into a tap for
   /// one observer thread (server/view_tap.h, the live view) and returns it; idempotent. Call
-  /// before Start or while driving the loops yourself (set-up: allocates). Lives with the server.
+  /// before Start (throws std::logic_error after it) or while driving the loops yourself (set-up:
+  /// allocates). Lives with the server.
   ViewTap* EnableViewTap();
   /// The tap (null unless EnableViewTap was called). Its read sides belong to one observer thread.
   ViewTap* view_tap() const { return view_tap_.get(); }

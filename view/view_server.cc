@@ -28,10 +28,10 @@ struct ViewClient {
   mg_connection* conn = nullptr;
   std::mutex mu;  // the slot and the flags; view and sender threads only (never a loop's)
   std::condition_variable wake;
-  std::vector<uint8_t> slot;     // the newest frame offered, not yet taken
-  bool has_frame = false;        // `slot` holds a frame
-  bool closing = false;          // the connection is closing: the sender ends
-  size_t in_flight_bytes = 0;    // the frame the sender is writing now
+  std::vector<uint8_t> slot;   // the newest frame offered, not yet taken
+  bool has_frame = false;      // `slot` holds a frame
+  bool closing = false;        // the connection is closing: the sender ends
+  size_t in_flight_bytes = 0;  // the frame the sender is writing now
   std::thread sender;
 };
 
@@ -151,9 +151,9 @@ void PutF64(uint8_t* p, double v) { std::memcpy(p, &v, 8); }
 }  // namespace
 
 size_t ViewFrameBytes(int32_t particles, uint32_t devices) {
-  return kViewHeaderBytes + 4 * (3 * static_cast<size_t>(particles) +
-                                 static_cast<size_t>(devices) * kViewDeviceFloats +
-                                 kViewStatsFloats);
+  return kViewHeaderBytes +
+         4 * (3 * static_cast<size_t>(particles) +
+              static_cast<size_t>(devices) * kViewDeviceFloats + kViewStatsFloats);
 }
 
 std::string StaticJson(const Server& server) {
@@ -168,17 +168,16 @@ std::string StaticJson(const Server& server) {
   Json obstacles = Json::array();
   for (const ObstacleSpec& o : server.spec().sim.cloth.obstacles) {
     if (const auto* p = std::get_if<PlaneSpec>(&o.shape)) {
-      obstacles.push_back({{"type", "plane"}, {"point", vec(p->point_m)}, {"normal", vec(p->normal)}});
+      obstacles.push_back(
+          {{"type", "plane"}, {"point", vec(p->point_m)}, {"normal", vec(p->normal)}});
     } else if (const auto* s = std::get_if<SphereSpec>(&o.shape)) {
       obstacles.push_back(
           {{"type", "sphere"}, {"center", vec(s->center_m)}, {"radius", s->radius_m}});
     } else if (const auto* b = std::get_if<BoxSpec>(&o.shape)) {
       obstacles.push_back({{"type", "box"}, {"min", vec(b->min_m)}, {"max", vec(b->max_m)}});
     } else if (const auto* c = std::get_if<CapsuleSpec>(&o.shape)) {
-      obstacles.push_back({{"type", "capsule"},
-                           {"a", vec(c->a_m)},
-                           {"b", vec(c->b_m)},
-                           {"radius", c->radius_m}});
+      obstacles.push_back(
+          {{"type", "capsule"}, {"a", vec(c->a_m)}, {"b", vec(c->b_m)}, {"radius", c->radius_m}});
     }
   }
   Json devices = Json::array();
@@ -344,9 +343,9 @@ void ViewServer::Impl::SenderThread(ViewClient* c) {
     c->in_flight_bytes = sending.size();
     lock.unlock();
     // Blocks while the socket is full, at most request_timeout_ms (ViewOptions::send_timeout_ms).
-    const int written = mg_websocket_write(c->conn, MG_WEBSOCKET_OPCODE_BINARY,
-                                           reinterpret_cast<const char*>(sending.data()),
-                                           sending.size());
+    const int written =
+        mg_websocket_write(c->conn, MG_WEBSOCKET_OPCODE_BINARY,
+                           reinterpret_cast<const char*>(sending.data()), sending.size());
     lock.lock();
     c->in_flight_bytes = 0;
     if (written <= 0) {

@@ -42,10 +42,10 @@ size_t ViewFrameBytes(int32_t particles, uint32_t devices);
 
 /// How the view serves.
 struct ViewOptions {
-  uint16_t port = 0;                  ///< TCP port; 0 picks a free one (see ViewServer::port)
-  std::string bind = "127.0.0.1";     ///< address to listen on ("0.0.0.0": every interface)
-  double rate_hz = 60.0;              ///< frames per second at most, > 0
-  std::string www_dir;                ///< the page's files ("" = this source tree's view/www)
+  uint16_t port = 0;               ///< TCP port; 0 picks a free one (see ViewServer::port)
+  std::string bind = "127.0.0.1";  ///< address to listen on ("0.0.0.0": every interface)
+  double rate_hz = 60.0;           ///< frames per second at most, > 0
+  std::string www_dir;             ///< the page's files ("" = this source tree's view/www)
   std::string three_dir = "/usr/share/javascript/three";  ///< Debian's libjs-three
   int send_timeout_ms = 2000;  ///< a write blocked this long gives the client up (closes it)
   int max_clients = 8;         ///< WebSocket clients at once (each holds a civetweb worker)
@@ -53,15 +53,15 @@ struct ViewOptions {
 
 /// The view's counters (any thread).
 struct ViewStats {
-  uint64_t frames_built = 0;     ///< frames built by the view thread
-  uint64_t frames_sent = 0;      ///< frames written to clients (all clients)
-  uint64_t frames_dropped = 0;   ///< frames replaced in a client's slot before it was taken
-  uint64_t bytes_sent = 0;       ///< bytes written to clients (all clients, frames and JSON)
-  uint64_t clients = 0;          ///< clients connected now
-  uint64_t clients_total = 0;    ///< clients ever accepted
-  uint64_t clients_given_up = 0; ///< clients whose write failed or timed out
-  uint64_t queued_bytes = 0;     ///< bytes held for clients now (slots + frames being written)
-  uint64_t max_queued_bytes = 0; ///< the most queued_bytes seen
+  uint64_t frames_built = 0;      ///< frames built by the view thread
+  uint64_t frames_sent = 0;       ///< frames written to clients (all clients)
+  uint64_t frames_dropped = 0;    ///< frames replaced in a client's slot before it was taken
+  uint64_t bytes_sent = 0;        ///< bytes written to clients (all clients, frames and JSON)
+  uint64_t clients = 0;           ///< clients connected now
+  uint64_t clients_total = 0;     ///< clients ever accepted
+  uint64_t clients_given_up = 0;  ///< clients whose write failed or timed out
+  uint64_t queued_bytes = 0;      ///< bytes held for clients now (slots + frames being written)
+  uint64_t max_queued_bytes = 0;  ///< the most queued_bytes seen
 };
 
 /// The static scene as the page receives it on connect (JSON): cloth size, triangles, rest

@@ -87,12 +87,12 @@ PixelCount CountIn(const RgbImage& img, int x0, int y0, int x1, int y1, Pred&& p
 std::string Screenshot(const std::string& url, const std::string& png, const std::string& profile) {
   SpawnOptions options;
   options.output = SpawnOptions::Output::kPipe;
-  Process p = Process::Spawn({kChromium, "--headless=new", "--no-sandbox", "--disable-gpu",
-                              "--no-first-run", "--user-data-dir=" + profile,
-                              "--window-size=" + std::to_string(kShotWidth) + "," +
-                                  std::to_string(kShotHeight),
-                              "--virtual-time-budget=3000", "--screenshot=" + png, url},
-                             options);
+  Process p = Process::Spawn(
+      {kChromium, "--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run",
+       "--user-data-dir=" + profile,
+       "--window-size=" + std::to_string(kShotWidth) + "," + std::to_string(kShotHeight),
+       "--virtual-time-budget=3000", "--screenshot=" + png, url},
+      options);
   std::string out;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
   while (!p.Wait(std::chrono::milliseconds(100))) {

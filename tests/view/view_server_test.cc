@@ -1,15 +1,16 @@
 // The live view's server (view/view_server.h): the page and three.js over HTTP, the static scene
 // as JSON on connect, and binary frames that carry exactly the server's cloth and devices.
+#include "view/view_server.h"
+
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <cstring>
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "server/server.h"
 #include "tests/server/server_test_util.h"
 #include "tests/view/view_test_util.h"
-#include "view/view_server.h"
 
 namespace felt {
 namespace {

@@ -84,15 +84,16 @@ TEST(ViewSlowClient, AStalledClientCostsTheLoopsNothing) {
   const LoopStatsSnapshot with = r2->haptic.Minus(r1->haptic);
   const double p99_without_us = static_cast<double>(without.lateness.PercentileNs(0.99)) * 1e-3;
   const double p99_with_us = static_cast<double>(with.lateness.PercentileNs(0.99)) * 1e-3;
-  std::printf("haptic lateness p99: %.0f us without the client, %.0f us with it stalled; "
-              "view: %llu frames sent, %llu dropped, given up %llu, max queued %llu B "
-              "(frame %zu B); RSS %+.1f MB after connecting, %+.1f MB while stalled\n",
-              p99_without_us, p99_with_us, static_cast<unsigned long long>(vs.frames_sent),
-              static_cast<unsigned long long>(vs.frames_dropped),
-              static_cast<unsigned long long>(vs.clients_given_up),
-              static_cast<unsigned long long>(vs.max_queued_bytes), frame_bytes,
-              static_cast<double>(rss_stalled - rss_before) / 1e6,
-              static_cast<double>(rss_after - rss_stalled) / 1e6);
+  std::printf(
+      "haptic lateness p99: %.0f us without the client, %.0f us with it stalled; "
+      "view: %llu frames sent, %llu dropped, given up %llu, max queued %llu B "
+      "(frame %zu B); RSS %+.1f MB after connecting, %+.1f MB while stalled\n",
+      p99_without_us, p99_with_us, static_cast<unsigned long long>(vs.frames_sent),
+      static_cast<unsigned long long>(vs.frames_dropped),
+      static_cast<unsigned long long>(vs.clients_given_up),
+      static_cast<unsigned long long>(vs.max_queued_bytes), frame_bytes,
+      static_cast<double>(rss_stalled - rss_before) / 1e6,
+      static_cast<double>(rss_after - rss_stalled) / 1e6);
 
   EXPECT_EQ(vs.clients_total, 1u);
   // The client stalled: frames were replaced in its slot, or its writes timed out.

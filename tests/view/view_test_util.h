@@ -69,10 +69,11 @@ inline std::string RecvHead(int fd) {
 inline int ConnectWebSocket(uint16_t port, const std::string& path = "/ws") {
   const int fd = ConnectLocal(port);
   if (fd < 0) return -1;
-  const std::string request = "GET " + path +
-                              " HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
-                              "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                              "Sec-WebSocket-Version: 13\r\n\r\n";
+  const std::string request =
+      "GET " + path +
+      " HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
+      "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+      "Sec-WebSocket-Version: 13\r\n\r\n";
   if (!SendAll(fd, request) || RecvHead(fd).find(" 101 ") == std::string::npos) {
     close(fd);
     return -1;
