@@ -33,8 +33,9 @@ int64_t ViewRssBytes() {
 TEST(ViewSlowClient, AStalledClientCostsTheLoopsNothing) {
   const bool sanitized = testing::Sanitized();
   ServerSpec spec = testing_server::SmallCurtain();
-  // 64 x 64 (48 kB frames, ~3 MB/s): the socket's buffers fill within a second or two.
-  const int32_t side = sanitized ? 32 : 64;
+  // 64 x 64 (48 kB frames, ~3 MB/s): the socket's buffers fill within a second or two (at 32 x 32
+  // the kernel's buffers took a whole 2 s phase under TSan without filling).
+  const int32_t side = 64;
   spec.sim.cloth.width = side;
   spec.sim.cloth.height = side;
   spec.sim.cloth.spacing_m = 0.496 / (side - 1);
@@ -50,17 +51,16 @@ TEST(ViewSlowClient, AStalledClientCostsTheLoopsNothing) {
   const size_t frame_bytes = ViewFrameBytes(server.model().num_particles(), 1);
   server.Start();
 
-  const auto phase = std::chrono::milliseconds(sanitized ? 2000 : 3000);
+  const auto phase = std::chrono::milliseconds(3000);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // start-up out of both windows
   const std::unique_ptr<ServerReport> r0 = server.Report();
   std::this_thread::sleep_for(phase);
   const std::unique_ptr<ServerReport> r1 = server.Report();
   const int64_t rss_before = ViewRssBytes();
 
-  const int fd = testing_view::ConnectWebSocket(view.port());
+  // A small receive buffer, set before connecting: the stall shows sooner.
+  const int fd = testing_view::ConnectWebSocket(view.port(), "/ws", 4096);
   ASSERT_GE(fd, 0);
-  const int small = 4096;  // a small receive buffer: the stall shows sooner
-  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof(small));
   uint64_t max_queued = 0;
   // The process's size once the connection's one-time costs are paid (its thread, its buffers)
   // and the socket is full: from then on a stalled client must not make it grow.

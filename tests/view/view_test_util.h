@@ -14,10 +14,14 @@
 
 namespace felt::testing_view {
 
-/// A TCP connection to 127.0.0.1:`port` with `timeout_ms` on reads (-1 when it fails).
-inline int ConnectLocal(uint16_t port, int timeout_ms = 5000) {
+/// A TCP connection to 127.0.0.1:`port` with `timeout_ms` on reads (-1 when it fails) and, when
+/// `receive_buffer` > 0, that SO_RCVBUF (set before connecting, so the window starts small).
+inline int ConnectLocal(uint16_t port, int timeout_ms = 5000, int receive_buffer = 0) {
   const int fd = socket(AF_INET, SOCK_STREAM, 0);
   if (fd < 0) return -1;
+  if (receive_buffer > 0) {
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof(receive_buffer));
+  }
   timeval tv{timeout_ms / 1000, (timeout_ms % 1000) * 1000};
   setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
   sockaddr_in addr{};
@@ -65,9 +69,10 @@ inline std::string RecvHead(int fd) {
   return "";
 }
 
-/// Connects and upgrades to a WebSocket on `path`; returns the socket (-1 when refused).
-inline int ConnectWebSocket(uint16_t port, const std::string& path = "/ws") {
-  const int fd = ConnectLocal(port);
+/// Connects and upgrades to a WebSocket on `path` (SO_RCVBUF `receive_buffer` when > 0); returns
+/// the socket (-1 when refused).
+inline int ConnectWebSocket(uint16_t port, const std::string& path = "/ws", int receive_buffer = 0) {
+  const int fd = ConnectLocal(port, 5000, receive_buffer);
   if (fd < 0) return -1;
   const std::string request =
       "GET " + path +
