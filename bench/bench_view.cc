@@ -229,7 +229,18 @@ int Run(const Args& args, const std::string& command) {
   md += "\n" + MarkdownTable(header, std::vector<bool>(header.size(), true), cells);
   std::printf("%s", md.c_str());
   if (!args.md_path.empty()) WriteTextFile(args.md_path, md);
-  if (!args.csv_path.empty()) WriteTextFile(args.csv_path, CsvTable(header, cells));
+  if (!args.csv_path.empty()) {
+    // Each CSV row also names the command, the date and the host CPU.
+    std::vector<std::string> csv_header = {"command", "date_utc", "cpu_model"};
+    csv_header.insert(csv_header.end(), header.begin(), header.end());
+    std::vector<std::vector<std::string>> csv_cells;
+    for (const std::vector<std::string>& row : cells) {
+      std::vector<std::string> r = {command, machine.date_utc, machine.cpu_model};
+      r.insert(r.end(), row.begin(), row.end());
+      csv_cells.push_back(std::move(r));
+    }
+    WriteTextFile(args.csv_path, CsvTable(csv_header, csv_cells));
+  }
   return 0;
 }
 
