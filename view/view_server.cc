@@ -342,7 +342,8 @@ void ViewServer::Impl::SenderThread(ViewClient* c) {
     c->has_frame = false;
     c->in_flight_bytes = sending.size();
     lock.unlock();
-    // Blocks while the socket is full, at most request_timeout_ms (ViewOptions::send_timeout_ms).
+    // Blocks while the socket is full (until the peer reads or goes, or mg_stop): only this
+    // client's sender waits; the view thread keeps replacing the frame in the slot.
     const int written =
         mg_websocket_write(c->conn, MG_WEBSOCKET_OPCODE_BINARY,
                            reinterpret_cast<const char*>(sending.data()), sending.size());

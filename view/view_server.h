@@ -47,7 +47,10 @@ struct ViewOptions {
   double rate_hz = 60.0;           ///< frames per second at most, > 0
   std::string www_dir;             ///< the page's files ("" = this source tree's view/www)
   std::string three_dir = "/usr/share/javascript/three";  ///< Debian's libjs-three
-  int send_timeout_ms = 2000;  ///< a write blocked this long gives the client up (closes it)
+  /// civetweb's request_timeout_ms (ms); a WebSocket write to a client that stops reading was
+  /// not seen to give up within 3 s (docs/view.md): it ends when the peer reads or goes, or the
+  /// view stops.
+  int send_timeout_ms = 2000;
   int max_clients = 8;         ///< WebSocket clients at once (each holds a civetweb worker)
 };
 
