@@ -2,14 +2,16 @@
 SHELL := /bin/bash
 .DEFAULT_GOAL := run
 
-# Debian packages the build, tests and plots need. libcivetweb-dev: the live view's HTTP and
-# WebSocket server; libjs-three: three.js r111, which the view serves (docs/view.md); chromium and
-# libpng-dev: the view's browser test (headless screenshots, decoded in the test). libbullet-dev: Bullet's btSoftBody, the peer
+# Debian packages the build, tests and plots need. libbullet-dev: Bullet's btSoftBody, the peer
 # of `felt bench cloth --tradeoff` only (Felt's libraries never link it; without it the bench skips
-# its Bullet rows).
+# its Bullet rows). nodejs (and npm, see npm-deps): the independent MCAP and ROS 2 CDR checkers of
+# the tests (tools/npm). openssl: `felt security init` (DDS Security identities) and its tests.
+# libcivetweb-dev: the live view's HTTP and WebSocket server; libjs-three: three.js r111, which the
+# view serves (docs/view.md); chromium and libpng-dev: the view's browser test (headless
+# screenshots, decoded in the test).
 PACKAGES := cmake ninja-build g++ gcc make pkg-config libeigen3-dev cyclonedds-dev \
             cyclonedds-tools libddsc0debian libspdlog-dev libcli11-dev libtomlplusplus-dev \
-            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev \
+            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev nodejs openssl \
             libcivetweb-dev libjs-three libpng-dev chromium
 JOBS ?= $(shell nproc)
 BUILD ?= build
@@ -19,7 +21,7 @@ ifeq ($(CI),true)
 endif
 SCENE ?= scenes/curtain.toml
 
-.PHONY: deps build run test test-release test-asan test-tsan bench clean
+.PHONY: deps npm-deps build run test test-release test-asan test-tsan bench clean
 
 # Install missing packages as root; otherwise print the exact apt-get line and stop.
 deps:
@@ -35,6 +37,27 @@ deps:
 	    echo "Missing Debian packages. Run as root:"; \
 	    echo "  apt-get install -y $$missing"; exit 1; \
 	  fi; \
+	fi
+
+# The tests' independent checkers (@mcap/core, @foxglove/rosmsg2-serialization; versions pinned
+# by tools/npm/package-lock.json) into tools/npm/node_modules, never at CMake configure time.
+# When the registry cannot be reached this says so and goes on: the tests that need them skip
+# and say why. Debian's npm package is installed here only when no `npm` command exists: it
+# conflicts with a nodejs that bundles npm (NodeSource's), where it would break `make deps`.
+npm-deps: deps
+	@if [ -d tools/npm/node_modules/@mcap/core ] && \
+	    [ -d tools/npm/node_modules/@foxglove/rosmsg2-serialization ]; then exit 0; fi; \
+	if ! command -v npm > /dev/null && [ "$$(id -u)" = 0 ]; then \
+	  echo "npm-deps: installing Debian's npm"; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends npm || true; \
+	fi; \
+	if ! command -v npm > /dev/null; then \
+	  echo "npm-deps: npm is not installed (apt-get install -y npm): the MCAP/CDR independent" \
+	       "checks will be skipped"; \
+	elif (cd tools/npm && timeout 300 npm ci --no-audit --no-fund --loglevel=error); then \
+	  echo "npm-deps: installed tools/npm/node_modules"; \
+	else \
+	  echo "npm-deps: npm ci failed (registry unreachable?): the MCAP/CDR independent checks will be skipped"; \
 	fi
 
 $(BUILD)/build.ninja: CMakeLists.txt | deps
@@ -53,10 +76,10 @@ run: build
 	  --report-only $(if $(VIEW_PORT),--view $(VIEW_PORT))
 
 # Every test: the release build, then ASan+UBSan on everything, then TSan on threaded code.
-test: deps test-release test-asan test-tsan
+test: deps npm-deps test-release test-asan test-tsan
 	@echo "make test: all test builds passed ($$(date -u +%H:%M:%S))"
 
-test-release: deps
+test-release: deps npm-deps
 	@echo "== make test-release: start $$(date -u +%H:%M:%S)"
 	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
 	cmake --build $(BUILD) -j $(JOBS)

@@ -1,22 +1,26 @@
 // `felt compare --trace FILE --scene FILE --variants LIST [--truth] [--json FILE] [--csv FILE]
-// [--md FILE] [--duration S]`: variants of a scene on the same recorded pointer motion, offline
-// (issues 7 and 20; docs/compare.md). The trace drives the real server code (compare/lockstep.h)
-// in lock-step virtual time, one variant after the other, on this thread, without DDS; the first
-// variant is the reference (with --truth: the truth, the cloth stepped every haptic tick, as
-// variant 0). Prints a Markdown table (costs per tick and per frame, force error against the
-// reference, force jumps and spikes, contacts, pop-through and reach into the cloth) and writes
-// the same per-variant fields as JSON and CSV.
+// [--md FILE] [--plot DIR] [--duration S]`: variants of a scene on the same recorded pointer
+// motion, offline (issues 7 and 20; docs/compare.md). The trace drives the real server code
+// (compare/lockstep.h) in lock-step virtual time, one variant after the other, on this thread,
+// without DDS; the first variant is the reference (with --truth: the truth, the cloth stepped every
+// haptic tick, as variant 0). Prints a Markdown table (costs per tick and per frame, force error
+// against the reference, force jumps and spikes, contacts, pop-through and reach into the cloth)
+// and writes the same per-variant fields as JSON and CSV.
 #include <spdlog/fmt/fmt.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "app/command.h"
 #include "base/report.h"
+#include "compare/compare_plot.h"
 #include "compare/lockstep.h"
+#include "recordings/mcap_trace.h"
 #include "recordings/trace.h"
 #include "scene/scene_file.h"
 
@@ -30,19 +34,23 @@ struct CompareArgs {
   std::string json;
   std::string csv;
   std::string md;
+  std::string plot_dir;
   double duration_s = 0.0;
   bool truth = false;
+  std::string topic;
 };
 
 // The command as it can be typed again (for report headers).
 std::string CommandLine(const CompareArgs& a) {
   std::string line = "felt compare --trace " + a.trace + " --scene " + a.scene + " --variants '" +
                      a.variants + "'";
+  if (!a.topic.empty()) line += " --topic " + a.topic;
   if (a.truth) line += " --truth";
   if (a.duration_s > 0.0) line += " --duration " + FormatSceneNumber(a.duration_s);
   if (!a.json.empty()) line += " --json " + a.json;
   if (!a.csv.empty()) line += " --csv " + a.csv;
   if (!a.md.empty()) line += " --md " + a.md;
+  if (!a.plot_dir.empty()) line += " --plot " + a.plot_dir;
   return line;
 }
 
@@ -107,13 +115,18 @@ std::string CompareJson(const CompareArgs& args, const report::MachineInfo& mach
 int Compare(const CompareArgs& args) {
   // Set-up: every input is checked before anything runs (errors exit 2 through main).
   const report::MachineInfo machine = report::ReadMachineInfo();
-  const Trace trace = ReadTrace(args.trace);
+  const Trace trace = ReadAnyTrace(args.trace, args.topic);
   const SceneDocument scene = LoadSceneDocument(args.scene);
   ParseServerSpec(scene);  // the scene as written must be valid (errors with line and column)
   const std::vector<LockstepVariant> variants = ParseVariantList(args.variants);
   LockstepOptions options;
   options.max_duration_s = args.duration_s;
   options.prepend_truth = args.truth;
+  if (!args.plot_dir.empty()) {  // before the run: a directory that cannot be made fails now
+    std::error_code ec;
+    std::filesystem::create_directories(args.plot_dir, ec);
+    if (ec) throw std::invalid_argument("--plot " + args.plot_dir + ": " + ec.message());
+  }
   std::vector<std::string> warnings;
   if (args.truth) warnings = TruthClothMismatches(variants);
   for (const std::string& w : warnings)
@@ -154,6 +167,13 @@ int Compare(const CompareArgs& args) {
     for (const std::string& w : warnings) warned.append("**Warning**: ").append(w).append(".\n\n");
     report::WriteTextFile(args.md, header + "\n" + what + warned + table);
   }
+  if (!args.plot_dir.empty()) {
+    const ComparePlotFiles plots = WriteComparePlots(
+        args.plot_dir, result, "felt compare: " + args.trace + " on " + args.scene);
+    for (size_t d = 0; d < plots.csv.size(); ++d) {
+      std::printf("plot data %s, script %s\n", plots.csv[d].c_str(), plots.script[d].c_str());
+    }
+  }
   return 0;
 }
 
@@ -163,8 +183,12 @@ CommandRun Setup(CLI::App& cmd) {
   for (const auto& [key, scene_key] : VariantShorthands()) {
     shorthands += "\n  " + key + " -> " + scene_key;
   }
-  cmd.add_option("--trace", args->trace, "pointer trace (felt-trace v1), fed to every device")
+  cmd.add_option("--trace", args->trace,
+                 "pointer trace (felt-trace v1, or .mcap: a PoseStamped or OmniState topic), fed "
+                 "to every device")
       ->required();
+  cmd.add_option("--topic", args->topic,
+                 "MCAP trace: the pose topic (default: the first PoseStamped, else OmniState)");
   cmd.add_option("--scene", args->scene, "scene file (TOML) the variants start from")->required();
   cmd.add_option("--variants", args->variants,
                  "variants separated by ';', each [NAME:] key=value[,key=value...]; the first is "
@@ -180,6 +204,10 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--json", args->json, "write the per-variant figures as JSON here");
   cmd.add_option("--csv", args->csv, "write the per-variant figures as CSV here");
   cmd.add_option("--md", args->md, "write the table with the command and machine header here");
+  cmd.add_option("--plot", args->plot_dir,
+                 "draw force against time per variant (the reference behind it, the error below) "
+                 "and contact state into this directory: per device forces_d<N>.csv, .gp and .png "
+                 "(gnuplot)");
   cmd.add_option("--duration", args->duration_s,
                  "replay at most this many seconds of the trace (default: all of it)")
       ->check(CLI::NonNegativeNumber);

@@ -15,6 +15,7 @@
 
 #include "app/command.h"
 #include "app/command_util.h"
+#include "recordings/mcap_trace.h"
 #include "recordings/trace.h"
 #include "transport/replayer.h"
 
@@ -31,8 +32,10 @@ struct ReplayArgs {
   std::string device = "default";
   double late_us = 1000.0;
   double discovery_timeout_s = 15.0;
+  std::string security, identity;  // DDS Security (default identity "device-<device>")
   uint32_t domain = 0;
   std::string dds_config;
+  std::string topic;
 };
 
 int Replay(const ReplayArgs& args) {
@@ -41,10 +44,12 @@ int Replay(const ReplayArgs& args) {
     throw std::invalid_argument(fmt::format("--rate must be in (0, 100], got {}", args.rate));
   }
   CheckDurationOption(args.duration_s);
-  Trace trace = ReadTrace(args.trace);
+  Trace trace = ReadAnyTrace(args.trace, args.topic);
   transport::ReplayConfig config;
   config.dds.domain_id = args.domain;
   config.dds.config_file = args.dds_config;
+  config.dds.security_dir = args.security;
+  config.dds.identity = args.identity;
   config.device_id = args.device;
   config.rate = args.rate;
   config.loops = args.loops;
@@ -89,7 +94,12 @@ int Replay(const ReplayArgs& args) {
 
 CommandRun Setup(CLI::App& cmd) {
   auto args = std::make_shared<ReplayArgs>();
-  cmd.add_option("trace", args->trace, "the felt-trace v1 file to publish")->required();
+  cmd.add_option("trace", args->trace,
+                 "the felt-trace v1 file to publish, or an MCAP file (.mcap: a PoseStamped or "
+                 "OmniState topic)")
+      ->required();
+  cmd.add_option("--topic", args->topic,
+                 "MCAP: the pose topic (default: the first PoseStamped, else OmniState)");
   cmd.add_option("--rate", args->rate, "time scale: 2 plays twice as fast (default 1)");
   auto* loop = cmd.add_option("--loop", args->loops, "play the trace N times back to back")
                    ->check(CLI::Range(1u, 1000000u));
@@ -107,6 +117,7 @@ CommandRun Setup(CLI::App& cmd) {
                  "seconds to wait for a server (default 15)")
       ->check(CLI::PositiveNumber);
   AddDdsOptions(cmd, &args->domain, &args->dds_config);
+  AddSecurityOptions(cmd, &args->security, &args->identity);
   return [args]() -> int { return Replay(*args); };
 }
 

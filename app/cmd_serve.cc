@@ -40,6 +40,8 @@ struct ServeArgs {
   std::string trace;
   std::optional<uint32_t> domain;  // overrides [transport] domain
   std::string dds_config;          // overrides [transport] dds_config when not empty
+  std::string security;            // overrides [transport] security when not empty
+  std::string identity;            // overrides [transport] identity when not empty
   bool no_realtime = false;
   std::optional<uint16_t> view_port;    // --view PORT: serve the live view (docs/view.md)
   std::string view_bind = "127.0.0.1";  // --view-bind ADDR
@@ -109,15 +111,19 @@ int Serve(const ServeArgs& args) {
   } else {
     if (args.domain) config.dds.domain_id = *args.domain;
     if (!args.dds_config.empty()) config.dds.config_file = args.dds_config;
+    if (!args.security.empty()) config.dds.security_dir = args.security;
+    if (!args.identity.empty()) config.dds.identity = args.identity;
     const uint32_t domain = config.dds.domain_id;
+    const std::string security = config.dds.security_dir;
     dds = std::make_unique<transport::ServerTransport>(std::move(config));
     source = std::make_unique<TransportPointerSource>(dds.get());
     sink = std::make_unique<TransportForceSink>(dds.get());
-    spdlog::info("serve: DDS domain {}, devices:{}", domain, [&] {
-      std::string ids;
-      for (const DeviceSpec& d : spec.devices) ids += " " + d.id;
-      return ids;
-    }());
+    spdlog::info("serve: DDS domain {}{}, devices:{}", domain,
+                 security.empty() ? std::string() : ", DDS Security " + security, [&] {
+                   std::string ids;
+                   for (const DeviceSpec& d : spec.devices) ids += " " + d.id;
+                   return ids;
+                 }());
   }
   if (duration_s && !(*duration_s > 0.0)) throw std::invalid_argument("--duration must be > 0");
 
@@ -203,6 +209,11 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--dds-config", args->dds_config,
                  "Cyclone DDS configuration file (default: [transport] dds_config, else "
                  "CYCLONEDDS_URI, else loopback)");
+  cmd.add_option("--security", args->security,
+                 "DDS Security directory from `felt security init` (default: [transport] security, "
+                 "else none)");
+  cmd.add_option("--identity", args->identity,
+                 "identity in the security directory (default: [transport] identity, else server)");
   cmd.add_option("--view", args->view_port,
                  "serve the live 3-D view on this TCP port (http://127.0.0.1:PORT/; docs/view.md)");
   cmd.add_option("--view-bind", args->view_bind,

@@ -39,6 +39,7 @@
 #include "base/report.h"
 #include "recordings/trace.h"
 #include "rt/clock.h"
+#include "rt/histogram_plot.h"
 #include "scene/scene_file.h"
 #include "server/server_spec.h"
 
@@ -179,7 +180,9 @@ struct SoakArgs {
   std::string trace = "recordings/poke_hold.trace";
   std::string json;
   std::string md;
+  std::string plot_dir;
   std::optional<uint32_t> domain;
+  std::string security;  // DDS Security directory for both children ("" = off)
   bool no_realtime = false;
   std::optional<uint16_t> view_port;  // --view PORT: the server serves the live view (docs/view.md)
   bool verbose = false;
@@ -253,18 +256,24 @@ std::pair<Child, Child> SpawnChildren(const SoakArgs& args, const SoakPlan& plan
     serve_args.push_back("--view");
     serve_args.push_back(std::to_string(*args.view_port));
   }
-  const std::vector<std::string> replay_args = {"replay",
-                                                args.trace,
-                                                "--domain",
-                                                std::to_string(plan.domain),
-                                                "--device",
-                                                plan.device_id,
-                                                "--duration",
-                                                fmt::format("{}", plan.duration_s),
-                                                "--json",
-                                                plan.replay_json,
-                                                "--discovery-timeout",
-                                                fmt::format("{}", args.discovery_timeout_s)};
+  std::vector<std::string> replay_args = {"replay",
+                                          args.trace,
+                                          "--domain",
+                                          std::to_string(plan.domain),
+                                          "--device",
+                                          plan.device_id,
+                                          "--duration",
+                                          fmt::format("{}", plan.duration_s),
+                                          "--json",
+                                          plan.replay_json,
+                                          "--discovery-timeout",
+                                          fmt::format("{}", args.discovery_timeout_s)};
+  if (!args.security.empty()) {  // identities "server" and "device-<the scene's first device>"
+    for (auto* list : {&serve_args, &replay_args}) {
+      list->push_back("--security");
+      list->push_back(args.security);
+    }
+  }
   Child serve = SpawnChild("serve", plan.exe, serve_args, args.verbose);
   Child replay = SpawnChild("replay", plan.exe, replay_args, args.verbose);
   if (args.view_port) {
@@ -572,6 +581,33 @@ void PrintSoakSummary(const SoakArgs& args, const SoakWatch& w, const SoakResult
   std::fflush(stdout);
 }
 
+// `--plot DIR`: the server's haptic and sim lateness histograms (their bins travel in the serve
+// child's report) drawn into DIR/lateness.png (rt/histogram_plot.h).
+void PlotSoak(const SoakArgs& args, const SoakResult& r) {
+  std::vector<PlotSeries> series;
+  for (const auto& [loop, label] :
+       {std::pair<const char*, const char*>{"haptic", "haptic loop"}, {"sim", "sim loop"}}) {
+    const Json* bins = nullptr;
+    if (r.serve_report.is_object() && r.serve_report.contains(loop) &&
+        r.serve_report[loop].contains("lateness_bins_us")) {
+      bins = &r.serve_report[loop]["lateness_bins_us"];
+    }
+    if (bins == nullptr) continue;
+    series.push_back(
+        PlotSeries{label, PlotBinsFromJson(*bins, std::string(loop) + ".lateness_bins_us")});
+  }
+  if (series.empty()) {
+    std::fprintf(stderr,
+                 "felt soak: --plot: the server's report has no lateness bins (it did not "
+                 "finish); nothing drawn\n");
+    return;
+  }
+  WriteHistogramPlot(args.plot_dir, "lateness", series,
+                     fmt::format("felt soak --minutes {} --scene {} --trace {}: wake-up lateness",
+                                 args.minutes, args.scene, args.trace),
+                     "lateness: wake-up minus deadline [us]");
+}
+
 int Soak(const SoakArgs& args) {
   // Set-up: options, the scene and the trace read and checked before anything starts.
   const SoakPlan plan = PlanSoak(args);
@@ -609,6 +645,13 @@ int Soak(const SoakArgs& args) {
     md_path = std::filesystem::path(args.json).replace_extension(".md").string();
   }
   if (!md_path.empty()) WriteOptionFile("--md", md_path, SoakMarkdown(args, w, r));
+  if (!args.plot_dir.empty()) {
+    try {
+      PlotSoak(args, r);
+    } catch (const std::exception& e) {  // the reports above are written; say why, go on
+      std::fprintf(stderr, "felt soak: --plot: %s\n", e.what());
+    }
+  }
   PrintSoakSummary(args, w, r);
   if (w.interrupted) return kExitInterrupted;
   if (r.child_failed) return 1;
@@ -623,11 +666,17 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--scene", args->scene, "scene file (default scenes/curtain.toml)");
   cmd.add_option("--trace", args->trace, "trace to loop (default recordings/poke_hold.trace)");
   cmd.add_option("--json", args->json, "write the report as JSON here");
+  cmd.add_option("--plot", args->plot_dir,
+                 "draw the server's haptic and sim lateness histograms into DIR/lateness.png "
+                 "(gnuplot)");
   cmd.add_option("--md", args->md, "write the markdown table here (default: the JSON path, .md)");
   cmd.add_option("--domain", args->domain, "DDS domain id (default 100 + pid % 100)")
       ->check(CLI::Range(0, 230));
   cmd.add_option("--view", args->view_port,
                  "the server also serves the live 3-D view on this port (docs/view.md)");
+  cmd.add_option("--security", args->security,
+                 "DDS Security directory of `felt security init` for the server and the replay "
+                 "(identities server and device-<the scene's device>)");
   cmd.add_flag("--no-realtime", args->no_realtime, "run the server without real-time settings");
   cmd.add_flag("--verbose", args->verbose, "echo the children's output");
   cmd.add_flag("--keep-files", args->keep_files, "keep the children's JSON files (path printed)");

@@ -42,12 +42,15 @@ struct ImportArgs {
   int64_t select = 0;
   double time_scale = 1.0, scale = 1.0, rate_hz = 1000.0, trial_gap_s = 0.5, max_gap_s = 0.0;
   int decimals = -1;
+  std::string topic, time = "header";
 };
 
 CommandRun SetupImport(CLI::App& cmd) {
   auto args = std::make_shared<ImportArgs>();
   cmd.add_option("--in", args->in, "source recording")->required();
-  cmd.add_option("--format", args->format, "devicelog (H3D/HAPI DeviceLog text) or csv")
+  cmd.add_option("--format", args->format,
+                 "devicelog (H3D/HAPI DeviceLog text), csv, or mcap (a PoseStamped or OmniState "
+                 "topic; `ros2 bag`, `felt record --out X.mcap`)")
       ->required();
   cmd.add_option("--out", args->out, "trace file to write (felt-trace v1)")->required();
   cmd.add_option("--columns", args->columns,
@@ -68,6 +71,10 @@ CommandRun SetupImport(CLI::App& cmd) {
   cmd.add_option("--max-gap", args->max_gap_s,
                  "source step [s] treated as a gap (default: 10 x median step)");
   cmd.add_option("--device", args->device, "the header's device value (default 'imported')");
+  cmd.add_option("--topic", args->topic,
+                 "mcap: the pose topic (default: the first PoseStamped, else OmniState)");
+  cmd.add_option("--time", args->time, "mcap: sample time from the header stamp or log time")
+      ->check(CLI::IsMember({"header", "log"}));
   cmd.add_option("--decimals", args->decimals,
                  "fixed decimals in the output (default: shortest exact round trip)");
   return [args, select, time_scale]() {
@@ -84,6 +91,8 @@ CommandRun SetupImport(CLI::App& cmd) {
     options.rate_hz = args->rate_hz;
     options.max_gap_s = args->max_gap_s;
     options.device = args->device;
+    options.mcap_topic = args->topic;
+    options.mcap_time = args->time == "log" ? McapTraceTime::kLogTime : McapTraceTime::kHeaderStamp;
 
     const Trace trace = ImportTrace(args->in, options);
     WriteTrace(args->out, trace, TraceWriteOptions{args->decimals});

@@ -33,6 +33,13 @@ void AddDdsOptions(CLI::App& cmd, uint32_t* domain, std::string* dds_config) {
                  "Cyclone DDS configuration file (default: CYCLONEDDS_URI, else loopback)");
 }
 
+void AddSecurityOptions(CLI::App& cmd, std::string* security_dir, std::string* identity) {
+  cmd.add_option("--security", *security_dir,
+                 "DDS Security: a directory made by `felt security init` (default: none)");
+  cmd.add_option("--identity", *identity,
+                 "the identity in the --security directory (default: this command's role)");
+}
+
 void CheckDurationOption(const std::optional<double>& duration_s) {
   if (duration_s && !(*duration_s > 0.0 && *duration_s <= 86400.0)) {
     throw std::invalid_argument(

@@ -25,6 +25,10 @@ void InstallStopHandlers();
 /// `dds_config`.
 void AddDdsOptions(CLI::App& cmd, uint32_t* domain, std::string* dds_config);
 
+/// Adds `--security DIR` (a directory made by `felt security init`; DDS Security on) and
+/// `--identity NAME` (the identity in DIR; default: the command's own, e.g. "recorder") to `cmd`.
+void AddSecurityOptions(CLI::App& cmd, std::string* security_dir, std::string* identity);
+
 /// Throws std::invalid_argument ("--duration must be in (0, 86400] s, got X") unless
 /// `duration_s` [s] is absent or in (0, 86400] (one day).
 void CheckDurationOption(const std::optional<double>& duration_s);

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "app/command.h"
+#include "base/gnuplot.h"
 #include "base/json.h"
 #include "bench/bench_util.h"
 #include "compare/lockstep.h"
@@ -427,16 +428,7 @@ bool Plot(const Args& args, bool have_hard) {
   const std::string command = "gnuplot -e \"csv='" + args.csv_path + "'; png='" + png +
                               "'; modes='" + modes + "'; hard=" + (have_hard ? "1" : "0") + "\" " +
                               args.gnuplot_script;
-  if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
-    std::printf("gnuplot not found; to draw the plot run:\n  %s\n", command.c_str());
-    return true;
-  }
-  if (std::system(command.c_str()) != 0) {
-    std::fprintf(stderr, "felt bench haptic: gnuplot failed: %s\n", command.c_str());
-    return false;
-  }
-  std::printf("wrote %s\n", png.c_str());
-  return true;
+  return report::RunGnuplot("felt bench haptic", command, png) != report::GnuplotOutcome::kFailed;
 }
 
 int Run(const Args& args) {

@@ -23,6 +23,7 @@
 #include "base/json.h"
 #include "haptic_loop/pointer_source.h"
 #include "recordings/trace.h"
+#include "rt/histogram_plot.h"
 #include "rt/loop_runner.h"
 #include "rt/loop_stats.h"
 #include "rt/realtime.h"
@@ -57,6 +58,7 @@ struct Args {
   double minutes = 0.0;
   double seconds = 0.0;
   std::string json_path;
+  std::string plot_dir;
   int priority = 80;
   int cpu = -1;
   int spin_us = 50;
@@ -296,6 +298,8 @@ app::CommandRun Setup(CLI::App& cmd) {
   auto* minutes = cmd.add_option("--minutes", args->minutes, "minutes per setting");
   cmd.add_option("--seconds", args->seconds, "seconds per setting (default 30)")->excludes(minutes);
   cmd.add_option("--json", args->json_path, "write the results as JSON to this file");
+  cmd.add_option("--plot", args->plot_dir,
+                 "draw every setting's lateness histogram into DIR/loops_lateness.png (gnuplot)");
   cmd.add_option("--priority", args->priority, "SCHED_FIFO priority (default 80)")
       ->check(CLI::Range(1, 99));
   cmd.add_option("--cpu", args->cpu, "pin the loop to this CPU (default: no pinning)");
@@ -325,6 +329,22 @@ app::CommandRun Setup(CLI::App& cmd) {
     if (!args->empty_only) {
       server = RunServer(*args, results.back().setting, duration_ns);
       PrintSideBySide(results.back(), server);
+    }
+    if (!args->plot_dir.empty()) {
+      std::vector<PlotSeries> series;
+      for (const LoopResult& r : results) {
+        series.push_back(
+            PlotSeries{"empty loop, " + r.setting.name, PlotBinsOf(r.stats->lateness, 1e3)});
+      }
+      if (server.report != nullptr) {
+        series.push_back(PlotSeries{"server haptic loop, " + results.back().setting.name,
+                                    PlotBinsOf(server.report->haptic.lateness, 1e3)});
+      }
+      WriteHistogramPlot(args->plot_dir, "loops_lateness", series,
+                         fmt::format("felt bench loops, {:.0f} s per setting: 1 kHz wake-up "
+                                     "lateness",
+                                     seconds),
+                         "lateness: wake-up minus deadline [us]");
     }
     if (!args->json_path.empty()) {
       app::WriteOptionFile("--json", args->json_path,

@@ -8,7 +8,9 @@
 //     trace at 1 kHz on absolute deadlines. Per pointer sample: e2e = reception of the first force
 //     answering it (ForceCommand.answers_device_time_ns) - its publication, on the client; and
 //     its age at the first haptic tick that reads it (tick time - transport receive time), on the
-//     server. Most of e2e is that wait for the next 1 kHz tick.
+//     server. With the periodic tick most of e2e is that wait for the next 1 kHz tick; the run is
+//     made twice, `[haptic] tick = "periodic"` then `"arrival"` (the default: the tick runs when
+//     the sample arrives, the periodic deadline as fallback), and compared side by side.
 
 #include <fcntl.h>
 #include <sched.h>
@@ -34,8 +36,11 @@
 #include "base/json.h"
 #include "base/process.h"
 #include "base/report.h"
+#include "bench/bench_transport_security.h"
 #include "haptic_loop/pointer_source.h"
 #include "recordings/trace.h"
+#include "rt/periodic_loop.h"
+#include "rt/phase_lock.h"
 #include "scene/scene_file.h"
 #include "server/server.h"
 #include "server/server_spec.h"
@@ -174,6 +179,7 @@ class AgeRecordingSource final : public PointerSource {
  public:
   AgeRecordingSource(PointerSource* inner, size_t capacity) : inner_(inner) {
     age_us_.reserve(capacity);
+    arrival_ns_.reserve(capacity);
   }
   bool Latest(uint32_t device_index, int64_t now_ns, PointerInput* out) override {
     if (!inner_->Latest(device_index, now_ns, out)) return false;
@@ -182,6 +188,7 @@ class AgeRecordingSource final : public PointerSource {
       if (recording_.load(std::memory_order_relaxed)) {
         if (age_us_.size() < age_us_.capacity()) {
           age_us_.push_back(static_cast<double>(now_ns - out->receive_time_ns) / 1e3);
+          arrival_ns_.push_back(out->receive_time_ns);  // same capacity
         } else {
           ++overflow_;
         }
@@ -189,16 +196,23 @@ class AgeRecordingSource final : public PointerSource {
     }
     return true;
   }
+  /// The inner source's signal (the tick on arrival wakes on it).
+  const ArrivalSignal* Arrivals(uint32_t device_index) const override {
+    return inner_->Arrivals(device_index);
+  }
   /// Starts or stops recording (any thread).
   void SetRecording(bool on) { recording_.store(on, std::memory_order_relaxed); }
   /// The ages, us. Only after the server stopped.
   std::vector<double>* ages() { return &age_us_; }
+  /// The transport receive times of the same samples, CLOCK_MONOTONIC ns. After the stop.
+  const std::vector<int64_t>& arrivals() const { return arrival_ns_; }
 
  private:
   PointerSource* inner_;
   uint64_t last_seq_ = 0;
   std::atomic<bool> recording_{false};
   std::vector<double> age_us_;
+  std::vector<int64_t> arrival_ns_;
   uint64_t overflow_ = 0;
 };
 
@@ -320,17 +334,24 @@ struct E2eResult {
   bool realtime = false;
   std::string scene_name;
   int32_t cloth_w = 0, cloth_h = 0;
+  HapticTickTrigger tick = HapticTickTrigger::kArrival;  // the server's tick
+  std::unique_ptr<LoopStatsSnapshot> haptic;  // the haptic loop's statistics over the run
+  std::vector<int64_t> arrivals_ns;           // receive times of the samples the ticks read
 };
 
 // The server in this process, the client in a child process (this program re-executed: fork+exec
 // is safe although Cyclone's threads already run here).
 E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& scene,
-                          const std::string& trace, double seconds, bool fifo) {
+                          const std::string& trace, double seconds, bool fifo,
+                          HapticTickTrigger tick) {
   ServerSpec spec = ParseServerSpec(LoadSceneDocument(scene));
   if (spec.devices.empty())
     throw std::runtime_error("bench transport: " + scene + " has no device");
   spec.devices.resize(1);
-  const std::string suffix = "/bench_e2e_" + std::to_string(getpid());
+  spec.haptic.tick_trigger = tick;
+  spec.haptic.tick_device.clear();
+  const std::string suffix =
+      "/bench_e2e_" + std::to_string(getpid()) + "_" + std::to_string(static_cast<int>(tick));
   transport::ServerTransportConfig config;
   config.dds = dds;
   config.topics = transport::TopicNames::WithAffixes("", suffix);
@@ -398,7 +419,175 @@ E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& 
   result.answered = client.answered;
   result.e2e_us = Summarise(client.e2e_us);
   result.sample_age_us = Summarise(*source.ages());
+  result.tick = tick;
+  result.haptic = std::make_unique<LoopStatsSnapshot>(report->haptic);
+  result.arrivals_ns = source.arrivals();
   return result;
+}
+
+// ---- The haptic tick: periodic against on arrival (issue 23) ------------------------------------
+
+// The end-to-end run once per tick mode, one after the other in the same process and setting.
+struct TickModeRuns {
+  E2eResult periodic;  // [haptic] tick = "periodic"
+  E2eResult arrival;   // [haptic] tick = "arrival" (the default)
+};
+
+TickModeRuns MeasureTickModes(const transport::DdsSettings& dds, const std::string& scene,
+                              const std::string& trace, double seconds, bool fifo) {
+  TickModeRuns runs;
+  runs.periodic = MeasureEndToEnd(dds, scene, trace, seconds, fifo, HapticTickTrigger::kPeriodic);
+  runs.arrival = MeasureEndToEnd(dds, scene, trace, seconds, fifo, HapticTickTrigger::kArrival);
+  return runs;
+}
+
+// p50/p99/p99.9/max in us of a loop histogram (bin upper edges, rt/loop_stats.h).
+Percentiles HistogramPercentiles(const HistogramSnapshot& h) {
+  return Percentiles{static_cast<double>(h.PercentileNs(0.5)) / 1e3,
+                     static_cast<double>(h.PercentileNs(0.99)) / 1e3,
+                     static_cast<double>(h.PercentileNs(0.999)) / 1e3,
+                     static_cast<double>(h.max_ns) / 1e3, static_cast<size_t>(h.count)};
+}
+
+// One row per mode of the same quantity, then the arrival/periodic ratio of p50 and p99.
+void TickModeRows(const char* name, const Percentiles& periodic, const Percentiles& arrival) {
+  Row((std::string(name) + ", periodic tick").c_str(), periodic);
+  Row((std::string(name) + ", tick on arrival").c_str(), arrival);
+  std::printf("| %-44s | %7.2fx | %7.2fx |          |          |         |\n",
+              (std::string(name) + ": arrival / periodic").c_str(), arrival.p50 / periodic.p50,
+              arrival.p99 / periodic.p99);
+}
+
+void PrintTickModes(const TickModeRuns& runs) {
+  const LoopStatsSnapshot& p = *runs.periodic.haptic;
+  const LoopStatsSnapshot& a = *runs.arrival.haptic;
+  std::printf("\nThe haptic tick, periodic against on arrival (same run, periodic first):\n\n");
+  std::printf("| %-44s | %8s | %8s | %8s | %8s | %7s |\n", "us", "p50", "p99", "p99.9", "max", "n");
+  std::printf("|%s|---------:|---------:|---------:|---------:|--------:|\n",
+              std::string(46, '-').c_str());
+  TickModeRows("end to end", runs.periodic.e2e_us, runs.arrival.e2e_us);
+  TickModeRows("sample age at the tick", runs.periodic.sample_age_us, runs.arrival.sample_age_us);
+  TickModeRows("haptic lateness", HistogramPercentiles(p.lateness),
+               HistogramPercentiles(a.lateness));
+  TickModeRows("haptic period", HistogramPercentiles(p.period), HistogramPercentiles(a.period));
+  Row("arrival -> tick wake-up, tick on arrival", HistogramPercentiles(a.arrival_wake));
+  std::printf(
+      "\nhaptic ticks: periodic %llu (overruns %llu, skipped %llu); on arrival %llu, of which %llu "
+      "woken by a sample (overruns %llu, skipped %llu)\n",
+      static_cast<unsigned long long>(p.ticks), static_cast<unsigned long long>(p.overruns),
+      static_cast<unsigned long long>(p.skipped_periods), static_cast<unsigned long long>(a.ticks),
+      static_cast<unsigned long long>(a.arrival_ticks), static_cast<unsigned long long>(a.overruns),
+      static_cast<unsigned long long>(a.skipped_periods));
+  std::printf("samples sent/answered: periodic %llu/%llu, on arrival %llu/%llu\n",
+              static_cast<unsigned long long>(runs.periodic.samples_sent),
+              static_cast<unsigned long long>(runs.periodic.answered),
+              static_cast<unsigned long long>(runs.arrival.samples_sent),
+              static_cast<unsigned long long>(runs.arrival.answered));
+}
+
+Json TickModeJson(const E2eResult& r) {
+  const LoopStatsSnapshot& h = *r.haptic;
+  return Json{{"e2e_us", ToJson(r.e2e_us)},
+              {"sample_age_us", ToJson(r.sample_age_us)},
+              {"haptic_lateness_us", ToJson(HistogramPercentiles(h.lateness))},
+              {"haptic_period_us", ToJson(HistogramPercentiles(h.period))},
+              {"arrival_wake_us", ToJson(HistogramPercentiles(h.arrival_wake))},
+              {"haptic_ticks", h.ticks},
+              {"arrival_ticks", h.arrival_ticks},
+              {"overruns", h.overruns},
+              {"skipped_periods", h.skipped_periods},
+              {"samples_sent", r.samples_sent},
+              {"samples_answered", r.answered},
+              {"server_realtime", r.realtime}};
+}
+
+Json TickModesJson(const TickModeRuns& runs) {
+  return Json{{"periodic", TickModeJson(runs.periodic)},
+              {"arrival", TickModeJson(runs.arrival)},
+              {"e2e_p50_ratio", runs.arrival.e2e_us.p50 / runs.periodic.e2e_us.p50},
+              {"e2e_p99_ratio", runs.arrival.e2e_us.p99 / runs.periodic.e2e_us.p99}};
+}
+
+// ---- The phase-locked tick, simulated on the same arrivals (issue 23) ---------------------------
+
+// Each rule's tick times over the slots of a 1 ms grid starting at `start_ns`, applied to the
+// recorded `arrivals_ns`: per sample a tick read (the newest before the tick), its age at that
+// tick, us. Ticks fall exactly at their planned times (no wake-up cost: the rules, not the
+// machine). `tick_of(open, next)` gives slot (open, open + 1 ms]'s tick from the first arrival
+// not yet read, index `next`.
+template <typename TickOf>
+std::vector<double> SimulatedAges(const std::vector<int64_t>& arrivals_ns, int64_t start_ns,
+                                  TickOf&& tick_of) {
+  constexpr int64_t kPeriodNs = 1'000'000;
+  std::vector<double> ages;
+  size_t next = 0;
+  for (int64_t open = start_ns; next < arrivals_ns.size(); open += kPeriodNs) {
+    const int64_t tick = tick_of(open, next);
+    size_t read = next;
+    while (read < arrivals_ns.size() && arrivals_ns[read] <= tick) ++read;
+    if (read > next) ages.push_back(static_cast<double>(tick - arrivals_ns[read - 1]) / 1e3);
+    next = read;
+  }
+  return ages;
+}
+
+struct SimulatedRule {
+  std::string name;
+  Percentiles age_us;
+};
+
+// The tick on arrival (ArrivalTickNs) and the phase-locked tick (PhaseLock, three margins, 20 us
+// slew) on the arrivals of the tick-on-arrival run: the sample's age at the tick that reads it.
+std::vector<SimulatedRule> SimulateTickRules(const std::vector<int64_t>& arrivals_ns) {
+  std::vector<SimulatedRule> rules;
+  if (arrivals_ns.size() < 2) return rules;
+  constexpr int64_t kPeriodNs = 1'000'000;
+  const int64_t start = arrivals_ns.front() - kPeriodNs / 2;
+  rules.push_back({"tick on arrival (rule, no wake-up cost)",
+                   Summarise(SimulatedAges(arrivals_ns, start, [&](int64_t open, size_t next) {
+                     size_t in_slot = next;
+                     while (in_slot < arrivals_ns.size() && arrivals_ns[in_slot] <= open) {
+                       ++in_slot;
+                     }
+                     const int64_t pending = in_slot > next ? arrivals_ns[in_slot - 1] : INT64_MIN;
+                     const int64_t first =
+                         in_slot < arrivals_ns.size() ? arrivals_ns[in_slot] : INT64_MAX;
+                     return ArrivalTickNs(open, open + kPeriodNs, kPeriodNs / 10, pending, first);
+                   }))});
+  for (const int64_t margin_us : {50, 100, 200}) {
+    PhaseLockSpec spec;
+    spec.margin_ns = margin_us * 1000;
+    PhaseLock lock(spec, start);
+    size_t observed = 0;
+    const std::vector<double> ages =
+        SimulatedAges(arrivals_ns, start, [&](int64_t open, size_t /*next*/) {
+          const int64_t tick = lock.TickNs(open);
+          // The tick reads (and the lock observes) what arrived before it.
+          while (observed < arrivals_ns.size() && arrivals_ns[observed] <= tick) {
+            lock.Observe(arrivals_ns[observed++]);
+          }
+          return tick;
+        });
+    rules.push_back(
+        {"phase-locked, margin " + std::to_string(margin_us) + " us, slew 20 us", Summarise(ages)});
+  }
+  return rules;
+}
+
+void PrintSimulatedRules(const std::vector<SimulatedRule>& rules) {
+  std::printf(
+      "\nSample age at the tick, each rule simulated on the arrivals of the tick-on-arrival run "
+      "(ticks exactly on time):\n\n");
+  std::printf("| %-44s | %8s | %8s | %8s | %8s | %7s |\n", "us", "p50", "p99", "p99.9", "max", "n");
+  std::printf("|%s|---------:|---------:|---------:|---------:|--------:|\n",
+              std::string(46, '-').c_str());
+  for (const SimulatedRule& r : rules) Row(r.name.c_str(), r.age_us);
+}
+
+Json SimulatedRulesJson(const std::vector<SimulatedRule>& rules) {
+  Json out = Json::object();
+  for (const SimulatedRule& r : rules) out[r.name] = ToJson(r.age_us);
+  return out;
 }
 
 struct Options {
@@ -411,9 +600,18 @@ struct Options {
   transport::DdsSettings dds;
   bool dma_latency = false;
   bool fifo = false;
+  bool security_cost = false;  // only the DDS Security on/off comparison (its own file)
+  std::string security_out = "bench/results/transport_security";
 };
 
 int Run(const Options& options) {
+  if (options.security_cost) {
+    SecurityCostOptions cost{options.dds, options.seconds, 4, options.security_out,
+                             "felt bench transport --security-cost --seconds " +
+                                 report::Sig(options.seconds) + " --domain " +
+                                 std::to_string(options.dds.domain_id)};
+    return RunSecurityCost(cost);
+  }
   if (!options.client.out.empty()) {
     if (options.fifo) {
       const sched_param param{10};
@@ -464,10 +662,14 @@ int Run(const Options& options) {
   HopResult hops[2];
   for (int m = 0; m < 2; ++m) hops[m] = MeasureHops(options.dds, modes[m], options.seconds);
   // End to end through the server.
-  E2eResult e2e;
+  // End to end, once per tick mode; the main rows are the default's (on arrival).
+  TickModeRuns tick_runs;
   if (!options.raw_only) {
-    e2e = MeasureEndToEnd(options.dds, options.scene, options.trace, options.seconds, options.fifo);
+    tick_runs =
+        MeasureTickModes(options.dds, options.scene, options.trace, options.seconds, options.fifo);
   }
+  const E2eResult& e2e = tick_runs.arrival;
+  const std::vector<SimulatedRule> simulated = SimulateTickRules(e2e.arrivals_ns);
   if (dma_fd >= 0) close(dma_fd);
 
   // The table.
@@ -481,6 +683,7 @@ int Run(const Options& options) {
   if (!options.raw_only) {
     Row("end to end: publish -> force received", e2e.e2e_us);
     Row("sample age at the haptic tick (server)", e2e.sample_age_us);
+    // (both with the default tick, on arrival; the periodic tick's are in the table below)
   }
   Row("raw round trip, echo by listener", raw[0]);
   Row("raw round trip, echo by waitset thread", raw[1]);
@@ -504,6 +707,8 @@ int Run(const Options& options) {
         e2e.realtime ? "granted" : "refused", static_cast<unsigned long long>(e2e.samples_sent),
         static_cast<unsigned long long>(e2e.answered),
         static_cast<unsigned long long>(e2e.forces_received));
+    PrintTickModes(tick_runs);
+    PrintSimulatedRules(simulated);
   }
 
   if (!options.json.empty()) {
@@ -528,6 +733,8 @@ int Run(const Options& options) {
              {"samples_answered", e2e_ran ? Json(e2e.answered) : absent},
              {"forces_received", e2e_ran ? Json(e2e.forces_received) : absent},
              {"server_realtime", e2e_ran ? Json(e2e.realtime) : absent},
+             {"tick_modes", e2e_ran ? TickModesJson(tick_runs) : absent},
+             {"simulated_tick_rules_age_us", e2e_ran ? SimulatedRulesJson(simulated) : absent},
              {"seconds", options.seconds},
              {"cpu_dma_latency_zero", options.dma_latency},
              {"sched_fifo", options.fifo}});
@@ -561,6 +768,11 @@ const bool kRegistered = app::RegisterCommand({
                      "CYCLONEDDS_URI)");
       cmd.add_flag("--cpu-dma-latency", options->dma_latency,
                    "hold /dev/cpu_dma_latency at 0 while measuring (root)");
+      cmd.add_flag("--security-cost", options->security_cost,
+                   "only the raw round trip without and with DDS Security (--seconds each); "
+                   "writes --security-out PREFIX.md and .json");
+      cmd.add_option("--security-out", options->security_out,
+                     "where --security-cost writes (default bench/results/transport_security)");
       cmd.add_flag("--fifo", options->fifo,
                    "run the bench, its echo process and Cyclone's threads under SCHED_FIFO 10");
       return [options] {

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "base/gnuplot.h"
 #include "bench/bench_util.h"
 #include "bench/bullet_peer.h"
 #include "sim_loop/cloth.h"
@@ -567,14 +568,10 @@ void Plot(const TradeoffOptions& o, const std::string& csv, const std::vector<in
   }
   const std::string command = "gnuplot -e \"csv='" + csv + "'; png='" + png + "'; grids='" +
                               grid_words + "'\" " + o.gnuplot_script;
-  if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
-    std::printf("gnuplot not found; to draw the plot run:\n  %s\n", command.c_str());
-    return;
-  }
-  if (std::system(command.c_str()) != 0) {
+  if (report::RunGnuplot("felt bench cloth --tradeoff", command, png) ==
+      report::GnuplotOutcome::kFailed) {
     throw std::runtime_error("gnuplot failed: " + command);
   }
-  std::printf("wrote %s\n", png.c_str());
 }
 
 }  // namespace

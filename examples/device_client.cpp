@@ -127,6 +127,7 @@ int main(int argc, char** argv) {
       std::fprintf(arg == "--help" ? stdout : stderr,
                    "usage: %s [--device ID] [--seconds S] [--silence-ms MS] [--max-force N]\n"
                    "          [--domain N] [--dds-config FILE] [--topic-suffix S]\n"
+                   "          [--security DIR [--identity NAME]]\n"
                    "A 1 kHz haptic device driver for Felt over DDS (docs/transport.md).\n",
                    argv[0]);
       return arg == "--help" ? 0 : 2;
@@ -144,6 +145,10 @@ int main(int argc, char** argv) {
       dds.domain_id = static_cast<uint32_t>(std::atoi(value));
     } else if (arg == "--dds-config") {
       dds.config_file = value;
+    } else if (arg == "--security") {  // DDS Security: a directory of `felt security init`
+      dds.security_dir = value;
+    } else if (arg == "--identity") {  // default: device-<device id>
+      dds.identity = value;
     } else if (arg == "--topic-suffix") {
       topic_suffix = value;
     } else {

@@ -1,4 +1,5 @@
 #include <optional>
+#include <span>
 
 #include "haptic_loop/haptic_spec.h"
 
@@ -12,7 +13,7 @@ HapticSpec ParseHapticSpec(const SceneDocument& doc) {
                      "lock_memory", "timer_slack_ns", "haptic_rate_hz", "stale_input_ms",
                      "sim_stall_ms", "ramp_in_s", "ramp_out_s", "max_force_rate_N_per_s",
                      "passivity_controller", "max_passivity_damping_N_s_per_m", "monitor_period_s",
-                     "cpu_dma_latency_zero"});
+                     "cpu_dma_latency_zero", "tick", "tick_device"});
   RealtimeSettings& h = spec.haptic_realtime;
   RealtimeSettings& s = spec.sim_realtime;
   h.fifo_priority = table->Integer("haptic_priority", h.fifo_priority, InRange(0, 99));
@@ -32,6 +33,11 @@ HapticSpec ParseHapticSpec(const SceneDocument& doc) {
   spec.monitor_period_s =
       table->Number("monitor_period_s", spec.monitor_period_s, InRangeOpenMin(0.0, 3600.0));
   spec.cpu_dma_latency_zero = table->Bool("cpu_dma_latency_zero", spec.cpu_dma_latency_zero);
+  static constexpr NamedValue<HapticTickTrigger> kTicks[] = {
+      {"arrival", HapticTickTrigger::kArrival}, {"periodic", HapticTickTrigger::kPeriodic}};
+  spec.tick_trigger = table->Choice<HapticTickTrigger>(
+      "tick", spec.tick_trigger, std::span<const NamedValue<HapticTickTrigger>>(kTicks));
+  spec.tick_device = table->String("tick_device", spec.tick_device);  // checked by the server
   SafetySpec& safety = spec.safety;
   safety.ramp_in_s = table->Number("ramp_in_s", safety.ramp_in_s, Positive());
   safety.ramp_out_s = table->Number("ramp_out_s", safety.ramp_out_s, Positive());

@@ -18,12 +18,23 @@
 //   max_passivity_damping_N_s_per_m = 50
 //   monitor_period_s = 1.0      # the monitor's log line and status period
 //   cpu_dma_latency_zero = true # hold /dev/cpu_dma_latency at 0 while running (no deep C-states)
+//   tick = "arrival"            # "arrival": tick when tick_device's sample arrives, the periodic
+//                               # deadline as fallback; "periodic": every period only
+//   tick_device = ""            # the device whose samples trigger the tick ("": the first)
+#include <string>
+
 #include "haptic_loop/safety.h"
 #include "proxy/proxy_spec.h"
 #include "rt/realtime.h"
 #include "scene/scene_file.h"
 
 namespace felt {
+
+/// When the haptic tick runs (docs/server.md, "The tick: periodic or on arrival").
+enum class HapticTickTrigger {
+  kPeriodic,  ///< at every period boundary start + k * period
+  kArrival,   ///< as soon as the trigger device's sample arrives, at most at the boundary
+};
 
 /// The [haptic] section: loop timing and safety shared by every device.
 struct HapticSpec {
@@ -46,6 +57,12 @@ struct HapticSpec {
   /// these VMs (shared/notes/cyclonedds-and-realtime.md; a 10-minute soak measured p99 lateness
   /// 1568 us without it and 17 us with it).
   bool cpu_dma_latency_zero = true;
+  /// When the tick runs: on arrival of tick_device's samples (a sample is answered ~0.1 ms after
+  /// it arrives instead of 0..1 ms later; bench/results/transport.md), with the periodic
+  /// deadline as fallback and bound, or periodically only.
+  HapticTickTrigger tick_trigger = HapticTickTrigger::kArrival;
+  /// The id of the device whose arrivals trigger the tick; "" = the scene's first device.
+  std::string tick_device;
   /// Safety rules shared by every device; max_force_N is replaced per device by its own.
   SafetySpec safety;
 };

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <utility>
 
+#include "rt/clock.h"
 #include "rt/counters.h"
 
 namespace felt {
@@ -75,7 +76,12 @@ void LatestPointerSource::Set(uint32_t device_index, const PointerInput& sample)
   if (Slot* slot = SlotAt(slots_, device_index)) {
     PublishValue(slot->buffer, sample);
     slot->any.store(true, std::memory_order_release);
+    slot->arrivals.Notify(MonotonicNowNs());
   }
+}
+
+const ArrivalSignal* LatestPointerSource::Arrivals(uint32_t device_index) const {
+  return device_index < slots_.size() ? &slots_[device_index]->arrivals : nullptr;
 }
 
 bool LatestPointerSource::Latest(uint32_t device_index, int64_t /*now_ns*/, PointerInput* out) {

@@ -11,6 +11,7 @@
 
 #include "collision/mesh.h"
 #include "recordings/trace.h"
+#include "rt/arrival_signal.h"
 #include "rt/triple_buffer.h"
 
 namespace felt {
@@ -33,6 +34,10 @@ class PointerSource {
   /// (and `*out` untouched) when the device has sent nothing yet. Haptic thread only.
   /// Implementations must be real-time safe: no allocation, lock, log, exception or I/O.
   virtual bool Latest(uint32_t device_index, int64_t now_ns, PointerInput* out) = 0;
+  /// The signal that counts each new sample of device `device_index` as it becomes readable
+  /// (after it is published), for the haptic tick on arrival (docs/server.md); nullptr when the
+  /// source cannot tell (the tick is then periodic). Lives as long as the source. Set-up.
+  virtual const ArrivalSignal* Arrivals(uint32_t /*device_index*/) const { return nullptr; }
 };
 
 /// One force for one device as the haptic tick produces it. Device frame (_D).
@@ -94,11 +99,14 @@ class LatestPointerSource final : public PointerSource {
   void Set(uint32_t device_index, const PointerInput& sample);
   /// Real-time safe.
   bool Latest(uint32_t device_index, int64_t now_ns, PointerInput* out) override;
+  /// Counts every Set() of the device (nullptr for an index out of range).
+  const ArrivalSignal* Arrivals(uint32_t device_index) const override;
 
  private:
   struct Slot {
     TripleBuffer<PointerInput> buffer;
     std::atomic<bool> any{false};
+    ArrivalSignal arrivals;
   };
   std::vector<std::unique_ptr<Slot>> slots_;
 };

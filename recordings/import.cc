@@ -305,13 +305,32 @@ ParsedSource ReadDeviceLog(const std::string& path) {
   return out;
 }
 
+// ---------------------------------------------------------------------------------------------
+// MCAP: one pose topic (recordings/mcap_trace.h), times in s and positions in m already.
+
+ParsedSource ReadMcapSource(const std::string& path, const ImportOptions& options) {
+  McapTraceOptions mcap;
+  mcap.topic = options.mcap_topic;
+  mcap.time = options.mcap_time;
+  McapTraceInfo info;
+  const Trace trace = ReadMcapTrace(path, mcap, &info);
+  ParsedSource source;
+  source.columns = info.topic + " (" + info.type + ")";
+  int64_t index = 0;
+  for (const TraceSample& s : trace.samples) {
+    source.samples.push_back({s.t_s, s.p_D, s.buttons, 0, ++index});
+  }
+  return source;
+}
+
 }  // namespace
 
 ImportFormat ParseImportFormat(std::string_view text) {
   if (text == "devicelog") return ImportFormat::kDeviceLog;
   if (text == "csv") return ImportFormat::kCsv;
-  throw std::invalid_argument("--format must be 'devicelog' or 'csv', not '" + std::string(text) +
-                              "'");
+  if (text == "mcap") return ImportFormat::kMcap;
+  throw std::invalid_argument("--format must be 'devicelog', 'csv' or 'mcap', not '" +
+                              std::string(text) + "'");
 }
 
 AxisMap ParseAxisMap(std::string_view text) {
@@ -390,8 +409,9 @@ Trace ImportTrace(const std::string& path, const ImportOptions& options) {
   }
 
   // Parse the source.
-  ParsedSource source =
-      options.format == ImportFormat::kCsv ? ReadCsv(path, options) : ReadDeviceLog(path);
+  ParsedSource source = options.format == ImportFormat::kCsv    ? ReadCsv(path, options)
+                        : options.format == ImportFormat::kMcap ? ReadMcapSource(path, options)
+                                                                : ReadDeviceLog(path);
   const double time_scale = options.time_scale.value_or(source.default_time_scale);
   std::vector<RawSample>& raw = source.samples;
   const size_t raw_count = raw.size();
@@ -517,7 +537,9 @@ Trace ImportTrace(const std::string& path, const ImportOptions& options) {
   // Header: where it came from and how it was mapped.
   trace.header = MakeTraceHeader(options.rate_hz, options.device, path);
   TraceHeader& h = trace.header;
-  h.Set("source_format", options.format == ImportFormat::kCsv ? "csv" : "devicelog");
+  h.Set("source_format", options.format == ImportFormat::kCsv    ? "csv"
+                         : options.format == ImportFormat::kMcap ? "mcap"
+                                                                 : "devicelog");
   h.Set("source_columns", source.columns);
   h.Set("source_rate_hz", Num(1.0 / median_step_s));
   h.Set("source_samples", std::to_string(raw_count));

@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "collision/mesh.h"
+#include "recordings/mcap_trace.h"
 #include "recordings/trace.h"
 
 namespace felt {
@@ -20,9 +21,10 @@ namespace felt {
 enum class ImportFormat {
   kDeviceLog,  ///< H3D/HAPI DeviceLog text: a line of field names, then whitespace-separated rows
   kCsv,        ///< comma-separated, a header row of column names, then numeric rows
+  kMcap,       ///< an MCAP file's PoseStamped or OmniState topic (recordings/mcap_trace.h), in m
 };
 
-/// Parses "devicelog" or "csv"; throws std::invalid_argument otherwise.
+/// Parses "devicelog", "csv" or "mcap"; throws std::invalid_argument otherwise.
 ImportFormat ParseImportFormat(std::string_view text);
 
 /// A signed axis permutation: device axis i = sign[i] * source axis source_axis[i].
@@ -65,6 +67,9 @@ struct ImportOptions {
   /// is bridged by one Hermite segment. <= 0: 10 times the median source step.
   double max_gap_s = 0.0;
   std::string device = "imported";  ///< the header's `device` value
+  /// MCAP: the pose topic ("" = the first PoseStamped, else the first OmniState) and its time.
+  std::string mcap_topic;
+  McapTraceTime mcap_time = McapTraceTime::kHeaderStamp;
 };
 
 /// Reads `path` as described by `options` and returns the resampled trace: samples at

@@ -8,6 +8,7 @@
 #include <thread>
 #include <utility>
 
+#include "rt/arrival_signal.h"
 #include "rt/loop_stats.h"
 #include "rt/periodic_loop.h"
 #include "rt/realtime.h"
@@ -20,6 +21,9 @@ struct LoopRunOptions {
   int64_t duration_ns = 0;        ///< stop after this long from the first deadline; 0 = no limit
   RealtimeSettings realtime;      ///< applied to the loop's thread first (spin_us sets the spin)
   const std::atomic<bool>* stop = nullptr;  ///< stop when this becomes true (checked every tick)
+  /// Tick on the arrivals this signal counts, the periodic deadline as fallback
+  /// (PeriodicLoop::WakeOnArrival); nullptr: periodic only. Must outlive the run.
+  const ArrivalSignal* arrival = nullptr;
   /// Called on the loop's thread once the real-time settings are applied, before the first tick,
   /// with what was granted (set-up: may allocate). Empty: nothing is called.
   std::function<void(const RealtimeReport&)> on_started;
@@ -55,6 +59,7 @@ RealtimeReport RunLoop(const LoopRunOptions& options, LoopStats* stats, Body&& b
   const RealtimeReport report = ApplyRealtime(options.realtime);
   if (options.on_started) options.on_started(report);
   PeriodicLoop loop(options.period_ns, int64_t{options.realtime.spin_us} * 1000);
+  loop.WakeOnArrival(options.arrival);
   const int64_t start_ns = MonotonicNowNs() + options.period_ns;
   const int64_t end_ns = options.duration_ns > 0 ? start_ns + options.duration_ns : INT64_MAX;
   loop.Start(start_ns);

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "base/json.h"
+#include "rt/histogram_plot.h"
 
 namespace felt {
 
@@ -147,10 +148,12 @@ LoopStatsSnapshot LoopStatsSnapshot::Minus(const LoopStatsSnapshot& earlier) con
   window.ticks = ticks - earlier.ticks;
   window.overruns = overruns - earlier.overruns;
   window.skipped_periods = skipped_periods - earlier.skipped_periods;
+  window.arrival_ticks = arrival_ticks - earlier.arrival_ticks;
   window.period = period.Minus(earlier.period);
   window.lateness = lateness.Minus(earlier.lateness);
   window.compute = compute.Minus(earlier.compute);
   window.snapshot_age = snapshot_age.Minus(earlier.snapshot_age);
+  window.arrival_wake = arrival_wake.Minus(earlier.arrival_wake);
   return window;
 }
 
@@ -164,7 +167,8 @@ LoopStats::LoopStats(int64_t period_ns, int64_t unit_ns)
       period_(unit_ns),
       lateness_(unit_ns),
       compute_(unit_ns),
-      snapshot_age_(unit_ns) {}
+      snapshot_age_(unit_ns),
+      arrival_wake_(unit_ns) {}
 
 void LoopStats::RecordTick(const TickInfo& tick, int64_t compute_ns) {
   // Histograms first, counters last: a reader that sees a tick count sees its samples.
@@ -174,6 +178,11 @@ void LoopStats::RecordTick(const TickInfo& tick, int64_t compute_ns) {
   if (tick.previous_wake_ns != 0) period_.Record(tick.wake_ns - tick.previous_wake_ns);
   lateness_.Record(tick.lateness_ns);
   compute_.Record(compute_ns);
+  if (tick.on_arrival) {
+    arrival_wake_.Record(tick.wake_ns - tick.arrival_ns);
+    arrival_ticks_.store(arrival_ticks_.load(std::memory_order_relaxed) + 1,
+                         std::memory_order_relaxed);
+  }
   if (tick.overrun) {
     overruns_.store(overruns_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
     skipped_periods_.store(skipped_periods_.load(std::memory_order_relaxed) + tick.periods_skipped,
@@ -202,6 +211,8 @@ void LoopStats::Snapshot(LoopStatsSnapshot* out) const {
   lateness_.Snapshot(&out->lateness);
   compute_.Snapshot(&out->compute);
   snapshot_age_.Snapshot(&out->snapshot_age);
+  out->arrival_ticks = arrival_ticks_.load(std::memory_order_relaxed);
+  arrival_wake_.Snapshot(&out->arrival_wake);
 }
 
 // ---- JSON ----
@@ -233,8 +244,11 @@ Json HapticJson(const LoopStatsSnapshot& haptic) {
   Json json = LoopCountsJson(haptic, "ticks", "period_nominal_us", 1e3);
   json["period_us"] = HistogramJson(haptic.period, 1e3);
   json["lateness_us"] = HistogramJson(haptic.lateness, 1e3);
+  json["lateness_bins_us"] = PlotBinsJson(haptic.lateness, 1e3);
   json["compute_us"] = HistogramJson(haptic.compute, 1e3);
   json["snapshot_age_us"] = HistogramJson(haptic.snapshot_age, 1e3);
+  json["arrival_ticks"] = haptic.arrival_ticks;
+  json["arrival_wake_us"] = HistogramJson(haptic.arrival_wake, 1e3);
   return json;
 }
 
@@ -242,6 +256,7 @@ Json SimJson(const LoopStatsSnapshot& sim) {
   Json json = LoopCountsJson(sim, "frames", "period_nominal_ms", 1e6);
   json["period_ms"] = HistogramJson(sim.period, 1e6);
   json["lateness_us"] = HistogramJson(sim.lateness, 1e3);
+  json["lateness_bins_us"] = PlotBinsJson(sim.lateness, 1e3);
   json["frame_ms"] = HistogramJson(sim.compute, 1e6);
   return json;
 }

@@ -111,6 +111,8 @@ struct LoopStatsSnapshot {
   HistogramSnapshot lateness;      ///< wake-up minus deadline
   HistogramSnapshot compute;       ///< work time per tick (wake-up to end of work)
   HistogramSnapshot snapshot_age;  ///< age of the sim snapshot used at each tick (haptic loop)
+  uint64_t arrival_ticks = 0;      ///< ticks woken by an arrival (PeriodicLoop::WakeOnArrival)
+  HistogramSnapshot arrival_wake;  ///< those ticks' wake-up minus the arrival's Notify()
 
   /// What happened between `earlier` (of the same LoopStats) and this snapshot; counters are
   /// differences, histograms as HistogramSnapshot::Minus.
@@ -154,6 +156,8 @@ class LoopStats {
   Histogram lateness_;
   Histogram compute_;
   Histogram snapshot_age_;
+  std::atomic<uint64_t> arrival_ticks_{0};
+  Histogram arrival_wake_;
 };
 
 /// `{"p50", "p99", "p999", "max", "mean", "count"}` of `h`, values in ns divided by `ns_per_unit`
@@ -161,11 +165,12 @@ class LoopStats {
 nlohmann::ordered_json HistogramJson(const HistogramSnapshot& h, double ns_per_unit);
 
 /// The haptic loop: ticks, overruns, skipped_periods, period_nominal_us, period_us, lateness_us,
-/// compute_us, snapshot_age_us (percentiles in us). Not real-time safe.
+/// lateness_bins_us (the non-empty bins, rt/histogram_plot.h PlotBinsJson), compute_us,
+/// snapshot_age_us, arrival_ticks, arrival_wake_us (percentiles in us). Not real-time safe.
 nlohmann::ordered_json HapticJson(const LoopStatsSnapshot& haptic);
 
 /// The sim loop: frames, overruns, skipped_periods, period_nominal_ms, period_ms, lateness_us,
-/// frame_ms (the work time of a frame). Not real-time safe.
+/// lateness_bins_us (as HapticJson's), frame_ms (the work time of a frame). Not real-time safe.
 nlohmann::ordered_json SimJson(const LoopStatsSnapshot& sim);
 
 /// The server's stats document (issue 5): {"realtime", "haptic": {... "lateness_us", "overruns",

@@ -48,6 +48,13 @@ void PeriodicLoop::Start(int64_t first_deadline_ns) {
   ticks_ = 0;
   overruns_ = 0;
   skipped_periods_ = 0;
+  if (arrival_ != nullptr) seen_arrivals_ = arrival_->count();
+}
+
+void PeriodicLoop::WakeOnArrival(const ArrivalSignal* signal, int64_t grace_ns) {
+  arrival_ = signal;
+  grace_ns_ = grace_ns >= 0 ? grace_ns : period_ns_ / 10;
+  if (arrival_ != nullptr) seen_arrivals_ = arrival_->count();
 }
 
 TickInfo PeriodicLoop::WaitNext() {
@@ -69,9 +76,34 @@ TickInfo PeriodicLoop::WaitNext() {
     deadline = start_ns_ + static_cast<int64_t>(next_index_) * period_ns_;
   }
 
-  // Sleep to `spin_ns_` before the deadline, then spin on the clock to the deadline.
   int64_t wake = 0;
-  if (spin_ns_ > 0) {
+  if (arrival_ != nullptr) {
+    // On arrival (ArrivalTickNs): not before the slot opens (the previous boundary; after a tick
+    // on arrival the next waits for it); a sample pending from before the opening ticks at once
+    // only within the grace; then until an arrival or the deadline: a futex wait to `spin_ns_`
+    // before the deadline, then a spin that watches the signal too.
+    const int64_t slot_open = deadline - period_ns_;
+    if (now < slot_open) SleepUntil(slot_open);
+    uint32_t count = arrival_->count();
+    // The count read first: last_ns() is then at least the time of the arrivals it counts.
+    if (count != seen_arrivals_ && arrival_->last_ns() < slot_open - grace_ns_) {
+      seen_arrivals_ = count;  // too old to tick the slot: read by whichever tick comes
+    }
+    for (;;) {
+      if (count != seen_arrivals_) {
+        tick.on_arrival = true;
+        break;
+      }
+      const int64_t t = MonotonicNowNs();
+      if (t >= deadline) break;
+      if (deadline - t > spin_ns_) (void)arrival_->WaitUntil(count, deadline - spin_ns_);
+      count = arrival_->count();
+    }
+    wake = MonotonicNowNs();
+    seen_arrivals_ = count;
+    if (tick.on_arrival) tick.arrival_ns = arrival_->last_ns();
+  } else if (spin_ns_ > 0) {
+    // Sleep to `spin_ns_` before the deadline, then spin on the clock to the deadline.
     if (deadline - spin_ns_ > now) SleepUntil(deadline - spin_ns_);
     do {
       wake = MonotonicNowNs();
@@ -86,7 +118,7 @@ TickInfo PeriodicLoop::WaitNext() {
   tick.period_index = next_index_;
   tick.deadline_ns = deadline;
   tick.wake_ns = wake;
-  tick.lateness_ns = wake - deadline;
+  tick.lateness_ns = wake > deadline ? wake - deadline : 0;  // a tick on arrival comes early
   ++ticks_;
   ++next_index_;
   last_wake_ns_ = wake;

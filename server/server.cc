@@ -29,7 +29,14 @@ Server::Server(ServerSpec spec, PointerSource* source, ForceSink* sink, ServerOp
       sim_(spec_.sim, spec_.proxy.structure),
       haptic_(spec_.proxy, spec_.devices, spec_.haptic, sim_.model(),
               sim_.snapshots().read_slot().snapshot, &sim_.snapshots(), &sim_.reactions(), source,
-              sink, haptic_stats_.get()) {}
+              sink, haptic_stats_.get()),
+      source_(source),
+      tick_device_(TickDeviceIndex(spec_)) {
+  if (tick_device_ < 0) {
+    throw std::invalid_argument("ServerSpec.haptic.tick_device: '" + spec_.haptic.tick_device +
+                                "' is not one of the devices");
+  }
+}
 
 Server::~Server() { Stop(); }
 
@@ -86,8 +93,14 @@ LoopRunOptions Server::ThreadLoop(double rate_hz, const RealtimeSettings& realti
 }
 
 void Server::HapticThread() {
-  const LoopRunOptions loop = ThreadLoop(spec_.haptic.haptic_rate_hz, spec_.haptic.haptic_realtime,
-                                         &haptic_report_, &haptic_ready_);
+  LoopRunOptions loop = ThreadLoop(spec_.haptic.haptic_rate_hz, spec_.haptic.haptic_realtime,
+                                   &haptic_report_, &haptic_ready_);
+  // Tick on arrival: the tick device's samples wake the loop, the periodic deadline stays the
+  // fallback and the bound (rt/periodic_loop.h). A source that cannot signal (a trace) leaves the
+  // loop periodic.
+  if (spec_.haptic.tick_trigger == HapticTickTrigger::kArrival && source_ != nullptr) {
+    loop.arrival = source_->Arrivals(static_cast<uint32_t>(tick_device_));
+  }
   RunLoop(loop, haptic_stats_.get(),
           [this](const TickInfo& tick) { HapticTick(tick.wake_ns, haptic_dt_s_); });
 }

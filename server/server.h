@@ -96,7 +96,7 @@ class Server : NonCopyable {
   /// Builds the cloth, the snapshots and one proxy + safety state per device. `source` and
   /// `sink` must outlive the server and have room for spec.devices.size() devices. Throws
   /// std::invalid_argument naming the field for a bad spec (no devices, a bad safety value, a
-  /// cloth BuildClothModel refuses).
+  /// cloth BuildClothModel refuses, a haptic.tick_device that is not a device).
   Server(ServerSpec spec, PointerSource* source, ForceSink* sink, ServerOptions options = {});
   /// Stops and joins the threads.
   ~Server();
@@ -178,6 +178,8 @@ class Server : NonCopyable {
   SimLoop sim_;
   HapticLoop haptic_;
   std::atomic<int64_t> stall_request_ns_{0};
+  PointerSource* source_;  // the haptic loop's source (for its arrival signal)
+  int tick_device_;        // TickDeviceIndex: the device whose arrivals trigger the tick
   std::unique_ptr<ViewTap> view_tap_;  // null unless EnableViewTap (written before the threads)
 
   // Threads and their real-time outcome (written before `*_ready_`, read after).

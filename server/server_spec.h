@@ -22,4 +22,8 @@ struct ServerSpec {
 /// Reads everything the server needs from a loaded scene. Throws SceneError.
 ServerSpec ParseServerSpec(const SceneDocument& doc);
 
+/// The index in spec.devices of the device whose arrivals trigger the haptic tick
+/// (haptic.tick_device, "" = 0), or -1 when no device has that id.
+int TickDeviceIndex(const ServerSpec& spec);
+
 }  // namespace felt

@@ -32,6 +32,10 @@ class TransportPointerSource final : public PointerSource {
     out->buttons = view.buttons;
     return true;
   }
+  /// The transport's count of accepted samples of the device (ServerTransport::Arrivals).
+  const ArrivalSignal* Arrivals(uint32_t device_index) const override {
+    return transport_->Arrivals(device_index);
+  }
 
  private:
   transport::ServerTransport* transport_;

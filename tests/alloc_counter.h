@@ -82,7 +82,10 @@ void* NoThrow(Allocate allocate) noexcept {
 /// (nothrow, array, aligned) and, without a sanitizer, the malloc family (one operator new counts
 /// once). Needs FELT_DEFINE_ALLOC_COUNTER() in the executable.
 inline uint64_t ThreadAllocationCount() noexcept {
-  return alloc_counter_detail::thread_allocations;
+  // A volatile read: GCC assumes a call to the builtin malloc changes no other memory, so a plain
+  // read after `std::malloc` could reuse the value read before it (it did: the count of a
+  // malloc/free pair came out 0 once the surrounding code changed).
+  return *static_cast<volatile uint64_t*>(&alloc_counter_detail::thread_allocations);
 }
 
 /// Counts the calling thread's allocation calls (see ThreadAllocationCount) from construction on.

@@ -59,7 +59,8 @@ class ClientTransport::Impl {
 ClientTransport::Impl::Impl(ClientTransportConfig config)
     : config_(std::move(config)),
       devices_(config_.device_ids.size()),
-      participant_(AcquireDomain(config_.dds)) {
+      participant_(config_.dds, "device-" + (config_.device_ids.empty() ? std::string()
+                                                                        : config_.device_ids[0])) {
   // Device ids: non-empty, at most 64 characters, unique.
   if (devices_.empty()) {
     throw std::invalid_argument(

@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "transport/security.h"
+
 namespace felt::transport {
 
 TopicNames TopicNames::WithAffixes(const std::string& prefix, const std::string& suffix) {
@@ -121,6 +123,38 @@ std::shared_ptr<Domain> AcquireDomain(const DdsSettings& settings) {
 Participant::Participant(std::shared_ptr<Domain> domain) : domain_(std::move(domain)) {
   entity_ = Entity(CheckDds(dds_create_participant(domain_->id(), nullptr, nullptr),
                             "dds_create_participant in domain " + std::to_string(domain_->id())));
+}
+
+Participant::Participant(const DdsSettings& settings, const std::string& default_identity) {
+  // DDS Security through the participant's QoS properties (not the XML <Security> element): each
+  // participant carries its own identity, so one process can hold a server and a device (the
+  // domain and its XML configuration are shared per process, AcquireDomain), and a user's
+  // --dds-config or CYCLONEDDS_URI needs no merging.
+  const auto properties = SecurityProperties(settings, default_identity);
+  domain_ = AcquireDomain(settings);
+  const std::string what = "dds_create_participant in domain " + std::to_string(domain_->id());
+  if (properties.empty()) {
+    entity_ = Entity(CheckDds(dds_create_participant(domain_->id(), nullptr, nullptr), what));
+    return;
+  }
+  std::unique_ptr<dds_qos_t, decltype(&dds_delete_qos)> qos(dds_create_qos(), &dds_delete_qos);
+  for (const auto& [name, value] : properties)
+    dds_qset_prop(qos.get(), name.c_str(), value.c_str());
+  const dds_entity_t handle = dds_create_participant(domain_->id(), qos.get(), nullptr);
+  if (handle < 0) {
+    std::string files;
+    for (const auto& [name, value] : properties) {
+      if (value.rfind("file:", 0) == 0) files += (files.empty() ? "" : ", ") + value.substr(5);
+    }
+    throw std::runtime_error(
+        what + " with DDS Security (--security " + settings.security_dir +
+        "): " + dds_strretcode(handle) +
+        ": Cyclone refused the identity (its message above says why: a certificate or "
+        "permissions document not signed by the CA, expired, a subject the permissions do not "
+        "name, or a plugin that failed to load); files: " +
+        files);
+  }
+  entity_ = Entity(handle);
 }
 
 Entity CreateTopic(const Participant& participant, const dds_topic_descriptor_t* descriptor,

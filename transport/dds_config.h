@@ -91,8 +91,14 @@ std::shared_ptr<Domain> AcquireDomain(const DdsSettings& settings);
 /// A participant in a shared domain; keeps the domain alive.
 class Participant {
  public:
-  /// Creates the participant. Throws std::runtime_error on a Cyclone error.
+  /// Creates a participant without DDS Security. Throws std::runtime_error on a Cyclone error.
   explicit Participant(std::shared_ptr<Domain> domain);
+  /// The one way Felt's transports join a domain: AcquireDomain(settings), then a participant
+  /// with DDS Security on when settings.security_dir is set (identity settings.identity, else
+  /// `default_identity`: "server", "device-<id>", "recorder"; transport/security.h). Throws
+  /// std::runtime_error naming the security file that is missing or malformed, or, when Cyclone
+  /// refuses the identity, the files it was given.
+  Participant(const DdsSettings& settings, const std::string& default_identity);
   /// The participant's handle.
   dds_entity_t get() const { return entity_.get(); }
   /// The domain it belongs to.

@@ -26,6 +26,15 @@ Qos StreamReaderQos() {
   return qos;
 }
 
+Qos Ros2WrenchWriterQos() {
+  Qos qos(dds_create_qos());
+  if (!qos) throw std::bad_alloc();
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(1));
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
+  return qos;
+}
+
 const char* QosPolicyName(uint32_t policy_id) {
   switch (static_cast<dds_qos_policy_id_t>(policy_id)) {
     case DDS_USERDATA_QOS_POLICY_ID:

@@ -42,6 +42,14 @@ Qos StreamQos(std::chrono::nanoseconds deadline = kStreamDeadline);
 /// kStreamDeadline to readers that request one. Throws std::bad_alloc only.
 Qos StreamReaderQos();
 
+/// QoS of the ROS 2 profile's force writer (WrenchStamped): reliable (1 ms blocking at most),
+/// keep-last 1, volatile, no deadline. Reliable so that a subscriber with ROS 2's default profile
+/// (reliable, keep-last 10) matches, and a SensorDataQoS (best-effort) one too; keep-last 1 so a
+/// slow subscriber gets the newest force, never a backlog. Felt's ROS 2 readers use
+/// StreamReaderQos (best-effort: matches reliable and best-effort publishers). Throws
+/// std::bad_alloc only.
+Qos Ros2WrenchWriterQos();
+
 /// The name of a DDS QoS policy id (dds_qos_policy_id_t: "DEADLINE", "RELIABILITY", ...), as
 /// the incompatible-QoS statuses report it; "UNKNOWN" for an id this Cyclone does not define.
 const char* QosPolicyName(uint32_t policy_id);

@@ -23,11 +23,18 @@ namespace {
 
 constexpr int64_t kWarmupNs = 500000000;  // 0.5 s of pings not recorded
 
+// The echo's settings: the pinger's, with the default identity ("server": it reads felt/pointer
+// and writes felt/force) whatever identity the pinger uses.
+DdsSettings EchoDds(DdsSettings dds) {
+  dds.identity.clear();
+  return dds;
+}
+
 // The echo side: answers every PointerSample with a ForceCommand carrying its seq and time.
 class Echo {
  public:
   Echo(const RawRoundTripOptions& options, const TopicNames& topics)
-      : participant_(AcquireDomain(options.dds)) {
+      : participant_(EchoDds(options.dds), "server") {
     ping_topic_ = CreateTopic(participant_, &felt_msgs_PointerSample_desc, topics.pointer);
     pong_topic_ = CreateTopic(participant_, &felt_msgs_ForceCommand_desc, topics.force);
     const Qos qos = StreamQos();
@@ -125,7 +132,7 @@ RawRoundTripResult RunRawRoundTrip(const RawRoundTripOptions& options) {
   RawRoundTripResult result;
   try {
     // The pinger: the same entities a device client has, used without the client's bookkeeping.
-    Participant participant(AcquireDomain(options.dds));
+    Participant participant(options.dds, "device-bench");
     Entity ping_topic = CreateTopic(participant, &felt_msgs_PointerSample_desc, topics.pointer);
     Entity pong_topic = CreateTopic(participant, &felt_msgs_ForceCommand_desc, topics.force);
     const Qos qos = StreamQos();

@@ -20,6 +20,9 @@ struct RawRoundTripOptions {
   double rate_hz = 1000.0;                         ///< pings per second
   ReceiveMode echo_mode = ReceiveMode::kListener;  ///< how the echo process takes pings
   std::string topic_suffix;                        ///< appended to felt/pointer and felt/force
+  // With dds.security_dir set, the echo authenticates as identity "server" and the pinger as
+  // dds.identity, by default "device-bench" (`felt security init DIR --participants
+  // server,device:bench`).
 };
 
 /// Round-trip times and counts of one run.

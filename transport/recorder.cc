@@ -79,7 +79,7 @@ size_t StreamTap::Impl::TakeAll(const Entity& reader, const std::array<Message, 
 }
 
 StreamTap::Impl::Impl(StreamTapConfig config)
-    : config_(std::move(config)), participant_(AcquireDomain(config_.dds)) {
+    : config_(std::move(config)), participant_(config_.dds, "recorder") {
   if (!config_.pointers && !config_.forces) {
     throw std::invalid_argument("StreamTapConfig: read at least one of pointers and forces");
   }

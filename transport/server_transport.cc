@@ -7,13 +7,16 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
 #include <utility>
+#include <vector>
 
 #include "felt_types.h"
+#include "ros2_types.h"
 #include "rt/counters.h"
 #include "rt/loop_stats.h"
 #include "rt/spsc_queue.h"
@@ -113,14 +116,35 @@ class ServerTransport::Impl {
     uint64_t next_force_seq = 1;
   };
 
+  // A device on the ROS 2 profile (transport/ros2_profile.h): its topics, readers and writer, and
+  // the assembler of its samples (receive path, receive_mutex_ held).
+  struct Ros2Device {
+    Impl* impl = nullptr;
+    size_t index = 0;  // into devices_
+    Ros2DeviceTopics topics;
+    Entity pose_topic, twist_topic, wrench_topic;
+    Entity pose_reader, twist_reader, wrench_writer;
+    Ros2PointerAssembler assembler;
+    // The frame_id the forces echo (the newest pose's, when topics.frame_id is empty): written
+    // by the receive path, read by the writer thread, under frame_mutex.
+    std::mutex frame_mutex;
+    std::string echoed_frame;
+    std::atomic<bool> qos_logged{false};
+  };
+
   static void OnDataAvailable(dds_entity_t reader, void* arg);
+  static void OnRos2Pose(dds_entity_t reader, void* arg);
+  static void OnRos2Twist(dds_entity_t reader, void* arg);
+  void CreateRos2Entities(Ros2Device* device, const Qos& reader_qos);
+  void WriteRos2Force(Ros2Device* device, const ForceCommandView& force,
+                      geometry_msgs_msg_dds__WrenchStamped_* message, std::string* frame);
   void WaitsetLoop();
   void WriterLoop();
   void DrainPointers();
   void Accept(const felt_msgs_PointerSample& sample, dds_instance_handle_t writer, int64_t now_ns);
   // True while `writer` is matched to the pointer reader (or when that cannot be told: an error,
   // more than kMatchedCapacity writers). Receive thread; allocates nothing.
-  bool StillMatched(dds_instance_handle_t writer);
+  bool StillMatched(const Entity& reader, dds_instance_handle_t writer);
   static constexpr size_t kMatchedCapacity = 64;
   std::array<dds_instance_handle_t, kMatchedCapacity> matched_{};  // StillMatched's buffer
   // An instance state change (invalid sample): the owner that disposed or unregistered its
@@ -143,6 +167,7 @@ class ServerTransport::Impl {
   ServerTransportConfig config_;
   std::vector<Device> devices_;
   std::unique_ptr<TripleBuffer<PointerSampleView>[]> slots_;
+  std::unique_ptr<ArrivalSignal[]> arrivals_;  // per device: counts what reaches its slot
   SpscQueue<ForceCommandView> forces_;
 
   // DDS entities, deleted in reverse order by the destructor.
@@ -156,6 +181,7 @@ class ServerTransport::Impl {
   // serialised here. The haptic thread never touches this mutex.
   std::mutex receive_mutex_;
   std::array<felt_msgs_PointerSample, kTakeBatch> take_buffer_{};
+  std::vector<std::unique_ptr<Ros2Device>> ros2_;  // [devices]; null: Felt's profile
   std::array<void*, kTakeBatch> take_ptrs_{};
   std::array<dds_sample_info_t, kTakeBatch> take_infos_{};
 
@@ -176,8 +202,9 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
     : config_((ValidateConfig(config), std::move(config))),
       devices_(config_.devices.size()),
       slots_(new TripleBuffer<PointerSampleView>[config_.devices.size()]),
+      arrivals_(new ArrivalSignal[config_.devices.size()]),
       forces_(config_.force_queue_capacity),
-      participant_(AcquireDomain(config_.dds)) {
+      participant_(config_.dds, "server") {
   // Devices: ids as fixed C strings for allocation-free comparison; full token buckets.
   const int64_t now_ns = MonotonicNowNs();
   for (size_t i = 0; i < devices_.size(); ++i) {
@@ -228,7 +255,21 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
       CheckDds(dds_waitset_attach(waitset_.get(), read_condition_.get(), 1), "dds_waitset_attach");
       waitset_thread_ = std::thread([this] { WaitsetLoop(); });
     }
+    // The ROS 2 profile's devices: listeners on Cyclone's receive thread in either mode.
+    ros2_.resize(devices_.size());
+    for (size_t i = 0; i < devices_.size(); ++i) {
+      if (config_.devices[i].profile != TransportProfile::kRos2) continue;
+      ros2_[i] = std::make_unique<Ros2Device>();
+      ros2_[i]->impl = this;
+      ros2_[i]->index = i;
+      CreateRos2Entities(ros2_[i].get(), reader_qos);
+    }
   } catch (...) {
+    for (auto& d : ros2_) {
+      if (d == nullptr) continue;
+      (void)dds_set_listener(d->pose_reader.get(), nullptr);
+      (void)dds_set_listener(d->twist_reader.get(), nullptr);
+    }
     stop_writer_.store(true);
     force_epoch_.fetch_add(1, std::memory_order_release);
     force_epoch_.notify_one();
@@ -247,6 +288,13 @@ ServerTransport::Impl::~Impl() {
     if (waitset_thread_.joinable()) waitset_thread_.join();
   }
   pointer_reader_.Reset();
+  for (auto& d : ros2_) {
+    if (d == nullptr) continue;
+    (void)dds_set_listener(d->pose_reader.get(), nullptr);
+    (void)dds_set_listener(d->twist_reader.get(), nullptr);
+    d->pose_reader.Reset();
+    d->twist_reader.Reset();
+  }
   // 2. Publish what is queued, then stop the writer thread.
   stop_writer_.store(true);
   force_epoch_.fetch_add(1, std::memory_order_release);
@@ -325,12 +373,34 @@ uint64_t ServerTransport::Impl::IncompatibleQos() const {
   if (dds_get_offered_incompatible_qos_status(status_writer_.get(), &offered) >= 0) {
     note(2, "writer", config_.topics.status, offered.total_count, offered.last_policy_id);
   }
+  for (const auto& d : ros2_) {
+    if (d == nullptr) continue;
+    uint32_t count = 0, policy = 0;
+    requested = {};
+    if (dds_get_requested_incompatible_qos_status(d->pose_reader.get(), &requested) >= 0) {
+      count += requested.total_count;
+      policy = requested.last_policy_id;
+    }
+    offered = {};
+    if (dds_get_offered_incompatible_qos_status(d->wrench_writer.get(), &offered) >= 0) {
+      count += offered.total_count;
+      if (offered.total_count > 0) policy = offered.last_policy_id;
+    }
+    total += count;
+    if (count > 0 && !d->qos_logged.exchange(true)) {
+      spdlog::warn(
+          "device '{}' (ROS 2 profile, {} / {}): a DDS peer's QoS does not match ({} policy): no "
+          "data flows between them; counted in felt/status (incompatible_qos), logged once",
+          config_.devices[d->index].device_id, d->topics.pose, d->topics.wrench,
+          QosPolicyName(policy));
+    }
+  }
   return total;
 }
 
-bool ServerTransport::Impl::StillMatched(dds_instance_handle_t writer) {
+bool ServerTransport::Impl::StillMatched(const Entity& reader, dds_instance_handle_t writer) {
   const dds_return_t n =
-      dds_get_matched_publications(pointer_reader_.get(), matched_.data(), matched_.size());
+      dds_get_matched_publications(reader.get(), matched_.data(), matched_.size());
   if (n < 0 || static_cast<size_t>(n) > matched_.size()) return true;
   return std::find(matched_.begin(), matched_.begin() + n, writer) != matched_.begin() + n;
 }
@@ -373,7 +443,9 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
   // Ownership: another writer's sample is refused while the owner is heard and still matched;
   // after its silence the next writer's sample takes the device over; one that has left (no
   // longer matched, or disposed: Release) leaves the device free.
-  if (device.owner != 0 && writer != device.owner && StillMatched(device.owner)) {
+  const Entity& reader =
+      ros2_.empty() || ros2_[index] == nullptr ? pointer_reader_ : ros2_[index]->pose_reader;
+  if (device.owner != 0 && writer != device.owner && StillMatched(reader, device.owner)) {
     if (now_ns - device.owner_last_ns < config_.ownership_timeout_ns) return Bump(not_owner_);
     Bump(ownership_changes_);
   }
@@ -412,18 +484,28 @@ void ServerTransport::Impl::Accept(const felt_msgs_PointerSample& sample,
   TripleBuffer<PointerSampleView>& slot = slots_[index];
   slot.write_slot() = PointerViewOf(sample, static_cast<uint32_t>(index), now_ns);
   slot.Publish();
+  arrivals_[index].Notify(now_ns);  // after the publication: a woken haptic tick reads it
   Bump(accepted_);
 }
 
 void ServerTransport::Impl::WriterLoop() {
   NameThisThread("felt-dds-force");
   felt_msgs_ForceCommand message{};
+  geometry_msgs_msg_dds__WrenchStamped_ wrench{};
+  std::string frame;
+  frame.reserve(256);
   ForceCommandView force;
   for (;;) {
     // Read the epoch before draining: a push after this read changes it, so wait() returns.
     const uint32_t epoch = force_epoch_.load(std::memory_order_acquire);
     while (forces_.TryPop(&force)) {
       const int64_t start_ns = MonotonicNowNs();
+      Ros2Device* ros2 = ros2_.empty() ? nullptr : ros2_[force.device_index].get();
+      if (ros2 != nullptr) {
+        WriteRos2Force(ros2, force, &wrench, &frame);
+        write_hop_.Record(MonotonicNowNs() - start_ns);
+        continue;
+      }
       FillForceMessage(force, devices_[force.device_index].id, &message);
       if (dds_write(force_writer_.get(), &message) < 0) {
         Bump(dds_errors_write_);
@@ -434,6 +516,123 @@ void ServerTransport::Impl::WriterLoop() {
     }
     if (stop_writer_.load()) break;  // after the drain: nothing queued is left behind
     force_epoch_.wait(epoch, std::memory_order_acquire);
+  }
+}
+
+void ServerTransport::Impl::CreateRos2Entities(Ros2Device* d, const Qos& reader_qos) {
+  const DeviceLimits& limits = config_.devices[d->index];
+  const Ros2DeviceTopics defaults = DefaultRos2Topics(limits.device_id);
+  d->topics = limits.ros2;
+  if (d->topics.pose.empty()) d->topics.pose = defaults.pose;
+  if (d->topics.wrench.empty()) d->topics.wrench = defaults.wrench;
+  const std::string what = "device '" + limits.device_id + "' (profile ros2): ";
+  const std::string pose = Ros2DdsTopic(d->topics.pose, what + "pose topic");
+  const std::string wrench = Ros2DdsTopic(d->topics.wrench, what + "wrench topic");
+  d->pose_topic = CreateTopic(participant_, &geometry_msgs_msg_dds__PoseStamped__desc, pose);
+  d->wrench_topic = CreateTopic(participant_, &geometry_msgs_msg_dds__WrenchStamped__desc, wrench);
+  const Qos writer_qos = Ros2WrenchWriterQos();
+  d->wrench_writer = CreateWriter(participant_, d->wrench_topic, writer_qos.get(), wrench);
+  using ListenerPtr = std::unique_ptr<dds_listener_t, void (*)(dds_listener_t*)>;
+  if (!d->topics.twist.empty()) {
+    const std::string twist = Ros2DdsTopic(d->topics.twist, what + "twist topic");
+    d->twist_topic = CreateTopic(participant_, &geometry_msgs_msg_dds__TwistStamped__desc, twist);
+    ListenerPtr listener(dds_create_listener(d), &dds_delete_listener);
+    if (!listener) throw std::bad_alloc();
+    dds_lset_data_available(listener.get(), &Impl::OnRos2Twist);
+    d->twist_reader =
+        CreateReader(participant_, d->twist_topic, reader_qos.get(), listener.get(), twist);
+  }
+  ListenerPtr listener(dds_create_listener(d), &dds_delete_listener);
+  if (!listener) throw std::bad_alloc();
+  dds_lset_data_available(listener.get(), &Impl::OnRos2Pose);
+  d->pose_reader =
+      CreateReader(participant_, d->pose_topic, reader_qos.get(), listener.get(), pose);
+}
+
+// Takes every sample of `reader` on loan (ROS 2's types hold unbounded strings, which Cyclone
+// allocates), calling on_valid(sample, info, now_ns) for each that holds data.
+template <class T, class OnValid>
+bool TakeLoaned(dds_entity_t reader, OnValid&& on_valid) {
+  constexpr int kBatch = 16;
+  for (;;) {
+    std::array<void*, kBatch> ptrs{};
+    std::array<dds_sample_info_t, kBatch> infos{};
+    const dds_return_t n = dds_take(reader, ptrs.data(), infos.data(), kBatch, kBatch);
+    if (n < 0) return false;
+    const int64_t now_ns = MonotonicNowNs();
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (infos[static_cast<size_t>(i)].valid_data) {
+        on_valid(*static_cast<const T*>(ptrs[static_cast<size_t>(i)]),
+                 infos[static_cast<size_t>(i)], now_ns);
+      }
+    }
+    if (n > 0) (void)dds_return_loan(reader, ptrs.data(), n);
+    if (n < kBatch) return true;
+  }
+}
+
+void ServerTransport::Impl::OnRos2Pose(dds_entity_t reader, void* arg) {
+  Ros2Device& d = *static_cast<Ros2Device*>(arg);
+  Impl& impl = *d.impl;
+  std::lock_guard<std::mutex> lock(impl.receive_mutex_);
+  const int64_t start_ns = MonotonicNowNs();
+  felt_msgs_PointerSample sample{};
+  std::memcpy(sample.device_id, impl.devices_[d.index].id, sizeof(sample.device_id));
+  const bool ok = TakeLoaned<geometry_msgs_msg_dds__PoseStamped_>(
+      reader, [&](const geometry_msgs_msg_dds__PoseStamped_& m, const dds_sample_info_t& info,
+                  int64_t now_ns) {
+        const double p[3] = {m.pose.position.x, m.pose.position.y, m.pose.position.z};
+        const Ros2Pointer in =
+            d.assembler.Pose(Ros2StampNs(m.header.stamp.sec, m.header.stamp.nanosec), p);
+        sample.seq = in.seq;
+        sample.device_time_ns = in.device_time_ns;
+        for (int k = 0; k < 3; ++k) {
+          sample.position_m[k] = in.position_m[k];
+          sample.velocity_m_per_s[k] = in.velocity_m_per_s[k];
+        }
+        impl.Accept(sample, info.publication_handle, now_ns);
+        if (d.topics.frame_id.empty() && m.header.frame_id != nullptr) {
+          std::lock_guard<std::mutex> frame_lock(d.frame_mutex);
+          if (d.echoed_frame != m.header.frame_id) d.echoed_frame.assign(m.header.frame_id);
+        }
+      });
+  if (!ok) Bump(impl.dds_errors_receive_);
+  impl.receive_hop_.Record(MonotonicNowNs() - start_ns);
+}
+
+void ServerTransport::Impl::OnRos2Twist(dds_entity_t reader, void* arg) {
+  Ros2Device& d = *static_cast<Ros2Device*>(arg);
+  Impl& impl = *d.impl;
+  std::lock_guard<std::mutex> lock(impl.receive_mutex_);
+  const bool ok = TakeLoaned<geometry_msgs_msg_dds__TwistStamped_>(
+      reader,
+      [&](const geometry_msgs_msg_dds__TwistStamped_& m, const dds_sample_info_t&, int64_t) {
+        const double v[3] = {m.twist.linear.x, m.twist.linear.y, m.twist.linear.z};
+        d.assembler.Twist(Ros2StampNs(m.header.stamp.sec, m.header.stamp.nanosec), v);
+      });
+  if (!ok) Bump(impl.dds_errors_receive_);
+}
+
+void ServerTransport::Impl::WriteRos2Force(Ros2Device* d, const ForceCommandView& force,
+                                           geometry_msgs_msg_dds__WrenchStamped_* m,
+                                           std::string* frame) {
+  // The stamp of the pose this force answers: the driver pairs them without a common clock.
+  Ros2StampOf(force.answers_device_time_ns, &m->header.stamp.sec, &m->header.stamp.nanosec);
+  if (!d->topics.frame_id.empty()) {
+    *frame = d->topics.frame_id;
+  } else {
+    std::lock_guard<std::mutex> lock(d->frame_mutex);
+    *frame = d->echoed_frame;
+  }
+  m->header.frame_id = frame->data();
+  m->wrench.force.x = force.force_N_D[0];
+  m->wrench.force.y = force.force_N_D[1];
+  m->wrench.force.z = force.force_N_D[2];
+  m->wrench.torque = geometry_msgs_msg_dds__Vector3_{0.0, 0.0, 0.0};
+  if (dds_write(d->wrench_writer.get(), m) < 0) {
+    Bump(dds_errors_write_);
+  } else {
+    Bump(published_);
   }
 }
 
@@ -459,6 +658,10 @@ bool ServerTransport::LatestPointer(uint32_t device_index, PointerSampleView* ou
   if (newest.receive_time_ns == 0) return false;  // nothing accepted yet
   *out = newest;
   return true;
+}
+
+const ArrivalSignal* ServerTransport::Arrivals(uint32_t device_index) const {
+  return device_index < impl_->devices_.size() ? &impl_->arrivals_[device_index] : nullptr;
 }
 
 bool ServerTransport::PushForce(const ForceCommandView& force) {
@@ -548,11 +751,19 @@ TransportStats ServerTransport::Stats() const {
 }
 
 uint32_t ServerTransport::MatchedPointerWriters() const {
-  return MatchedWriters(impl_->pointer_reader_);
+  uint32_t n = MatchedWriters(impl_->pointer_reader_);
+  for (const auto& d : impl_->ros2_) {
+    if (d != nullptr) n += MatchedWriters(d->pose_reader);
+  }
+  return n;
 }
 
 uint32_t ServerTransport::MatchedForceReaders() const {
-  return MatchedReaders(impl_->force_writer_);
+  uint32_t n = MatchedReaders(impl_->force_writer_);
+  for (const auto& d : impl_->ros2_) {
+    if (d != nullptr) n += MatchedReaders(d->wrench_writer);
+  }
+  return n;
 }
 
 }  // namespace felt::transport

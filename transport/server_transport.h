@@ -12,7 +12,9 @@
 #include <vector>
 
 #include "base/non_copyable.h"
+#include "rt/arrival_signal.h"
 #include "rt/clock.h"
+#include "transport/ros2_profile.h"
 #include "transport/settings.h"
 #include "transport/views.h"
 
@@ -31,6 +33,12 @@ struct DeviceLimits {
   std::array<double, 3> workspace_max_m_D{1.0, 1.0, 1.0};     ///< opposite corner, m
   double max_rate_hz = 2000.0;  ///< token-bucket rate: sustained samples per second accepted
   double burst_samples = 50.0;  ///< token-bucket depth: samples accepted back to back
+  /// The topics that carry this device (transport/ros2_profile.h): Felt's own, or ROS 2's.
+  TransportProfile profile = TransportProfile::kFelt;
+  /// The ROS 2 topics when profile is kRos2 (ParseTransportConfig starts from
+  /// DefaultRos2Topics(device_id)); an empty pose or wrench name takes the default, an empty
+  /// twist name means none (velocity by finite difference of the poses).
+  Ros2DeviceTopics ros2;
 };
 
 /// Everything the server transport needs; validated by the ServerTransport constructor.
@@ -105,6 +113,12 @@ class ServerTransport : NonCopyable {
   /// `out->receive_time_ns` tell whether it is new and how old it is. Haptic thread only.
   /// Real-time safe: one atomic exchange and a copy.
   bool LatestPointer(uint32_t device_index, PointerSampleView* out);
+
+  /// Counts the samples of device `device_index` accepted into its slot, each notified right
+  /// after LatestPointer can read it (on the receive path's thread), so the haptic thread can
+  /// tick on arrival (docs/server.md); nullptr for an index out of range. Lives as long as the
+  /// transport. Any thread.
+  const ArrivalSignal* Arrivals(uint32_t device_index) const;
 
   /// Queues `force` for publication; its `seq` is replaced by the device's next sequence number
   /// (assigned even when refused, so a refused force shows as a gap to the device). False when

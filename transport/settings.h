@@ -14,6 +14,12 @@ namespace felt::transport {
 struct DdsSettings {
   uint32_t domain_id = 0;   ///< DDS domain id (`--domain N`), 0..230
   std::string config_file;  ///< path of a Cyclone XML configuration file; "" = not given
+  /// DDS Security: a directory made by `felt security init` (`--security DIR`, the scene's
+  /// [transport] security); "" = no security. Participants then authenticate with `identity`.
+  std::string security_dir;
+  /// The identity in `security_dir` (its subdirectory, e.g. "server", "device-default",
+  /// "recorder"; "device:default" is accepted for "device-default"). "" = the program's default.
+  std::string identity;
 };
 
 /// The three topic names. Defaults are Felt's public names; tests and tools may add a prefix and a

@@ -4,6 +4,7 @@
 #include <optional>
 #include <set>
 #include <span>
+#include <stdexcept>
 #include <string>
 
 namespace felt::transport {
@@ -26,7 +27,29 @@ DeviceLimits ReadLimits(const SceneTable& table, DeviceLimits limits) {
   }
   limits.max_rate_hz = table.Number("max_rate_hz", limits.max_rate_hz, InRange(1.0, 1e6));
   limits.burst_samples = table.Number("burst_samples", limits.burst_samples, InRange(1.0, 1e6));
+  static constexpr NamedValue<TransportProfile> kProfiles[] = {{"felt", TransportProfile::kFelt},
+                                                               {"ros2", TransportProfile::kRos2}};
+  limits.profile = table.Choice<TransportProfile>(
+      "profile", limits.profile, std::span<const NamedValue<TransportProfile>>(kProfiles));
   return limits;
+}
+
+// The ROS 2 topic keys of a [[transport.devices]] entry over the defaults of its device; each name
+// must be a valid ROS 2 topic name (checked here, so the error names the line).
+void ReadRos2Topics(const SceneTable& entry, Ros2DeviceTopics* topics) {
+  const auto name = [&](const char* key, std::string* value, bool may_be_empty) {
+    *value = entry.String(key, *value);
+    if (value->empty() && may_be_empty) return;
+    try {
+      (void)Ros2DdsTopic(*value, key);
+    } catch (const std::invalid_argument& e) {
+      entry.Fail(key, e.what());
+    }
+  };
+  name("pose_topic", &topics->pose, false);
+  name("twist_topic", &topics->twist, true);
+  name("wrench_topic", &topics->wrench, false);
+  topics->frame_id = entry.String("frame_id", topics->frame_id);
 }
 
 }  // namespace
@@ -38,11 +61,13 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
   const std::optional<SceneTable> table = SceneTable::Section(doc, "transport");
   std::vector<DeviceLimits> limits(devices.size());
   if (table) {
-    table->ExpectKeys({"domain", "dds_config", "receive_mode", "force_queue_capacity",
-                       "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples",
-                       "devices"});
+    table->ExpectKeys({"domain", "dds_config", "security", "identity", "receive_mode",
+                       "force_queue_capacity", "workspace_min_m", "workspace_max_m", "max_rate_hz",
+                       "burst_samples", "profile", "devices"});
     config.dds.domain_id = static_cast<uint32_t>(table->Integer("domain", 0, InRange(0, 230)));
     config.dds.config_file = table->String("dds_config", std::string());
+    config.dds.security_dir = table->String("security", std::string());
+    config.dds.identity = table->String("identity", std::string());
     static constexpr NamedValue<ReceiveMode> kModes[] = {{"listener", ReceiveMode::kListener},
                                                          {"waitset", ReceiveMode::kWaitset}};
     config.receive_mode = table->Choice<ReceiveMode>(
@@ -54,12 +79,13 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
   for (size_t i = 0; i < devices.size(); ++i) {
     limits[i] = defaults;
     limits[i].device_id = devices[i].id;
+    limits[i].ros2 = DefaultRos2Topics(devices[i].id);
   }
   if (table) {
     std::set<std::string> seen;
     for (const SceneTable& entry : table->ArrayOfTables("devices")) {
-      entry.ExpectKeys(
-          {"id", "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples"});
+      entry.ExpectKeys({"id", "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples",
+                        "profile", "pose_topic", "twist_topic", "wrench_topic", "frame_id"});
       const std::string id = entry.String("id", kRequired, /*non_empty=*/true);
       if (!seen.insert(id).second) entry.Fail("id", "device '" + id + "' is listed twice");
       size_t index = devices.size();
@@ -73,6 +99,22 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
       }
       limits[index] = ReadLimits(entry, defaults);
       limits[index].device_id = id;
+      limits[index].ros2 = DefaultRos2Topics(id);
+      ReadRos2Topics(entry, &limits[index].ros2);
+    }
+  }
+  // A device on the ROS 2 profile with the default names needs an id that makes a ROS 2 name.
+  if (table) {
+    for (const DeviceLimits& l : limits) {
+      if (l.profile != TransportProfile::kRos2) continue;
+      try {
+        (void)Ros2DdsTopic(l.ros2.pose, "pose_topic");
+        (void)Ros2DdsTopic(l.ros2.wrench, "wrench_topic");
+        if (!l.ros2.twist.empty()) (void)Ros2DdsTopic(l.ros2.twist, "twist_topic");
+      } catch (const std::invalid_argument& e) {
+        table->Fail("profile", std::string(e.what()) + ": device '" + l.device_id +
+                                   "' needs its topics named in [[transport.devices]]");
+      }
     }
   }
   config.devices = std::move(limits);

@@ -1,20 +1,29 @@
 #pragma once
 // The [transport] section of a scene (docs/transport.md, "Scene section"): the DDS domain and
 // configuration, the receive mode, and what the server accepts from each device (workspace box,
-// flood limit). `felt serve` reads it; --domain and --dds-config override the scene's values.
+// flood limit). `felt serve` reads it; --domain, --dds-config, --security and --identity override
+// the scene's values.
 //
 //   [transport]
 //   domain = 0                          # DDS domain id, 0..230
 //   dds_config = ""                     # Cyclone XML file ("" = CYCLONEDDS_URI, else loopback)
+//   security = ""                       # DDS Security dir of `felt security init` ("" = off)
+//   identity = ""                       # its identity the server uses ("" = "server")
 //   receive_mode = "listener"           # or "waitset"
 //   force_queue_capacity = 256          # forces between the haptic thread and the writer
 //   workspace_min_m = [-0.2, -0.2, -0.2]  # default workspace box of every device, device frame
 //   workspace_max_m = [0.2, 0.2, 0.2]
 //   max_rate_hz = 2000.0                # default flood limit: sustained samples per second
 //   burst_samples = 50.0                # default flood limit: samples back to back
+//   profile = "felt"                    # or "ros2": every device's topics (ros2_profile.h)
 //   [[transport.devices]]               # optional per-device overrides
 //   id = "left"                         # one of the scene's device ids
 //   workspace_min_m = [-0.1, -0.2, -0.2]
+//   profile = "ros2"                    # this device's profile
+//   pose_topic = "/left/measured_cp"    # ROS 2 names (these are the defaults for id "left")
+//   twist_topic = "/left/measured_cv"   # "" = none: velocity by finite difference
+//   wrench_topic = "/left/servo_cf"
+//   frame_id = ""                       # of each force; "" echoes the answered pose's
 
 #include <vector>
 

@@ -22,6 +22,7 @@ const std::map<std::string, int>& Layers() {
   static const std::map<std::string, int> layers = {
       {"base", 0},         // check macro, JSON, reports, CPU features
       {"rt", 1},           // triple buffer, SPSC queue, periodic loop, real-time settings, stats
+      {"ros2", 1},         // ROS 2 messages: CDR bytes and ros2msg schemas (no DDS, no files)
       {"collision", 2},    // mesh, geometry, BVH, spatial hash, naive, collision structures
       {"scene", 3},        // the TOML scene document and its file:line:field errors
       {"recordings", 3},   // pointer traces: format, import, generation

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +18,8 @@
 
 #include "base/json.h"
 #include "base/process.h"
+#include "ros2_types.h"
+#include "transport/dds_config.h"
 
 namespace {
 
@@ -149,6 +152,71 @@ TEST_F(ServeTest, TheExampleDriverFeelsTheDefaultScene) {
   EXPECT_NE(log.find("device 'right-hand', which this scene does not have (it has 'default')"),
             std::string::npos)
       << log;
+}
+
+// Issue 24: a driver that knows only ROS 2 (a PoseStamped publisher and a WrenchStamped
+// subscriber with ROS 2's default QoS, the CRTK names under the device's id) drives `felt serve`
+// with the default scene on the ROS 2 profile, and every force it reads carries the stamp of a
+// pose it sent.
+TEST_F(ServeTest, ARos2OnlyDriverDrivesTheServer) {
+  const int domain = 200 + getpid() % 30;
+  const std::string scene = (std::filesystem::path(testing::TempDir()) / "ros2_profile.toml");
+  std::ofstream(scene) << ReadFile(kScene) << "\n[transport]\nprofile = \"ros2\"\n";
+  Child server = StartServe(
+      "--scene " + scene + " --duration 30 --no-realtime --domain " + std::to_string(domain),
+      "serve_ros2");
+  using namespace felt::transport;
+  DdsSettings dds;
+  dds.domain_id = static_cast<uint32_t>(domain);
+  Participant driver(AcquireDomain(dds));
+  const Entity pose_topic =
+      CreateTopic(driver, &geometry_msgs_msg_dds__PoseStamped__desc, "rt/default/measured_cp");
+  const Entity wrench_topic =
+      CreateTopic(driver, &geometry_msgs_msg_dds__WrenchStamped__desc, "rt/default/servo_cf");
+  dds_qos_t* qos = dds_create_qos();  // rclcpp's default: reliable, keep-last 10, volatile
+  dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 10);
+  const Entity writer = CreateWriter(driver, pose_topic, qos, "pose");
+  const Entity reader = CreateReader(driver, wrench_topic, qos, nullptr, "wrench");
+  dds_delete_qos(qos);
+
+  // 1 kHz for up to 20 s: poses stamped 1 ms apart (sec 100 on), until 500 forces came back.
+  geometry_msgs_msg_dds__PoseStamped_ pose{};
+  char frame[] = "touch_base";
+  pose.header.frame_id = frame;
+  pose.pose.orientation.w = 1.0;
+  int64_t first_stamp = 100'000'000'000, last_stamp = 0;
+  int forces = 0, stamps_echoed = 0, frames_echoed = 0;
+  void* ptrs[16] = {};
+  dds_sample_info_t infos[16];
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  for (int k = 0; forces < 500 && std::chrono::steady_clock::now() < deadline; ++k) {
+    last_stamp = first_stamp + int64_t{k} * 1'000'000;
+    Ros2StampOf(last_stamp, &pose.header.stamp.sec, &pose.header.stamp.nanosec);
+    pose.pose.position.x = 0.01 * std::sin(k * 0.002);
+    (void)dds_write(writer.get(), &pose);
+    const dds_return_t n = dds_take(reader.get(), ptrs, infos, 16, 16);
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto* w = static_cast<const geometry_msgs_msg_dds__WrenchStamped_*>(ptrs[i]);
+      ++forces;
+      const int64_t stamp = Ros2StampNs(w->header.stamp.sec, w->header.stamp.nanosec);
+      if (stamp >= first_stamp && stamp <= last_stamp && (stamp - first_stamp) % 1'000'000 == 0) {
+        ++stamps_echoed;
+      }
+      if (w->header.frame_id != nullptr && std::string(w->header.frame_id) == "touch_base") {
+        ++frames_echoed;
+      }
+    }
+    if (n > 0) (void)dds_return_loan(reader.get(), ptrs, n);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  server.process.Signal(SIGTERM);
+  EXPECT_EQ(WaitExit(server.process, std::chrono::seconds(10)), 0) << ReadFile(server.log);
+  EXPECT_GE(forces, 500) << ReadFile(server.log);
+  EXPECT_EQ(stamps_echoed, forces) << "every force answers a pose that was sent";
+  // The first forces may precede the first pose's frame (ramp-in from no input): nearly all echo.
+  EXPECT_GE(frames_echoed, forces - 5);
 }
 
 TEST_F(ServeTest, BadSceneExitsTwoAndStartsNothing) {

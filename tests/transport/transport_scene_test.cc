@@ -37,6 +37,7 @@ TEST(TransportSceneTest, AbsentSectionGivesTheDefaultsForEveryDevice) {
   const ServerTransportConfig c = Parse("", Devices({"left", "right"}));
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_EQ(c.dds.config_file, "");
+  EXPECT_EQ(c.dds.security_dir, "");  // no DDS Security unless asked for
   EXPECT_EQ(c.receive_mode, ReceiveMode::kListener);
   EXPECT_EQ(c.force_queue_capacity, 256u);
   ASSERT_EQ(c.devices.size(), 2u);
@@ -54,6 +55,8 @@ TEST(TransportSceneTest, EveryKeyIsRead) {
 [transport]
 domain = 7
 dds_config = "net.xml"
+security = "sec"
+identity = "server-2"
 receive_mode = "waitset"
 force_queue_capacity = 64
 workspace_min_m = [-0.1, -0.2, -0.3]
@@ -68,6 +71,8 @@ max_rate_hz = 1100.0
                                         Devices({"left", "right"}));
   EXPECT_EQ(c.dds.domain_id, 7u);
   EXPECT_EQ(c.dds.config_file, "net.xml");
+  EXPECT_EQ(c.dds.security_dir, "sec");
+  EXPECT_EQ(c.dds.identity, "server-2");
   EXPECT_EQ(c.receive_mode, ReceiveMode::kWaitset);
   EXPECT_EQ(c.force_queue_capacity, 64u);
   const std::array<double, 3> min{-0.1, -0.2, -0.3}, max{0.1, 0.2, 0.3};
@@ -83,6 +88,39 @@ max_rate_hz = 1100.0
   EXPECT_EQ(c.devices[1].workspace_max_m_D, max);
   EXPECT_EQ(c.devices[1].max_rate_hz, 1100.0);
   EXPECT_EQ(c.devices[1].burst_samples, 20.0);
+}
+
+TEST(TransportSceneTest, TheRos2ProfileForEveryDeviceOrOneWithItsOwnTopics) {
+  const ServerTransportConfig c = Parse(R"(
+[transport]
+profile = "ros2"
+[[transport.devices]]
+id = "right"
+profile = "felt"
+[[transport.devices]]
+id = "left"
+pose_topic = "/phantom/pose"
+twist_topic = ""
+wrench_topic = "/phantom/wrench"
+frame_id = "base"
+)",
+                                        Devices({"left", "right", "arm"}));
+  ASSERT_EQ(c.devices.size(), 3u);
+  EXPECT_EQ(c.devices[0].profile, TransportProfile::kRos2);
+  EXPECT_EQ(c.devices[0].ros2.pose, "/phantom/pose");
+  EXPECT_EQ(c.devices[0].ros2.twist, "");
+  EXPECT_EQ(c.devices[0].ros2.wrench, "/phantom/wrench");
+  EXPECT_EQ(c.devices[0].ros2.frame_id, "base");
+  EXPECT_EQ(c.devices[1].profile, TransportProfile::kFelt);
+  EXPECT_EQ(c.devices[2].profile, TransportProfile::kRos2);  // the section's default
+  EXPECT_EQ(c.devices[2].ros2.pose, "/arm/measured_cp");
+  EXPECT_EQ(c.devices[2].ros2.twist, "/arm/measured_cv");
+  EXPECT_EQ(c.devices[2].ros2.wrench, "/arm/servo_cf");
+  EXPECT_EQ(c.devices[2].ros2.frame_id, "");
+  // A device whose id makes no ROS 2 name needs its topics named.
+  const std::string error = ErrorOf("[transport]\nprofile = \"ros2\"\n", Devices({"right-hand"}));
+  EXPECT_NE(error.find("t.toml:2:1: transport.profile"), std::string::npos) << error;
+  EXPECT_NE(error.find("device 'right-hand' needs its topics named"), std::string::npos) << error;
 }
 
 TEST(TransportSceneTest, ErrorsNameFileLineAndField) {
@@ -107,6 +145,12 @@ TEST(TransportSceneTest, ErrorsNameFileLineAndField) {
        "transport.devices[0].id"},
       {"[transport]\n[[transport.devices]]\nid = \"left\"\nburst = 3\n",
        "transport.devices[0].burst"},
+      {"[transport]\nprofile = \"ros1\"\n", "t.toml:2:1: transport.profile"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\npose_topic = \"left/pose\"\n",
+       "t.toml:4:1: transport.devices[0].pose_topic: pose_topic \"left/pose\": not a fully "
+       "qualified ROS 2 topic name (it must start with '/')"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nwrench_topic = \"/a//b\"\n",
+       "transport.devices[0].wrench_topic"},
   };
   for (const Case& c : cases) {
     const std::string error = ErrorOf(c.text, two);

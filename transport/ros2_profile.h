@@ -1,0 +1,102 @@
+#pragma once
+// The ROS 2 transport profile (issue 24): a device whose driver speaks ROS 2 (CRTK's measured_cp /
+// measured_cv / servo_cf, as the dVRK, sawSensablePhantom and sawForceDimensionSDK publish, or
+// any PoseStamped) connects to Felt with no bridge and nothing from ROS installed: ROS 2 is DDS,
+// and Felt's server reads and writes the ROS 2 types itself (transport/ros2_types.idl; the wire
+// facts in ../shared/notes/ros2-wire.md). This header holds what needs no DDS type: the names,
+// the time stamps and how a pointer sample is assembled from a pose and a twist.
+//
+// Assembly (Ros2PointerAssembler): each PoseStamped is one pointer sample. Its position is the
+// pose's position [m, device frame: the pose's frame]; its time the header stamp; its velocity the
+// newest TwistStamped's linear part when that twist is at most kRos2TwistMaxAge_ns older than the
+// pose (CRTK publishes both at the servo rate), else the finite difference of the last two poses
+// by their stamps (zero when their stamps do not advance or lie more than kRos2TwistMaxAge_ns
+// apart). ROS 2 messages carry no sequence number: the assembler numbers the poses it is given,
+// +1 each, so the server's sequence rule (strictly increasing per writer) holds by construction;
+// a repeated pose is a new sample.
+
+#include <cstdint>
+#include <string>
+
+namespace felt::transport {
+
+/// Which topics carry a device's pointer samples and forces.
+enum class TransportProfile {
+  kFelt,  ///< felt/pointer, felt/force (PointerSample, ForceCommand; docs/transport.md)
+  kRos2,  ///< ROS 2 topics of Ros2DeviceTopics (PoseStamped, TwistStamped in; WrenchStamped out)
+};
+
+/// The profile's name in a scene ("felt", "ros2").
+const char* TransportProfileName(TransportProfile profile);
+
+/// The ROS 2 topics of one device, as ROS 2 names them (`ros2 topic list`), fully qualified.
+struct Ros2DeviceTopics {
+  std::string pose;      ///< geometry_msgs/PoseStamped in: position [m], device frame
+  std::string twist;     ///< geometry_msgs/TwistStamped in: linear velocity [m/s]; "" none
+  std::string wrench;    ///< geometry_msgs/WrenchStamped out: force [N], device frame
+  std::string frame_id;  ///< header.frame_id of each force; "" echoes the answered pose's frame
+};
+
+/// CRTK's names under the device's id as namespace: /<id>/measured_cp, /<id>/measured_cv,
+/// /<id>/servo_cf, frame_id "" (echo). The id must make a valid ROS 2 name (letters, digits,
+/// '_'; not starting with a digit): Ros2DdsTopic says so when it does not.
+Ros2DeviceTopics DefaultRos2Topics(const std::string& device_id);
+
+/// The DDS topic of a fully qualified ROS 2 topic name: "/a/b" -> "rt/a/b" (rmw_cyclonedds's
+/// "rt" prefix). Throws std::invalid_argument naming `what` when `ros_name` is not a valid fully
+/// qualified ROS 2 topic name: it must start with '/', hold only letters, digits, '_' and '/',
+/// have no empty token ("//"), no token starting with a digit, and not end with '/'.
+std::string Ros2DdsTopic(const std::string& ros_name, const std::string& what);
+
+/// A ROS 2 time stamp (builtin_interfaces/Time) as nanoseconds.
+inline int64_t Ros2StampNs(int32_t sec, uint32_t nanosec) {
+  return static_cast<int64_t>(sec) * 1'000'000'000 + static_cast<int64_t>(nanosec);
+}
+
+/// Nanoseconds as a ROS 2 time stamp: sec = floor(ns / 1e9), nanosec in [0, 1e9).
+inline void Ros2StampOf(int64_t ns, int32_t* sec, uint32_t* nanosec) {
+  int64_t s = ns / 1'000'000'000;
+  int64_t rest = ns % 1'000'000'000;
+  if (rest < 0) {
+    rest += 1'000'000'000;
+    --s;
+  }
+  *sec = static_cast<int32_t>(s);
+  *nanosec = static_cast<uint32_t>(rest);
+}
+
+/// A twist older than this against the pose it would serve is not used (the finite difference
+/// is), ns: ten 1 kHz periods.
+inline constexpr int64_t kRos2TwistMaxAge_ns = 10'000'000;
+
+/// One pointer sample assembled from ROS 2 messages (device frame, SI units).
+struct Ros2Pointer {
+  uint64_t seq = 0;            ///< the assembler's number, +1 per pose
+  int64_t device_time_ns = 0;  ///< the pose's header stamp, ns
+  double position_m[3] = {0, 0, 0};
+  double velocity_m_per_s[3] = {0, 0, 0};
+  bool velocity_from_twist = false;  ///< true: the twist's; false: finite difference (or zero)
+};
+
+/// Per device: the newest twist and the last pose, and the sample numbering (file comment).
+/// One thread at a time (the server's receive path holds its mutex). Allocation-free.
+class Ros2PointerAssembler {
+ public:
+  /// Notes a TwistStamped: stamp [ns], linear velocity [m/s].
+  void Twist(int64_t stamp_ns, const double (&linear_m_per_s)[3]);
+  /// The sample of a PoseStamped: stamp [ns], position [m].
+  Ros2Pointer Pose(int64_t stamp_ns, const double (&position_m)[3]);
+  /// Forgets the last pose and twist (a new writer owns the device; numbering continues).
+  void Reset();
+
+ private:
+  bool has_twist_ = false;
+  int64_t twist_stamp_ns_ = 0;
+  double twist_[3] = {0, 0, 0};
+  bool has_pose_ = false;
+  int64_t pose_stamp_ns_ = 0;
+  double pose_[3] = {0, 0, 0};
+  uint64_t seq_ = 0;
+};
+
+}  // namespace felt::transport
