@@ -6,9 +6,13 @@ SHELL := /bin/bash
 # of `felt bench cloth --tradeoff` only (Felt's libraries never link it; without it the bench skips
 # its Bullet rows). nodejs (and npm, see npm-deps): the independent MCAP and ROS 2 CDR checkers of
 # the tests (tools/npm). openssl: `felt security init` (DDS Security identities) and its tests.
+# libcivetweb-dev: the live view's HTTP and WebSocket server; libjs-three: three.js r111, which the
+# view serves (docs/view.md); chromium and libpng-dev: the view's browser test (headless
+# screenshots, decoded in the test).
 PACKAGES := cmake ninja-build g++ gcc make pkg-config libeigen3-dev cyclonedds-dev \
             cyclonedds-tools libddsc0debian libspdlog-dev libcli11-dev libtomlplusplus-dev \
-            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev nodejs openssl
+            libgtest-dev googletest gnuplot-nox nlohmann-json3-dev libbullet-dev nodejs openssl \
+            libcivetweb-dev libjs-three libpng-dev chromium
 JOBS ?= $(shell nproc)
 BUILD ?= build
 CMAKE_FLAGS ?=
@@ -64,9 +68,12 @@ build: deps $(BUILD)/build.ninja
 
 # The demo: the server and a replay of a bundled trace over loopback DDS for about ten seconds,
 # then a short summary (docs/replay.md). Thresholds are reported, not enforced (--report-only).
+# VIEW_PORT=8080 make run: the server also serves the live 3-D view (docs/view.md) during the run.
 run: build
+	@echo "make run: to watch it live, run VIEW_PORT=8080 make run and open http://127.0.0.1:8080/"
+	@echo "          (or: ./$(BUILD)/felt view --scene $(SCENE) --trace recordings/poke_hold.trace --port 8080)"
 	./$(BUILD)/felt soak --minutes 0.17 --scene $(SCENE) --trace recordings/poke_hold.trace \
-	  --report-only
+	  --report-only $(if $(VIEW_PORT),--view $(VIEW_PORT))
 
 # Every test: the release build, then ASan+UBSan on everything, then TSan on threaded code.
 test: deps npm-deps test-release test-asan test-tsan
@@ -94,9 +101,9 @@ test-asan: deps
 test-tsan: deps
 	@echo "== make test-tsan: start $$(date -u +%H:%M:%S)"
 	cmake -S . -B $(BUILD)-tsan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=thread \
-	  "-DFELT_TEST_MODULES=rt;haptic_loop;server;transport" $(CMAKE_FLAGS)
+	  "-DFELT_TEST_MODULES=rt;haptic_loop;server;transport;view" $(CMAKE_FLAGS)
 	cmake --build $(BUILD)-tsan -j $(JOBS) --target felt_rt_tests felt_haptic_loop_tests felt_server_tests \
-	  felt_transport_tests
+	  felt_transport_tests felt_view_tests
 	cd $(BUILD)-tsan && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$(CURDIR)/tests/transport/tsan.supp" \
 	  FELT_SANITIZER=thread ctest --output-on-failure -j $(JOBS)
 

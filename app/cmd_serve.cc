@@ -1,8 +1,9 @@
 // `felt serve --scene FILE [--duration S] [--stats-json FILE] [--trace FILE] [--domain N]
-// [--dds-config FILE] [--no-realtime]`: the real-time server (issue 5, docs/server.md). Devices
-// connect over the DDS transport (issue 6, docs/transport.md) unless --trace replays a pointer
-// trace in-process to every device of the scene. SIGINT/SIGTERM stop it cleanly: a signal-safe
-// flag, the loops stop, the final statistics are printed and spdlog is flushed.
+// [--dds-config FILE] [--view PORT [--view-bind ADDR]] [--no-realtime]`: the real-time server
+// (issue 5, docs/server.md). Devices connect over the DDS transport (issue 6, docs/transport.md)
+// unless --trace replays a pointer trace in-process to every device of the scene. SIGINT/SIGTERM
+// stop it cleanly: a signal-safe flag, the loops stop, the final statistics are printed and spdlog
+// is flushed.
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -27,6 +28,7 @@
 #include "server/transport_io.h"
 #include "transport/server_transport.h"
 #include "transport/transport_scene.h"
+#include "view/view_server.h"
 
 namespace felt::app::cmd_serve {
 namespace {
@@ -41,6 +43,8 @@ struct ServeArgs {
   std::string security;            // overrides [transport] security when not empty
   std::string identity;            // overrides [transport] identity when not empty
   bool no_realtime = false;
+  std::optional<uint16_t> view_port;    // --view PORT: serve the live view (docs/view.md)
+  std::string view_bind = "127.0.0.1";  // --view-bind ADDR
 };
 
 // The ServerStatus the monitor publishes once a second (transport fields are the transport's).
@@ -134,6 +138,16 @@ int Serve(const ServeArgs& args) {
     };
   }
   Server server(std::move(spec), source.get(), sink.get(), options);
+  // The live view: before Start, so the loops publish into its tap from the first frame.
+  std::unique_ptr<ViewServer> view;
+  if (args.view_port) {
+    ViewOptions view_options;
+    view_options.port = *args.view_port;
+    view_options.bind = args.view_bind;
+    view = std::make_unique<ViewServer>(&server, view_options);
+    std::printf("felt serve: live view at %s\n", view->url().c_str());
+    std::fflush(stdout);
+  }
   InstallStopHandlers();
   spdlog::info("serve: scene {} ({} x {} cloth), {} Hz haptic, {} Hz sim{}",
                server.spec().scene_name, server.model().width, server.model().height,
@@ -149,6 +163,15 @@ int Serve(const ServeArgs& args) {
   }
   const bool by_signal = StopRequested().load();
   server.Stop();
+  if (view) {
+    const ViewStats vs = view->stats();
+    std::printf("view: %llu clients, %llu frames sent, %llu dropped for slow clients, %.1f MB\n",
+                static_cast<unsigned long long>(vs.clients_total),
+                static_cast<unsigned long long>(vs.frames_sent),
+                static_cast<unsigned long long>(vs.frames_dropped),
+                static_cast<double>(vs.bytes_sent) / 1e6);
+    view.reset();
+  }
 
   // Final statistics: the realtime outcome, the whole run's lines and the JSON.
   const std::unique_ptr<ServerReport> report = server.Report();
@@ -191,6 +214,10 @@ CommandRun Setup(CLI::App& cmd) {
                  "else none)");
   cmd.add_option("--identity", args->identity,
                  "identity in the security directory (default: [transport] identity, else server)");
+  cmd.add_option("--view", args->view_port,
+                 "serve the live 3-D view on this TCP port (http://127.0.0.1:PORT/; docs/view.md)");
+  cmd.add_option("--view-bind", args->view_bind,
+                 "address the view listens on (default 127.0.0.1; 0.0.0.0 exposes it on the LAN)");
   cmd.add_flag("--no-realtime", args->no_realtime,
                "normal scheduling: no SCHED_FIFO, spin, pinning or mlockall");
   return [args]() -> int { return Serve(*args); };

@@ -184,6 +184,7 @@ struct SoakArgs {
   std::optional<uint32_t> domain;
   std::string security;  // DDS Security directory for both children ("" = off)
   bool no_realtime = false;
+  std::optional<uint16_t> view_port;  // --view PORT: the server serves the live view (docs/view.md)
   bool verbose = false;
   bool keep_files = false;
   bool report_only = false;
@@ -251,6 +252,10 @@ std::pair<Child, Child> SpawnChildren(const SoakArgs& args, const SoakPlan& plan
       "serve",        "--scene",      args.scene, "--domain", std::to_string(plan.domain),
       "--stats-json", plan.serve_json};
   if (args.no_realtime) serve_args.push_back("--no-realtime");
+  if (args.view_port) {
+    serve_args.push_back("--view");
+    serve_args.push_back(std::to_string(*args.view_port));
+  }
   std::vector<std::string> replay_args = {"replay",
                                           args.trace,
                                           "--domain",
@@ -271,6 +276,11 @@ std::pair<Child, Child> SpawnChildren(const SoakArgs& args, const SoakPlan& plan
   }
   Child serve = SpawnChild("serve", plan.exe, serve_args, args.verbose);
   Child replay = SpawnChild("replay", plan.exe, replay_args, args.verbose);
+  if (args.view_port) {
+    std::printf("soak: watch it live at http://127.0.0.1:%u/ (felt serve --view)\n",
+                static_cast<unsigned>(*args.view_port));
+    std::fflush(stdout);
+  }
   return {std::move(serve), std::move(replay)};
 }
 
@@ -662,6 +672,8 @@ CommandRun Setup(CLI::App& cmd) {
   cmd.add_option("--md", args->md, "write the markdown table here (default: the JSON path, .md)");
   cmd.add_option("--domain", args->domain, "DDS domain id (default 100 + pid % 100)")
       ->check(CLI::Range(0, 230));
+  cmd.add_option("--view", args->view_port,
+                 "the server also serves the live 3-D view on this port (docs/view.md)");
   cmd.add_option("--security", args->security,
                  "DDS Security directory of `felt security init` for the server and the replay "
                  "(identities server and device-<the scene's device>)");

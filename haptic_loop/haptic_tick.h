@@ -93,6 +93,10 @@ class HapticLoop {
   const ProxyModel& proxy_model(uint32_t i) const { return devices_[i].model; }
   /// The proxy state of device `i`: from the haptic thread, or while it is not ticking.
   const ProxyState& proxy_state(uint32_t i) const { return devices_[i].proxy; }
+  /// The last tick's proxy result of device `i`: same thread rule as proxy_state.
+  const ProxyTickResult& last_result(uint32_t i) const { return devices_[i].last_result; }
+  /// Whether device `i`'s input was fresh at the last tick: same thread rule as proxy_state.
+  bool input_fresh(uint32_t i) const { return devices_[i].fresh; }
   /// The local patch (mode patch; null otherwise): from the haptic thread, or while it is not
   /// ticking.
   const ClothPatch* patch() const { return patch_.get(); }

@@ -24,6 +24,7 @@
 #include "rt/loop_stats.h"
 #include "rt/realtime.h"
 #include "server/server_spec.h"
+#include "server/view_tap.h"
 #include "sim_loop/sim_frame.h"
 
 namespace felt {
@@ -151,6 +152,14 @@ class Server : NonCopyable {
   /// Total reaction impulse the sim has applied to the cloth, N s (any thread).
   double applied_impulse_N_s() const { return sim_.counters().applied_impulse_N_s.load(); }
 
+  /// Makes the loops publish the cloth (each frame) and the devices (each tick) into a tap for
+  /// one observer thread (server/view_tap.h, the live view) and returns it; idempotent. Call
+  /// before Start (throws std::logic_error after it) or while driving the loops yourself (set-up:
+  /// allocates). Lives with the server.
+  ViewTap* EnableViewTap();
+  /// The tap (null unless EnableViewTap was called). Its read sides belong to one observer thread.
+  ViewTap* view_tap() const { return view_tap_.get(); }
+
  private:
   void HapticThread();
   void SimThread();
@@ -171,6 +180,7 @@ class Server : NonCopyable {
   std::atomic<int64_t> stall_request_ns_{0};
   PointerSource* source_;  // the haptic loop's source (for its arrival signal)
   int tick_device_;        // TickDeviceIndex: the device whose arrivals trigger the tick
+  std::unique_ptr<ViewTap> view_tap_;  // null unless EnableViewTap (written before the threads)
 
   // Threads and their real-time outcome (written before `*_ready_`, read after).
   std::atomic<bool> stop_{false};

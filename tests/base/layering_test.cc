@@ -33,6 +33,7 @@ const std::map<std::string, int>& Layers() {
       {"server", 8},       // the threads and the monitor around both loops, wired to transport
       {"examples", 8},     // a device driver: transport only
       {"compare", 9},      // the offline lock-step driver of `felt compare`
+      {"view", 9},         // the live view in the browser (HTTP + WebSocket, civetweb)
       {"app", 10},         // the `felt` command
       {"bench", 11},       // the benchmarks (register `felt bench` commands)
   };

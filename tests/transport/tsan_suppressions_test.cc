@@ -9,7 +9,7 @@
 namespace {
 
 // The non-comment lines of tests/transport/tsan.supp, one per line.
-constexpr char kSuppressions[] = "race:libddsc.so\n";
+constexpr char kSuppressions[] = "race:libddsc.so\nrace:libcivetweb.so\n";
 
 }  // namespace
 
