@@ -61,7 +61,7 @@ npm-deps: deps
 	fi
 
 $(BUILD)/build.ninja: CMakeLists.txt | deps
-	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
+	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release -DFELT_TEST_MODULES= $(CMAKE_FLAGS)
 
 build: deps $(BUILD)/build.ninja
 	cmake --build $(BUILD) -j $(JOBS)
@@ -81,7 +81,7 @@ test: deps npm-deps test-release test-asan test-tsan
 
 test-release: deps npm-deps
 	@echo "== make test-release: start $$(date -u +%H:%M:%S)"
-	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
+	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release -DFELT_TEST_MODULES= $(CMAKE_FLAGS)
 	cmake --build $(BUILD) -j $(JOBS)
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
@@ -92,7 +92,8 @@ SAN_FLAGS := -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO
 
 test-asan: deps
 	@echo "== make test-asan: start $$(date -u +%H:%M:%S)"
-	cmake -S . -B $(BUILD)-asan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=address $(CMAKE_FLAGS)
+	cmake -S . -B $(BUILD)-asan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=address -DFELT_TEST_MODULES= \
+	  $(CMAKE_FLAGS)
 	cmake --build $(BUILD)-asan -j $(JOBS)
 	cd $(BUILD)-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
 	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 FELT_SANITIZER=address \
