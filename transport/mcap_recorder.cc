@@ -329,15 +329,9 @@ void McapRecorder::OnPointer(std::string_view device_id, const PointerSampleView
     return;
   }
   ++stats_.pointers_received;
-  if (have_pointer_seq_) {
-    if (sample.seq <= last_pointer_seq_) {
-      ++stats_.pointers_out_of_order;
-      return;
-    }
-    stats_.pointer_seq_gaps += sample.seq - last_pointer_seq_ - 1;
+  if (!pointer_seq_.Accept(sample.seq, &stats_.pointer_seq_gaps, &stats_.pointers_out_of_order)) {
+    return;
   }
-  have_pointer_seq_ = true;
-  last_pointer_seq_ = sample.seq;
   if (!sink_) {
     sink_ = std::make_unique<McapSink>(config_.out_path, stats_.device_id, config_.queue_capacity);
   }
@@ -351,11 +345,7 @@ void McapRecorder::OnForce(std::string_view device_id, const ForceCommandView& f
     return;
   }
   ++stats_.forces_received;
-  if (have_force_seq_ && force.seq > last_force_seq_ + 1) {
-    stats_.force_seq_gaps += force.seq - last_force_seq_ - 1;
-  }
-  have_force_seq_ = true;
-  last_force_seq_ = std::max(last_force_seq_, force.seq);
+  force_seq_.Note(force.seq, &stats_.force_seq_gaps);
   if (!sink_) {
     ++stats_.forces_before_first_pointer;
     return;

@@ -26,6 +26,7 @@
 #include "base/non_copyable.h"
 #include "rt/spsc_queue.h"
 #include "transport/recorder.h"
+#include "transport/sequence_tracker.h"
 #include "transport/settings.h"
 #include "transport/views.h"
 
@@ -161,8 +162,7 @@ class McapRecorder : NonCopyable {
   std::unique_ptr<StatusReader> status_reader_;
   std::unique_ptr<McapSink> sink_;
   McapRecorderStats stats_;
-  bool have_pointer_seq_ = false, have_force_seq_ = false;
-  uint64_t last_pointer_seq_ = 0, last_force_seq_ = 0;
+  SequenceTracker pointer_seq_, force_seq_;
   bool closed_ = false;
 };
 

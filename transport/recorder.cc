@@ -242,21 +242,13 @@ void Recorder::OnPointer(std::string_view device_id, const PointerSampleView& sa
   ++stats_.pointers_received;
 
   // Sequence: count the missing samples of a jump; a seq not above the last is not written.
-  if (have_pointer_seq_) {
-    if (sample.seq <= last_pointer_seq_) {
-      ++stats_.pointers_out_of_order;
-      return;
-    }
-    stats_.pointer_seq_gaps += sample.seq - last_pointer_seq_ - 1;
+  if (!pointer_seq_.Accept(sample.seq, &stats_.pointer_seq_gaps, &stats_.pointers_out_of_order)) {
+    return;
   }
   if (have_origin_ && sample.device_time_ns <= last_device_ns_) {
     ++stats_.pointers_time_not_increasing;
-    have_pointer_seq_ = true;
-    last_pointer_seq_ = sample.seq;
     return;
   }
-  have_pointer_seq_ = true;
-  last_pointer_seq_ = sample.seq;
   last_device_ns_ = sample.device_time_ns;
 
   // First sample: the time origin and the files.
@@ -296,11 +288,7 @@ void Recorder::OnForce(std::string_view device_id, const ForceCommandView& force
   }
   if (closed_) return;
   ++stats_.forces_received;
-  if (have_force_seq_ && force.seq > last_force_seq_ + 1) {
-    stats_.force_seq_gaps += force.seq - last_force_seq_ - 1;
-  }
-  have_force_seq_ = true;
-  last_force_seq_ = std::max(last_force_seq_, force.seq);
+  force_seq_.Note(force.seq, &stats_.force_seq_gaps);
   if (!forces_) return;  // before the first pointer sample: no time origin yet
   const double t_s = static_cast<double>(force.receive_time_ns - origin_receive_ns_) / 1e9;
   const double answers_t_s =

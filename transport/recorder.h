@@ -16,6 +16,7 @@
 
 #include "base/non_copyable.h"
 #include "recordings/trace.h"
+#include "transport/sequence_tracker.h"
 #include "transport/settings.h"
 #include "transport/views.h"
 
@@ -169,11 +170,8 @@ class Recorder : NonCopyable {
   bool have_origin_ = false;
   int64_t origin_device_ns_ = 0;   // device_time_ns of the first sample
   int64_t origin_receive_ns_ = 0;  // CLOCK_MONOTONIC when it was taken
-  bool have_pointer_seq_ = false;
-  uint64_t last_pointer_seq_ = 0;
+  SequenceTracker pointer_seq_, force_seq_;
   int64_t last_device_ns_ = 0;
-  bool have_force_seq_ = false;
-  uint64_t last_force_seq_ = 0;
 };
 
 }  // namespace felt::transport
