@@ -20,6 +20,8 @@ ifeq ($(CI),true)
   CMAKE_FLAGS += -DFELT_WERROR=ON
 endif
 SCENE ?= scenes/curtain.toml
+# The live view of `make run` (issue 25): its port on 127.0.0.1; empty for none.
+VIEW_PORT ?= 8080
 
 .PHONY: deps npm-deps build run test test-release test-asan test-tsan bench clean
 
@@ -68,10 +70,10 @@ build: deps $(BUILD)/build.ninja
 
 # The demo: the server and a replay of a bundled trace over loopback DDS for about ten seconds,
 # then a short summary (docs/replay.md). Thresholds are reported, not enforced (--report-only).
-# VIEW_PORT=8080 make run: the server also serves the live 3-D view (docs/view.md) during the run.
+# make run serves the live 3-D view (docs/view.md) on VIEW_PORT during the run (VIEW_PORT= for none).
 run: build
-	@echo "make run: to watch it live, run VIEW_PORT=8080 make run and open http://127.0.0.1:8080/"
-	@echo "          (or: ./$(BUILD)/felt view --scene $(SCENE) --trace recordings/poke_hold.trace --port 8080)"
+	@$(if $(VIEW_PORT),echo "make run: watch it live at http://127.0.0.1:$(VIEW_PORT)/ (VIEW_PORT=N for another port, VIEW_PORT= for none)",echo "make run: no live view (VIEW_PORT is empty)")
+	@echo "          (a trace at your own pace: ./$(BUILD)/felt view --scene $(SCENE) --trace recordings/poke_hold.trace --port 8080)"
 	./$(BUILD)/felt soak --minutes 0.17 --scene $(SCENE) --trace recordings/poke_hold.trace \
 	  --report-only $(if $(VIEW_PORT),--view $(VIEW_PORT))
 
