@@ -13,7 +13,9 @@
 // by their stamps (zero when their stamps do not advance or lie more than kRos2TwistMaxAge_ns
 // apart). ROS 2 messages carry no sequence number: the assembler numbers the poses it is given,
 // +1 each, so the server's sequence rule (strictly increasing per writer) holds by construction;
-// a repeated pose is a new sample.
+// a repeated pose is a new sample. The Geomagic Touch driver's OmniState (pose_type kOmniState)
+// goes through the same assembler: its velocity field as a twist at the pose's own stamp, then its
+// pose; both scaled to SI first (Ros2DeviceTopics::length_scale, velocity_scale).
 
 #include <cstdint>
 #include <string>

@@ -234,6 +234,8 @@ TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
   Child server = StartServe(
       "--scene " + scene + " --duration 30 --no-realtime --domain " + std::to_string(domain),
       "serve_omni");
+  // `felt serve`'s server id ("felt-" + its pid: sh execs it) names its diagnostics.
+  const std::string server_id = "felt-" + std::to_string(server.process.pid());
   using namespace felt::transport;
   DdsSettings dds;
   dds.domain_id = static_cast<uint32_t>(domain);
@@ -288,6 +290,7 @@ TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
       const auto* d = static_cast<const diagnostic_msgs_msg_dds__DiagnosticArray_*>(ptrs[i]);
       for (uint32_t s = 0; s < d->status._length; ++s) {
         const auto& st = d->status._buffer[s];
+        if (std::string(st.hardware_id) != server_id) continue;  // another test's server
         for (uint32_t v = 0; v < st.values._length; ++v) {
           if (std::string(st.values._buffer[v].key) == "pointer_accepted") {
             accepted = st.values._buffer[v].value;
