@@ -305,9 +305,10 @@ TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
   EXPECT_EQ(WaitExit(server.process, std::chrono::seconds(10)), 0) << ReadFile(server.log);
   EXPECT_GE(feedbacks, 500) << ReadFile(server.log);
   EXPECT_EQ(finite, feedbacks);
-  // The proxy follows the tip, which swings to 10 mm in x: in millimetres, not metres.
+  // The proxy follows the tip, which swings to 10 mm in x (the cloth may push it further, tens
+  // of mm): in millimetres its |x| exceeds 5, in metres it would stay below 0.1.
   EXPECT_GT(max_proxy_x, 5.0) << "the lock position is the proxy in millimetres";
-  EXPECT_LT(max_proxy_x, 12.0);
+  EXPECT_LT(max_proxy_x, 500.0);
   EXPECT_FALSE(accepted.empty()) << "no DiagnosticArray with pointer_accepted on /diagnostics";
   EXPECT_NE(accepted, "0");
 }
