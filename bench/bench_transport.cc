@@ -47,6 +47,7 @@
 #include "server/transport_io.h"
 #include "transport/client_transport.h"
 #include "transport/raw_roundtrip.h"
+#include "transport/ros2_client.h"
 #include "transport/server_transport.h"
 
 namespace felt::bench::bench_transport {
@@ -229,7 +230,17 @@ struct E2eClientArgs {
   std::string topic_suffix;  // appended to the topic names
   std::string device_id;     // the scene's device
   std::string trace;         // positions to publish (device frame), looped
+  bool ros2 = false;         // speak ROS 2 (RunRos2E2eClient): topic_suffix is the namespace
 };
+
+// The ROS 2 topics of the e2e run on the ROS 2 profile under namespace `ns` (CRTK's names).
+transport::Ros2DeviceTopics BenchRos2Topics(const std::string& ns) {
+  transport::Ros2DeviceTopics t;
+  t.pose = ns + "/measured_cp";
+  t.twist = "";  // velocity by finite difference, as a driver without measured_cv
+  t.wrench = ns + "/servo_cf";
+  return t;
+}
 
 // The device side, run in its own process: publishes the trace at 1 kHz on absolute deadlines and
 // times each sample's first answer. Writes E2eClientResult to args.out.
@@ -310,6 +321,84 @@ int RunE2eClient(const transport::DdsSettings& dds, const E2eClientArgs& args, d
   return 0;
 }
 
+// The device side on the ROS 2 profile, in its own process: a ROS 2 driver stand-in
+// (transport/ros2_client.h) publishes the trace as PoseStamped at 1 kHz on the same absolute
+// deadlines as RunE2eClient (100 ppm short of 1 ms), each stamped with its publication time, and
+// reads WrenchStamped. A WrenchStamped carries no sequence number: the server echoes the stamp of
+// the pose it answers, so a force's stamp names its pose, and e2e = reception of the first force
+// with that stamp - the stamp. Writes E2eClientResult to args.out.
+int RunRos2E2eClient(const transport::DdsSettings& dds, const E2eClientArgs& args, double seconds) {
+  const Trace trace = ReadTrace(args.trace);
+  const transport::Ros2DeviceTopics topics = BenchRos2Topics(args.topic_suffix);
+  transport::Ros2Client client({dds, topics.pose, topics.wrench, "bench_base"});
+  if (!transport::WaitUntil(
+          [&] { return client.MatchedPoseReaders() > 0 && client.MatchedWrenchWriters() > 0; },
+          std::chrono::seconds(20))) {
+    std::fprintf(stderr,
+                 "bench transport ros2 e2e client: the server was not discovered in 20 s\n");
+    return 3;
+  }
+  constexpr int64_t kClientPeriodNs = 999900;  // as RunE2eClient
+  const auto warmup = static_cast<uint64_t>(500);
+  const auto measured = static_cast<uint64_t>(seconds * 1000.0);
+  const uint64_t total = warmup + measured;
+  std::vector<int64_t> published_ns(total + 1, 0);
+  // Every force's (stamp, receive time), in arrival order; matched to the poses after the run.
+  std::vector<std::pair<int64_t, int64_t>> received;
+  received.reserve(3 * total + 1000);
+  std::atomic<bool> done{false};
+  std::thread reader([&] {
+    transport::Ros2WrenchReceived wrench;
+    while (!done.load()) {
+      if (!client.WaitWrench(std::chrono::milliseconds(5), &wrench)) continue;
+      if (received.size() < received.capacity()) {
+        received.emplace_back(wrench.stamp_ns, wrench.receive_time_ns);
+      }
+    }
+  });
+  int64_t next_ns = NowNs() + kClientPeriodNs;
+  for (uint64_t seq = 1; seq <= total; ++seq) {
+    SleepUntil(next_ns);
+    const TraceSample& s = trace.samples[(seq - 1) % trace.samples.size()];
+    published_ns[seq] = NowNs();
+    client.PublishPose(published_ns[seq], {s.p_D.x(), s.p_D.y(), s.p_D.z()});
+    next_ns += kClientPeriodNs;
+  }
+  SleepUntil(NowNs() + 50000000);  // the last answers
+  done.store(true);
+  reader.join();
+  // The first answer of each measured pose: its stamp is one of published_ns[warmup + 1 ..].
+  E2eClientResult result;
+  result.samples_sent = measured;
+  const int64_t first_measured = published_ns[warmup + 1];
+  std::vector<std::pair<int64_t, int64_t>> firsts;  // (stamp, first receive)
+  for (const auto& [stamp, receive] : received) {
+    if (stamp < first_measured) continue;
+    ++result.forces_received;
+    firsts.emplace_back(stamp, receive);
+  }
+  std::stable_sort(firsts.begin(), firsts.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (size_t i = 0; i < firsts.size(); ++i) {
+    if (i > 0 && firsts[i].first == firsts[i - 1].first) continue;  // a repeat: not the first
+    if (!std::binary_search(published_ns.begin() + static_cast<std::ptrdiff_t>(warmup + 1),
+                            published_ns.end(), firsts[i].first)) {
+      continue;  // not a stamp this client sent (cannot happen unless the echo is broken)
+    }
+    result.e2e_us.push_back(static_cast<double>(firsts[i].second - firsts[i].first) / 1e3);
+  }
+  result.answered = result.e2e_us.size();
+  std::ofstream out(args.out);
+  out << result.samples_sent << " " << result.forces_received << " " << result.answered << "\n";
+  out.precision(9);
+  for (double v : result.e2e_us) out << v << "\n";
+  if (!out) {
+    std::fprintf(stderr, "bench transport ros2 e2e client: cannot write %s\n", args.out.c_str());
+    return 3;
+  }
+  return 0;
+}
+
 E2eClientResult ReadE2eClientResult(const std::string& path) {
   std::ifstream in(path);
   E2eClientResult r;
@@ -339,24 +428,33 @@ struct E2eResult {
   std::vector<int64_t> arrivals_ns;           // receive times of the samples the ticks read
 };
 
+// The server's device on the ROS 2 profile with BenchRos2Topics(ns).
+void ConfigureRos2Device(const std::string& ns, transport::DeviceLimits* device) {
+  device->profile = transport::TransportProfile::kRos2;
+  device->ros2 = BenchRos2Topics(ns);
+}
+
 // The server in this process, the client in a child process (this program re-executed: fork+exec
 // is safe although Cyclone's threads already run here).
-E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& scene,
-                          const std::string& trace, double seconds, bool fifo,
-                          HapticTickTrigger tick) {
+E2eResult MeasureEndToEnd(
+    const transport::DdsSettings& dds, const std::string& scene, const std::string& trace,
+    double seconds, bool fifo, HapticTickTrigger tick,
+    transport::TransportProfile profile = transport::TransportProfile::kFelt) {
   ServerSpec spec = ParseServerSpec(LoadSceneDocument(scene));
   if (spec.devices.empty())
     throw std::runtime_error("bench transport: " + scene + " has no device");
   spec.devices.resize(1);
   spec.haptic.tick_trigger = tick;
   spec.haptic.tick_device.clear();
-  const std::string suffix =
-      "/bench_e2e_" + std::to_string(getpid()) + "_" + std::to_string(static_cast<int>(tick));
+  const bool ros2 = profile == transport::TransportProfile::kRos2;
+  const std::string suffix = "/bench_e2e_" + std::to_string(getpid()) + "_" +
+                             std::to_string(static_cast<int>(tick)) + (ros2 ? "_ros2" : "");
   transport::ServerTransportConfig config;
   config.dds = dds;
   config.topics = transport::TopicNames::WithAffixes("", suffix);
   config.devices.resize(1);
   config.devices[0].device_id = spec.devices[0].id;
+  if (ros2) ConfigureRos2Device(suffix, &config.devices[0]);
   transport::ServerTransport server_transport(config);
   TransportPointerSource dds_source(&server_transport);
   AgeRecordingSource source(&dds_source, static_cast<size_t>(seconds * 1000.0) + 5000);
@@ -395,6 +493,7 @@ E2eResult MeasureEndToEnd(const transport::DdsSettings& dds, const std::string& 
     argv_s.push_back(dds.config_file);
   }
   if (fifo) argv_s.push_back("--fifo");
+  if (ros2) argv_s.push_back("--e2e-ros2");
   Process client_process = Process::Spawn(argv_s);
   // Record sample ages while the client measures (it warms up for 0.5 s after discovery).
   source.SetRecording(true);
@@ -590,6 +689,36 @@ Json SimulatedRulesJson(const std::vector<SimulatedRule>& rules) {
   return out;
 }
 
+// ---- The ROS 2 profile against Felt's (issue 24) ------------------------------------------------
+
+// The end-to-end rows of both profiles (tick on arrival in both) and the difference of p50 and p99.
+void PrintProfiles(const E2eResult& felt, const E2eResult& ros2) {
+  std::printf(
+      "\nEnd to end by transport profile, tick on arrival in both (same run; the ROS 2 device "
+      "publishes PoseStamped, reads WrenchStamped, ROS 2 default QoS):\n\n");
+  std::printf("| %-44s | %8s | %8s | %8s | %8s | %7s |\n", "us", "p50", "p99", "p99.9", "max", "n");
+  std::printf("|%s|---------:|---------:|---------:|---------:|--------:|\n",
+              std::string(46, '-').c_str());
+  Row("end to end, Felt profile (felt/pointer)", felt.e2e_us);
+  Row("end to end, ROS 2 profile (PoseStamped)", ros2.e2e_us);
+  std::printf("| %-44s | %+8.1f | %+8.1f |          |          |         |\n", "ROS 2 - Felt",
+              ros2.e2e_us.p50 - felt.e2e_us.p50, ros2.e2e_us.p99 - felt.e2e_us.p99);
+  Row("sample age at the tick, Felt profile", felt.sample_age_us);
+  Row("sample age at the tick, ROS 2 profile", ros2.sample_age_us);
+  std::printf("samples sent/answered: Felt %llu/%llu, ROS 2 %llu/%llu\n",
+              static_cast<unsigned long long>(felt.samples_sent),
+              static_cast<unsigned long long>(felt.answered),
+              static_cast<unsigned long long>(ros2.samples_sent),
+              static_cast<unsigned long long>(ros2.answered));
+}
+
+Json ProfilesJson(const E2eResult& felt, const E2eResult& ros2) {
+  return Json{{"felt", TickModeJson(felt)},
+              {"ros2", TickModeJson(ros2)},
+              {"e2e_p50_difference_us", ros2.e2e_us.p50 - felt.e2e_us.p50},
+              {"e2e_p99_difference_us", ros2.e2e_us.p99 - felt.e2e_us.p99}};
+}
+
 struct Options {
   bool raw_only = false;
   std::string scene = "scenes/curtain.toml";
@@ -617,6 +746,7 @@ int Run(const Options& options) {
       const sched_param param{10};
       sched_setscheduler(0, SCHED_FIFO, &param);  // as the parent; refused: normal scheduling
     }
+    if (options.client.ros2) return RunRos2E2eClient(options.dds, options.client, options.seconds);
     return RunE2eClient(options.dds, options.client, options.seconds);
   }
   // Check the inputs of the e2e half before spending time on the raw half.
@@ -664,9 +794,13 @@ int Run(const Options& options) {
   // End to end through the server.
   // End to end, once per tick mode; the main rows are the default's (on arrival).
   TickModeRuns tick_runs;
+  E2eResult ros2_run;  // the ROS 2 profile, tick on arrival, after the Felt profile's runs
   if (!options.raw_only) {
     tick_runs =
         MeasureTickModes(options.dds, options.scene, options.trace, options.seconds, options.fifo);
+    ros2_run =
+        MeasureEndToEnd(options.dds, options.scene, options.trace, options.seconds, options.fifo,
+                        HapticTickTrigger::kArrival, transport::TransportProfile::kRos2);
   }
   const E2eResult& e2e = tick_runs.arrival;
   const std::vector<SimulatedRule> simulated = SimulateTickRules(e2e.arrivals_ns);
@@ -708,6 +842,7 @@ int Run(const Options& options) {
         static_cast<unsigned long long>(e2e.answered),
         static_cast<unsigned long long>(e2e.forces_received));
     PrintTickModes(tick_runs);
+    PrintProfiles(tick_runs.arrival, ros2_run);
     PrintSimulatedRules(simulated);
   }
 
@@ -734,6 +869,7 @@ int Run(const Options& options) {
              {"forces_received", e2e_ran ? Json(e2e.forces_received) : absent},
              {"server_realtime", e2e_ran ? Json(e2e.realtime) : absent},
              {"tick_modes", e2e_ran ? TickModesJson(tick_runs) : absent},
+             {"profiles", e2e_ran ? ProfilesJson(tick_runs.arrival, ros2_run) : absent},
              {"simulated_tick_rules_age_us", e2e_ran ? SimulatedRulesJson(simulated) : absent},
              {"seconds", options.seconds},
              {"cpu_dma_latency_zero", options.dma_latency},
@@ -758,6 +894,7 @@ const bool kRegistered = app::RegisterCommand({
       cmd.add_option("--e2e-client", options->client.out)->group("");
       cmd.add_option("--e2e-suffix", options->client.topic_suffix)->group("");
       cmd.add_option("--e2e-device", options->client.device_id)->group("");
+      cmd.add_flag("--e2e-ros2", options->client.ros2)->group("");
       cmd.add_option("--seconds", options->seconds, "measured seconds per run (default 10)")
           ->check(CLI::PositiveNumber);
       cmd.add_option("--json", options->json, "write the results to this JSON file");

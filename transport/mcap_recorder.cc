@@ -14,6 +14,7 @@
 #include "transport/message_views.h"
 #include "transport/dds_config.h"
 #include "transport/qos.h"
+#include "transport/status_diagnostics.h"
 
 namespace felt::transport {
 namespace {
@@ -46,55 +47,6 @@ uint16_t McapAddChannel(McapWriter& w, const std::string& topic, const char* qos
   const ros2::MessageType& t = ros2::TypeOf<M>();
   const uint16_t schema = w.AddSchema(t.name, "ros2msg", t.schema);
   return w.AddChannel(schema, topic, "cdr", {{"offered_qos_profiles", qos}});
-}
-
-std::string McapNumber(double v) {
-  std::string s;
-  AppendTraceNumber(v, -1, &s);
-  return s;
-}
-
-ros2::DiagnosticArray DiagnosticsOf(const ServerStatusView& s) {
-  ros2::DiagnosticArray d;
-  d.header.stamp = ros2::TimeFromNs(s.wall_time_ns);
-  ros2::DiagnosticStatus st;
-  st.name = "felt: server " + s.server_id;
-  st.hardware_id = s.server_id;
-  st.level = s.sim_stalled || s.nan_events > 0 ? ros2::DiagnosticStatus::kWarn
-                                               : ros2::DiagnosticStatus::kOk;
-  st.message = s.sim_stalled ? "sim stalled" : (s.nan_events > 0 ? "non-finite forces" : "ok");
-  auto add = [&](const char* key, const std::string& value) { st.values.push_back({key, value}); };
-  auto add_p = [&](const std::string& key, const PercentilesView& p) {
-    add((key + ".p50").c_str(), McapNumber(p.p50));
-    add((key + ".p99").c_str(), McapNumber(p.p99));
-    add((key + ".p999").c_str(), McapNumber(p.p999));
-    add((key + ".max").c_str(), McapNumber(p.max));
-  };
-  add("realtime", s.realtime ? "true" : "false");
-  add("haptic_ticks", std::to_string(s.haptic_ticks));
-  add("haptic_overruns", std::to_string(s.haptic_overruns));
-  add_p("haptic_lateness_us", s.haptic_lateness_us);
-  add_p("haptic_compute_us", s.haptic_compute_us);
-  add("sim_frames", std::to_string(s.sim_frames));
-  add_p("sim_frame_ms", s.sim_frame_ms);
-  add_p("snapshot_age_ms", s.snapshot_age_ms);
-  add("sim_stalled", s.sim_stalled ? "true" : "false");
-  add("rejected_nonfinite", std::to_string(s.rejected_nonfinite));
-  add("rejected_workspace", std::to_string(s.rejected_workspace));
-  add("rejected_seq", std::to_string(s.rejected_seq));
-  add("rejected_unknown_device", std::to_string(s.rejected_unknown_device));
-  add("rejected_flood", std::to_string(s.rejected_flood));
-  add("rejected_not_owner", std::to_string(s.rejected_not_owner));
-  add("pointer_accepted", std::to_string(s.pointer_accepted));
-  add("forces_published", std::to_string(s.forces_published));
-  add("forces_queue_full", std::to_string(s.forces_queue_full));
-  add("dds_errors", std::to_string(s.dds_errors));
-  add("incompatible_qos", std::to_string(s.incompatible_qos));
-  add("nan_events", std::to_string(s.nan_events));
-  add("devices_connected", std::to_string(s.devices_connected));
-  add("passivity_energy_J", McapNumber(s.passivity_energy_J));
-  d.status.push_back(std::move(st));
-  return d;
 }
 
 }  // namespace
@@ -197,7 +149,7 @@ void McapSink::WriteItem(const Item& item) {
 
 void McapSink::WriteStatus(const ServerStatusView& status, int64_t log_ns) {
   std::vector<uint8_t> bytes;
-  ros2::Serialize(DiagnosticsOf(status), &bytes);
+  ros2::Serialize(StatusDiagnostics(status), &bytes);
   writer_->WriteMessage(ch_diag_, status_seq_++, McapLogTime(log_ns),
                         McapLogTime(status.wall_time_ns), bytes);
   statuses_written_.fetch_add(1, std::memory_order_relaxed);

@@ -50,6 +50,10 @@ Qos StreamReaderQos();
 /// std::bad_alloc only.
 Qos Ros2WrenchWriterQos();
 
+/// ROS 2 diagnostics (/diagnostics) writer: rclcpp's default QoS, reliable, keep-last 10,
+/// volatile, as diagnostic_updater publishes; it matches ROS 2 tools' default subscriptions.
+Qos Ros2DiagnosticsWriterQos();
+
 /// The name of a DDS QoS policy id (dds_qos_policy_id_t: "DEADLINE", "RELIABILITY", ...), as
 /// the incompatible-QoS statuses report it; "UNKNOWN" for an id this Cyclone does not define.
 const char* QosPolicyName(uint32_t policy_id);

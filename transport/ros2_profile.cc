@@ -17,6 +17,27 @@ Ros2DeviceTopics DefaultRos2Topics(const std::string& device_id) {
   return t;
 }
 
+const char* Ros2PoseTypeName(Ros2PoseType type) {
+  return type == Ros2PoseType::kOmniState ? "OmniState" : "PoseStamped";
+}
+
+const char* Ros2WrenchTypeName(Ros2WrenchType type) {
+  return type == Ros2WrenchType::kOmniFeedback ? "OmniFeedback" : "WrenchStamped";
+}
+
+Ros2DeviceTopics Ros2PresetTopics(Ros2Preset preset, const std::string& device_id) {
+  if (preset == Ros2Preset::kCrtk) return DefaultRos2Topics(device_id);
+  // omni_common's omni_state.cpp: "<omni_name>/state" and "<omni_name>/force_feedback", relative
+  // names resolved in the root namespace, omni_name "phantom" in its launch file.
+  Ros2DeviceTopics t;
+  t.pose = "/phantom/state";
+  t.wrench = "/phantom/force_feedback";
+  t.pose_type = Ros2PoseType::kOmniState;
+  t.wrench_type = Ros2WrenchType::kOmniFeedback;
+  t.length_scale = kOmniStateMillimetre_m;
+  return t;
+}
+
 std::string Ros2DdsTopic(const std::string& ros_name, const std::string& what) {
   const auto bad = [&](const std::string& why) {
     return std::invalid_argument(what + " \"" + ros_name +

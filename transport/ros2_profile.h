@@ -13,7 +13,9 @@
 // by their stamps (zero when their stamps do not advance or lie more than kRos2TwistMaxAge_ns
 // apart). ROS 2 messages carry no sequence number: the assembler numbers the poses it is given,
 // +1 each, so the server's sequence rule (strictly increasing per writer) holds by construction;
-// a repeated pose is a new sample.
+// a repeated pose is a new sample. The Geomagic Touch driver's OmniState (pose_type kOmniState)
+// goes through the same assembler: its velocity field as a twist at the pose's own stamp, then its
+// pose; both scaled to SI first (Ros2DeviceTopics::length_scale, velocity_scale).
 
 #include <cstdint>
 #include <string>
@@ -29,18 +31,65 @@ enum class TransportProfile {
 /// The profile's name in a scene ("felt", "ros2").
 const char* TransportProfileName(TransportProfile profile);
 
-/// The ROS 2 topics of one device, as ROS 2 names them (`ros2 topic list`), fully qualified.
+/// The message a device's pose topic carries.
+enum class Ros2PoseType {
+  kPoseStamped,  ///< geometry_msgs/PoseStamped (CRTK measured_cp; any driver), position [m]
+  /// omni_msgs/OmniState (the Geomagic Touch driver's `phantom/state`): header, buttons, pose in
+  /// the driver's units (default mm), current, velocity [m/s]. Carries its own velocity, so such
+  /// a device has no twist topic.
+  kOmniState,
+};
+
+/// The message a device's wrench topic carries.
+enum class Ros2WrenchType {
+  kWrenchStamped,  ///< geometry_msgs/WrenchStamped (CRTK servo_cf), stamped with the answered pose
+  /// omni_msgs/OmniFeedback (the Touch driver's `phantom/force_feedback`): force [N] and the
+  /// driver's lock position (Felt writes the proxy position there, in the driver's units). It has
+  /// no header: no stamp echo, no frame.
+  kOmniFeedback,
+};
+
+/// The type's ROS 2 name: "PoseStamped", "OmniState"; "WrenchStamped", "OmniFeedback".
+const char* Ros2PoseTypeName(Ros2PoseType type);
+const char* Ros2WrenchTypeName(Ros2WrenchType type);
+
+/// The metres per unit of an OmniState's position with the Touch driver's default `units` "mm"
+/// (omni_common's omni_state.cpp divides the OpenHaptics millimetres by a units ratio of 1).
+inline constexpr double kOmniStateMillimetre_m = 0.001;
+
+/// The ROS 2 topics of one device, as ROS 2 names them (`ros2 topic list`), fully qualified, and
+/// what they carry.
 struct Ros2DeviceTopics {
-  std::string pose;      ///< geometry_msgs/PoseStamped in: position [m], device frame
-  std::string twist;     ///< geometry_msgs/TwistStamped in: linear velocity [m/s]; "" none
-  std::string wrench;    ///< geometry_msgs/WrenchStamped out: force [N], device frame
+  std::string pose;      ///< pose_type in: position [length_scale m per unit], device frame
+  std::string twist;     ///< geometry_msgs/TwistStamped in: linear velocity; "" none
+  std::string wrench;    ///< wrench_type out: force [N], device frame
   std::string frame_id;  ///< header.frame_id of each force; "" echoes the answered pose's frame
+  Ros2PoseType pose_type = Ros2PoseType::kPoseStamped;
+  Ros2WrenchType wrench_type = Ros2WrenchType::kWrenchStamped;
+  /// Metres per unit of the pose's position (> 0): 1 for PoseStamped (REP 103), 0.001 for the
+  /// Touch driver's OmniState in mm (kOmniStateMillimetre_m). Forces are not scaled (N).
+  double length_scale = 1.0;
+  /// Metres per second per unit of the velocity read (TwistStamped's linear part, OmniState's
+  /// velocity) (> 0): 1 for both (the Touch driver's velocity is m/s with its units "mm").
+  double velocity_scale = 1.0;
 };
 
 /// CRTK's names under the device's id as namespace: /<id>/measured_cp, /<id>/measured_cv,
 /// /<id>/servo_cf, frame_id "" (echo). The id must make a valid ROS 2 name (letters, digits,
 /// '_'; not starting with a digit): Ros2DdsTopic says so when it does not.
 Ros2DeviceTopics DefaultRos2Topics(const std::string& device_id);
+
+/// Named sets of topics and types for drivers people run (the scene's `ros2_preset`).
+enum class Ros2Preset {
+  kCrtk,  ///< DefaultRos2Topics: PoseStamped + TwistStamped in, WrenchStamped out
+  /// The Geomagic Touch ROS 2 driver (`omni_common`, omni_name "phantom"): OmniState in on
+  /// /phantom/state (length_scale 0.001: its mm), no twist, OmniFeedback out on
+  /// /phantom/force_feedback.
+  kOmni,
+};
+
+/// The topics and types of `preset` for the device `device_id`.
+Ros2DeviceTopics Ros2PresetTopics(Ros2Preset preset, const std::string& device_id);
 
 /// The DDS topic of a fully qualified ROS 2 topic name: "/a/b" -> "rt/a/b" (rmw_cyclonedds's
 /// "rt" prefix). Throws std::invalid_argument naming `what` when `ros_name` is not a valid fully

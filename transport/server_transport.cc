@@ -25,6 +25,7 @@
 #include "transport/dds_config.h"
 #include "transport/message_views.h"
 #include "transport/qos.h"
+#include "transport/status_diagnostics.h"
 
 namespace felt::transport {
 namespace {
@@ -83,6 +84,14 @@ void ValidateConfig(const ServerTransportConfig& config) {
     if (!(d.burst_samples >= 1 && std::isfinite(d.burst_samples))) {
       throw std::invalid_argument(field + ".burst_samples: must be at least 1");
     }
+    if (d.profile == TransportProfile::kRos2) {
+      if (!(d.ros2.length_scale > 0 && std::isfinite(d.ros2.length_scale))) {
+        throw std::invalid_argument(field + ".ros2.length_scale: must be positive and finite");
+      }
+      if (!(d.ros2.velocity_scale > 0 && std::isfinite(d.ros2.velocity_scale))) {
+        throw std::invalid_argument(field + ".ros2.velocity_scale: must be positive and finite");
+      }
+    }
   }
   if (config.force_queue_capacity == 0) {
     throw std::invalid_argument("ServerTransportConfig.force_queue_capacity: must be at least 1");
@@ -135,9 +144,15 @@ class ServerTransport::Impl {
   static void OnDataAvailable(dds_entity_t reader, void* arg);
   static void OnRos2Pose(dds_entity_t reader, void* arg);
   static void OnRos2Twist(dds_entity_t reader, void* arg);
+  static void OnRos2OmniState(dds_entity_t reader, void* arg);
+  // A sample assembled from a ROS 2 message, through the same gate as felt/pointer (Accept);
+  // notes the pose's frame for the forces to echo. Receive path, receive_mutex_ held.
+  void AcceptRos2(Ros2Device* device, const Ros2Pointer& in, const char* frame_id,
+                  dds_instance_handle_t writer, int64_t now_ns);
   void CreateRos2Entities(Ros2Device* device, const Qos& reader_qos);
   void WriteRos2Force(Ros2Device* device, const ForceCommandView& force,
                       geometry_msgs_msg_dds__WrenchStamped_* message, std::string* frame);
+  void WriteOmniFeedback(Ros2Device* device, const ForceCommandView& force);
   void WaitsetLoop();
   void WriterLoop();
   void DrainPointers();
@@ -175,6 +190,9 @@ class ServerTransport::Impl {
   Entity pointer_topic_, force_topic_, status_topic_;
   Entity pointer_reader_, force_writer_, status_writer_;
   Entity waitset_, stop_guard_, read_condition_;
+  Entity diagnostics_topic_, diagnostics_writer_;  // ROS 2 diagnostics (absent: off)
+  // Writes `status` (transport fields already filled) as a DiagnosticArray. Monitor thread.
+  bool WriteDiagnostics(const ServerStatusView& status);
 
   // Receive path: the listener may be called on more than one Cyclone thread over time (the
   // receive thread, or a local writer's thread), and each slot is single-producer, so takes are
@@ -254,6 +272,20 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
       CheckDds(dds_waitset_attach(waitset_.get(), stop_guard_.get(), 0), "dds_waitset_attach");
       CheckDds(dds_waitset_attach(waitset_.get(), read_condition_.get(), 1), "dds_waitset_attach");
       waitset_thread_ = std::thread([this] { WaitsetLoop(); });
+    }
+    // ROS 2 diagnostics, when asked for or when a device speaks ROS 2.
+    bool diagnostics = config_.ros2_diagnostics;
+    for (const DeviceLimits& d : config_.devices) {
+      diagnostics = diagnostics || d.profile == TransportProfile::kRos2;
+    }
+    if (diagnostics) {
+      const std::string topic =
+          Ros2DdsTopic(config_.ros2_diagnostics_topic, "ros2_diagnostics_topic");
+      diagnostics_topic_ =
+          CreateTopic(participant_, &diagnostic_msgs_msg_dds__DiagnosticArray__desc, topic);
+      const Qos diagnostics_qos = Ros2DiagnosticsWriterQos();
+      diagnostics_writer_ =
+          CreateWriter(participant_, diagnostics_topic_, diagnostics_qos.get(), topic);
     }
     // The ROS 2 profile's devices: listeners on Cyclone's receive thread in either mode.
     ros2_.resize(devices_.size());
@@ -502,7 +534,11 @@ void ServerTransport::Impl::WriterLoop() {
       const int64_t start_ns = MonotonicNowNs();
       Ros2Device* ros2 = ros2_.empty() ? nullptr : ros2_[force.device_index].get();
       if (ros2 != nullptr) {
-        WriteRos2Force(ros2, force, &wrench, &frame);
+        if (ros2->topics.wrench_type == Ros2WrenchType::kOmniFeedback) {
+          WriteOmniFeedback(ros2, force);
+        } else {
+          WriteRos2Force(ros2, force, &wrench, &frame);
+        }
         write_hop_.Record(MonotonicNowNs() - start_ns);
         continue;
       }
@@ -528,12 +564,21 @@ void ServerTransport::Impl::CreateRos2Entities(Ros2Device* d, const Qos& reader_
   const std::string what = "device '" + limits.device_id + "' (profile ros2): ";
   const std::string pose = Ros2DdsTopic(d->topics.pose, what + "pose topic");
   const std::string wrench = Ros2DdsTopic(d->topics.wrench, what + "wrench topic");
-  d->pose_topic = CreateTopic(participant_, &geometry_msgs_msg_dds__PoseStamped__desc, pose);
-  d->wrench_topic = CreateTopic(participant_, &geometry_msgs_msg_dds__WrenchStamped__desc, wrench);
+  const bool omni_state = d->topics.pose_type == Ros2PoseType::kOmniState;
+  d->pose_topic = CreateTopic(
+      participant_,
+      omni_state ? &omni_msgs_msg_dds__OmniState__desc : &geometry_msgs_msg_dds__PoseStamped__desc,
+      pose);
+  d->wrench_topic = CreateTopic(participant_,
+                                d->topics.wrench_type == Ros2WrenchType::kOmniFeedback
+                                    ? &omni_msgs_msg_dds__OmniFeedback__desc
+                                    : &geometry_msgs_msg_dds__WrenchStamped__desc,
+                                wrench);
   const Qos writer_qos = Ros2WrenchWriterQos();
   d->wrench_writer = CreateWriter(participant_, d->wrench_topic, writer_qos.get(), wrench);
   using ListenerPtr = std::unique_ptr<dds_listener_t, void (*)(dds_listener_t*)>;
-  if (!d->topics.twist.empty()) {
+  // OmniState carries its velocity: such a device reads no twist.
+  if (!d->topics.twist.empty() && !omni_state) {
     const std::string twist = Ros2DdsTopic(d->topics.twist, what + "twist topic");
     d->twist_topic = CreateTopic(participant_, &geometry_msgs_msg_dds__TwistStamped__desc, twist);
     ListenerPtr listener(dds_create_listener(d), &dds_delete_listener);
@@ -544,7 +589,7 @@ void ServerTransport::Impl::CreateRos2Entities(Ros2Device* d, const Qos& reader_
   }
   ListenerPtr listener(dds_create_listener(d), &dds_delete_listener);
   if (!listener) throw std::bad_alloc();
-  dds_lset_data_available(listener.get(), &Impl::OnRos2Pose);
+  dds_lset_data_available(listener.get(), omni_state ? &Impl::OnRos2OmniState : &Impl::OnRos2Pose);
   d->pose_reader =
       CreateReader(participant_, d->pose_topic, reader_qos.get(), listener.get(), pose);
 }
@@ -571,30 +616,61 @@ bool TakeLoaned(dds_entity_t reader, OnValid&& on_valid) {
   }
 }
 
+void ServerTransport::Impl::AcceptRos2(Ros2Device* d, const Ros2Pointer& in, const char* frame_id,
+                                       dds_instance_handle_t writer, int64_t now_ns) {
+  felt_msgs_PointerSample sample{};
+  std::memcpy(sample.device_id, devices_[d->index].id, sizeof(sample.device_id));
+  sample.seq = in.seq;
+  sample.device_time_ns = in.device_time_ns;
+  for (int k = 0; k < 3; ++k) {
+    sample.position_m[k] = in.position_m[k];
+    sample.velocity_m_per_s[k] = in.velocity_m_per_s[k];
+  }
+  Accept(sample, writer, now_ns);
+  if (d->topics.frame_id.empty() && frame_id != nullptr) {
+    std::lock_guard<std::mutex> frame_lock(d->frame_mutex);
+    if (d->echoed_frame != frame_id) d->echoed_frame.assign(frame_id);
+  }
+}
+
 void ServerTransport::Impl::OnRos2Pose(dds_entity_t reader, void* arg) {
   Ros2Device& d = *static_cast<Ros2Device*>(arg);
   Impl& impl = *d.impl;
   std::lock_guard<std::mutex> lock(impl.receive_mutex_);
   const int64_t start_ns = MonotonicNowNs();
-  felt_msgs_PointerSample sample{};
-  std::memcpy(sample.device_id, impl.devices_[d.index].id, sizeof(sample.device_id));
+  const double scale = d.topics.length_scale;
   const bool ok = TakeLoaned<geometry_msgs_msg_dds__PoseStamped_>(
       reader, [&](const geometry_msgs_msg_dds__PoseStamped_& m, const dds_sample_info_t& info,
                   int64_t now_ns) {
-        const double p[3] = {m.pose.position.x, m.pose.position.y, m.pose.position.z};
+        const double p[3] = {m.pose.position.x * scale, m.pose.position.y * scale,
+                             m.pose.position.z * scale};
         const Ros2Pointer in =
             d.assembler.Pose(Ros2StampNs(m.header.stamp.sec, m.header.stamp.nanosec), p);
-        sample.seq = in.seq;
-        sample.device_time_ns = in.device_time_ns;
-        for (int k = 0; k < 3; ++k) {
-          sample.position_m[k] = in.position_m[k];
-          sample.velocity_m_per_s[k] = in.velocity_m_per_s[k];
-        }
-        impl.Accept(sample, info.publication_handle, now_ns);
-        if (d.topics.frame_id.empty() && m.header.frame_id != nullptr) {
-          std::lock_guard<std::mutex> frame_lock(d.frame_mutex);
-          if (d.echoed_frame != m.header.frame_id) d.echoed_frame.assign(m.header.frame_id);
-        }
+        impl.AcceptRos2(&d, in, m.header.frame_id, info.publication_handle, now_ns);
+      });
+  if (!ok) Bump(impl.dds_errors_receive_);
+  impl.receive_hop_.Record(MonotonicNowNs() - start_ns);
+}
+
+void ServerTransport::Impl::OnRos2OmniState(dds_entity_t reader, void* arg) {
+  Ros2Device& d = *static_cast<Ros2Device*>(arg);
+  Impl& impl = *d.impl;
+  std::lock_guard<std::mutex> lock(impl.receive_mutex_);
+  const int64_t start_ns = MonotonicNowNs();
+  const double scale = d.topics.length_scale;
+  const double velocity_scale = d.topics.velocity_scale;
+  const bool ok = TakeLoaned<omni_msgs_msg_dds__OmniState_>(
+      reader,
+      [&](const omni_msgs_msg_dds__OmniState_& m, const dds_sample_info_t& info, int64_t now_ns) {
+        // The driver's units to SI: position [units] * length_scale, velocity * velocity_scale.
+        const double p[3] = {m.pose.position.x * scale, m.pose.position.y * scale,
+                             m.pose.position.z * scale};
+        const double v[3] = {m.velocity.x * velocity_scale, m.velocity.y * velocity_scale,
+                             m.velocity.z * velocity_scale};
+        const int64_t stamp_ns = Ros2StampNs(m.header.stamp.sec, m.header.stamp.nanosec);
+        d.assembler.Twist(stamp_ns, v);  // the same stamp: the assembler uses this velocity
+        const Ros2Pointer in = d.assembler.Pose(stamp_ns, p);
+        impl.AcceptRos2(&d, in, m.header.frame_id, info.publication_handle, now_ns);
       });
   if (!ok) Bump(impl.dds_errors_receive_);
   impl.receive_hop_.Record(MonotonicNowNs() - start_ns);
@@ -607,7 +683,8 @@ void ServerTransport::Impl::OnRos2Twist(dds_entity_t reader, void* arg) {
   const bool ok = TakeLoaned<geometry_msgs_msg_dds__TwistStamped_>(
       reader,
       [&](const geometry_msgs_msg_dds__TwistStamped_& m, const dds_sample_info_t&, int64_t) {
-        const double v[3] = {m.twist.linear.x, m.twist.linear.y, m.twist.linear.z};
+        const double vs = d.topics.velocity_scale;
+        const double v[3] = {m.twist.linear.x * vs, m.twist.linear.y * vs, m.twist.linear.z * vs};
         d.assembler.Twist(Ros2StampNs(m.header.stamp.sec, m.header.stamp.nanosec), v);
       });
   if (!ok) Bump(impl.dds_errors_receive_);
@@ -630,6 +707,21 @@ void ServerTransport::Impl::WriteRos2Force(Ros2Device* d, const ForceCommandView
   m->wrench.force.z = force.force_N_D[2];
   m->wrench.torque = geometry_msgs_msg_dds__Vector3_{0.0, 0.0, 0.0};
   if (dds_write(d->wrench_writer.get(), m) < 0) {
+    Bump(dds_errors_write_);
+  } else {
+    Bump(published_);
+  }
+}
+
+void ServerTransport::Impl::WriteOmniFeedback(Ros2Device* d, const ForceCommandView& force) {
+  // Force [N] in the driver's frame (that of its pose); the lock position, which the driver
+  // reads only when locked, is the proxy's position in the driver's units.
+  omni_msgs_msg_dds__OmniFeedback_ m{};
+  const double per_unit = 1.0 / d->topics.length_scale;
+  m.force = {force.force_N_D[0], force.force_N_D[1], force.force_N_D[2]};
+  m.position = {force.proxy_position_m_D[0] * per_unit, force.proxy_position_m_D[1] * per_unit,
+                force.proxy_position_m_D[2] * per_unit};
+  if (dds_write(d->wrench_writer.get(), &m) < 0) {
     Bump(dds_errors_write_);
   } else {
     Bump(published_);
@@ -723,7 +815,58 @@ bool ServerTransport::PublishStatus(const ServerStatusView& status) {
     return false;
   }
   impl.statuses_.fetch_add(1, std::memory_order_relaxed);
+  if (impl.diagnostics_writer_.get() != 0) {
+    // The same fields as felt/status: the caller's, with the transport's counters.
+    ServerStatusView view = status;
+    view.wall_time_ns = message.wall_time_ns;
+    view.rejected_nonfinite = stats.rejected_nonfinite;
+    view.rejected_workspace = stats.rejected_workspace;
+    view.rejected_seq = stats.rejected_seq;
+    view.rejected_unknown_device = stats.rejected_unknown_device;
+    view.rejected_flood = stats.rejected_flood;
+    view.rejected_not_owner = stats.rejected_not_owner;
+    view.pointer_accepted = stats.pointer_accepted;
+    view.forces_published = stats.forces_published;
+    view.forces_queue_full = stats.forces_queue_full;
+    view.dds_errors = stats.dds_errors;
+    view.incompatible_qos = stats.incompatible_qos;
+    if (!impl.WriteDiagnostics(view)) {
+      impl.dds_errors_status_.fetch_add(1, std::memory_order_relaxed);
+      return false;
+    }
+  }
   return true;
+}
+
+bool ServerTransport::Impl::WriteDiagnostics(const ServerStatusView& status) {
+  // The message as ros2/messages.h builds it, then the IDL struct pointing into its strings.
+  const ros2::DiagnosticArray d = StatusDiagnostics(status);
+  using StatusC = diagnostic_msgs_msg_dds__DiagnosticStatus_;
+  using KeyValueC = diagnostic_msgs_msg_dds__KeyValue_;
+  std::vector<StatusC> statuses(d.status.size());
+  std::vector<std::vector<KeyValueC>> values(d.status.size());
+  for (size_t i = 0; i < d.status.size(); ++i) {
+    const ros2::DiagnosticStatus& in = d.status[i];
+    for (const ros2::KeyValue& kv : in.values) {
+      values[i].push_back(
+          KeyValueC{const_cast<char*>(kv.key.c_str()), const_cast<char*>(kv.value.c_str())});
+    }
+    StatusC& out = statuses[i];
+    out.level = in.level;
+    out.name = const_cast<char*>(in.name.c_str());
+    out.message = const_cast<char*>(in.message.c_str());
+    out.hardware_id = const_cast<char*>(in.hardware_id.c_str());
+    out.values._maximum = out.values._length = static_cast<uint32_t>(values[i].size());
+    out.values._buffer = values[i].data();
+    out.values._release = false;
+  }
+  diagnostic_msgs_msg_dds__DiagnosticArray_ m{};
+  m.header.stamp = {d.header.stamp.sec, d.header.stamp.nanosec};
+  m.header.frame_id = const_cast<char*>(d.header.frame_id.c_str());
+  m.status._maximum = m.status._length = static_cast<uint32_t>(statuses.size());
+  m.status._buffer = statuses.data();
+  m.status._release = false;
+  return dds_write(diagnostics_writer_.get(), &m) >= 0;
 }
 
 TransportStats ServerTransport::Stats() const {

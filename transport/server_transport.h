@@ -54,6 +54,11 @@ struct ServerTransportConfig {
   /// the device's instance (a driver that exits, or restarts with a new writer after the
   /// silence); then the next writer's sample takes it over. > 0.
   int64_t ownership_timeout_ns = 50'000'000;
+  /// Also publish each status as diagnostic_msgs/DiagnosticArray (transport/status_diagnostics.h)
+  /// on ros2_diagnostics_topic: on when this is set or any device is on the ROS 2 profile.
+  bool ros2_diagnostics = false;
+  /// The ROS 2 topic of those diagnostics (DDS topic "rt" + this), as ROS 2 tools expect.
+  std::string ros2_diagnostics_topic = "/diagnostics";
 };
 
 /// Percentiles of a hop's cost, microseconds, as bin upper edges of a rt/loop_stats.h
@@ -127,8 +132,9 @@ class ServerTransport : NonCopyable {
   bool PushForce(const ForceCommandView& force);
 
   /// Publishes `status` on felt/status with the transport fields (rejected_*, pointer_accepted,
-  /// forces_*, dds_errors) replaced by this transport's counters; wall_time_ns 0 means now.
-  /// False (counted in dds_errors) when dds_write fails. Monitor thread; not real-time.
+  /// forces_*, dds_errors) replaced by this transport's counters; wall_time_ns 0 means now. With
+  /// ROS 2 diagnostics on (ServerTransportConfig::ros2_diagnostics), also as a DiagnosticArray.
+  /// False (counted in dds_errors) when a dds_write fails. Monitor thread; not real-time.
   /// Throws std::invalid_argument when server_id is empty or longer than 64 characters.
   bool PublishStatus(const ServerStatusView& status);
 

@@ -34,9 +34,30 @@ DeviceLimits ReadLimits(const SceneTable& table, DeviceLimits limits) {
   return limits;
 }
 
-// The ROS 2 topic keys of a [[transport.devices]] entry over the defaults of its device; each name
-// must be a valid ROS 2 topic name (checked here, so the error names the line).
+// The ROS 2 keys of a [[transport.devices]] entry over `topics` (its device's defaults, or its
+// ros2_preset's); each name must be a valid ROS 2 topic name (checked here, so the error names
+// the line). Choosing pose_type = "OmniState" drops the twist topic and sets length_scale to the
+// Touch driver's millimetres unless those keys are given; "PoseStamped" sets length_scale to 1.
 void ReadRos2Topics(const SceneTable& entry, Ros2DeviceTopics* topics) {
+  static constexpr NamedValue<Ros2PoseType> kPoseTypes[] = {
+      {"PoseStamped", Ros2PoseType::kPoseStamped}, {"OmniState", Ros2PoseType::kOmniState}};
+  static constexpr NamedValue<Ros2WrenchType> kWrenchTypes[] = {
+      {"WrenchStamped", Ros2WrenchType::kWrenchStamped},
+      {"OmniFeedback", Ros2WrenchType::kOmniFeedback}};
+  const Ros2PoseType before = topics->pose_type;
+  topics->pose_type = entry.Choice<Ros2PoseType>(
+      "pose_type", topics->pose_type, std::span<const NamedValue<Ros2PoseType>>(kPoseTypes));
+  if (topics->pose_type != before) {
+    const bool omni = topics->pose_type == Ros2PoseType::kOmniState;
+    topics->length_scale = omni ? kOmniStateMillimetre_m : 1.0;
+    if (omni) topics->twist.clear();
+  }
+  topics->wrench_type =
+      entry.Choice<Ros2WrenchType>("wrench_type", topics->wrench_type,
+                                   std::span<const NamedValue<Ros2WrenchType>>(kWrenchTypes));
+  topics->length_scale = entry.Number("length_scale", topics->length_scale, InRange(1e-6, 1e6));
+  topics->velocity_scale =
+      entry.Number("velocity_scale", topics->velocity_scale, InRange(1e-6, 1e6));
   const auto name = [&](const char* key, std::string* value, bool may_be_empty) {
     *value = entry.String(key, *value);
     if (value->empty() && may_be_empty) return;
@@ -49,7 +70,17 @@ void ReadRos2Topics(const SceneTable& entry, Ros2DeviceTopics* topics) {
   name("pose_topic", &topics->pose, false);
   name("twist_topic", &topics->twist, true);
   name("wrench_topic", &topics->wrench, false);
+  if (topics->pose_type == Ros2PoseType::kOmniState && !topics->twist.empty()) {
+    entry.Fail("twist_topic",
+               "an OmniState carries its own velocity: pose_type = \"OmniState\" reads no "
+               "twist topic (leave twist_topic out)");
+  }
   topics->frame_id = entry.String("frame_id", topics->frame_id);
+  if (topics->wrench_type == Ros2WrenchType::kOmniFeedback && !topics->frame_id.empty()) {
+    entry.Fail("frame_id",
+               "an OmniFeedback has no header: frame_id needs wrench_type = "
+               "\"WrenchStamped\"");
+  }
 }
 
 }  // namespace
@@ -63,7 +94,7 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
   if (table) {
     table->ExpectKeys({"domain", "dds_config", "security", "identity", "receive_mode",
                        "force_queue_capacity", "workspace_min_m", "workspace_max_m", "max_rate_hz",
-                       "burst_samples", "profile", "devices"});
+                       "burst_samples", "profile", "devices", "ros2_diagnostics"});
     config.dds.domain_id = static_cast<uint32_t>(table->Integer("domain", 0, InRange(0, 230)));
     config.dds.config_file = table->String("dds_config", std::string());
     config.dds.security_dir = table->String("security", std::string());
@@ -75,6 +106,7 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
     config.force_queue_capacity =
         static_cast<size_t>(table->Integer("force_queue_capacity", 256, InRange(1, 65536)));
     defaults = ReadLimits(*table, defaults);
+    config.ros2_diagnostics = table->Bool("ros2_diagnostics", false);
   }
   for (size_t i = 0; i < devices.size(); ++i) {
     limits[i] = defaults;
@@ -85,7 +117,9 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
     std::set<std::string> seen;
     for (const SceneTable& entry : table->ArrayOfTables("devices")) {
       entry.ExpectKeys({"id", "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples",
-                        "profile", "pose_topic", "twist_topic", "wrench_topic", "frame_id"});
+                        "profile", "pose_topic", "twist_topic", "wrench_topic", "frame_id",
+                        "ros2_preset", "pose_type", "wrench_type", "length_scale",
+                        "velocity_scale"});
       const std::string id = entry.String("id", kRequired, /*non_empty=*/true);
       if (!seen.insert(id).second) entry.Fail("id", "device '" + id + "' is listed twice");
       size_t index = devices.size();
@@ -100,6 +134,19 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
       limits[index] = ReadLimits(entry, defaults);
       limits[index].device_id = id;
       limits[index].ros2 = DefaultRos2Topics(id);
+      // A preset sets the topics and types at once (and the ROS 2 profile); keys override it.
+      if (entry.Has("ros2_preset")) {
+        static constexpr NamedValue<Ros2Preset> kPresets[] = {{"crtk", Ros2Preset::kCrtk},
+                                                              {"omni", Ros2Preset::kOmni}};
+        const Ros2Preset preset = entry.Choice<Ros2Preset>(
+            "ros2_preset", std::nullopt, std::span<const NamedValue<Ros2Preset>>(kPresets));
+        limits[index].ros2 = Ros2PresetTopics(preset, id);
+        if (!entry.Has("profile")) {
+          limits[index].profile = TransportProfile::kRos2;
+        } else if (limits[index].profile != TransportProfile::kRos2) {
+          entry.Fail("ros2_preset", "a ROS 2 preset needs profile = \"ros2\" (or no profile key)");
+        }
+      }
       ReadRos2Topics(entry, &limits[index].ros2);
     }
   }

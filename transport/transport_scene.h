@@ -16,6 +16,8 @@
 //   max_rate_hz = 2000.0                # default flood limit: sustained samples per second
 //   burst_samples = 50.0                # default flood limit: samples back to back
 //   profile = "felt"                    # or "ros2": every device's topics (ros2_profile.h)
+//   ros2_diagnostics = false            # status also on ROS 2's /diagnostics (DiagnosticArray,
+//                                       # 1 Hz); on anyway when a device uses the ROS 2 profile
 //   [[transport.devices]]               # optional per-device overrides
 //   id = "left"                         # one of the scene's device ids
 //   workspace_min_m = [-0.1, -0.2, -0.2]
@@ -24,6 +26,14 @@
 //   twist_topic = "/left/measured_cv"   # "" = none: velocity by finite difference
 //   wrench_topic = "/left/servo_cf"
 //   frame_id = ""                       # of each force; "" echoes the answered pose's
+//   ros2_preset = "omni"                # "crtk" (the defaults above) or "omni": the Geomagic
+//                                       # Touch driver's /phantom/state (OmniState, mm) in and
+//                                       # /phantom/force_feedback (OmniFeedback) out; implies
+//                                       # profile "ros2"; the keys below override it
+//   pose_type = "PoseStamped"           # or "OmniState" (then no twist topic: it has velocity)
+//   wrench_type = "WrenchStamped"       # or "OmniFeedback" (no header: no stamp, no frame_id)
+//   length_scale = 1.0                  # m per unit of the pose's position (OmniState: 0.001)
+//   velocity_scale = 1.0                # m/s per unit of the velocity read (twist or OmniState)
 
 #include <vector>
 

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 
+#include "base/json.h"
 #include "tests/app/felt_process.h"
 
 namespace {
@@ -55,6 +56,19 @@ TEST(BenchTransport, EndToEndRunWritesEveryKey) {
   EXPECT_EQ(std::stoull(m[1]), 1000u);  // 1 s at 1 kHz after the warm-up
   ASSERT_TRUE(std::regex_search(text, m, received)) << text;
   EXPECT_GT(std::stoull(m[1]), 100u);  // loose: a loaded CI machine still answers most samples
+
+  // The ROS 2 profile's run (issue 24): a PoseStamped driver answered with stamped wrenches.
+  EXPECT_NE(outcome.output.find("end to end, ROS 2 profile (PoseStamped)"), std::string::npos)
+      << outcome.output;
+  const felt::Json doc = felt::ParseJson(text, json);
+  const felt::Json& ros2 = doc.at("profiles").at("ros2");
+  for (const char* key : {"p50", "p99", "max"}) {
+    const double v = ros2.at("e2e_us").at(key).get<double>();
+    EXPECT_TRUE(std::isfinite(v) && v > 0.0) << "profiles.ros2.e2e_us." << key << " = " << v;
+  }
+  EXPECT_EQ(ros2.at("samples_sent").get<uint64_t>(), 1000u);
+  EXPECT_GT(ros2.at("samples_answered").get<uint64_t>(), 100u);
+  EXPECT_TRUE(std::isfinite(doc.at("profiles").at("e2e_p50_difference_us").get<double>()));
 }
 
 TEST(BenchTransport, BadTraceIsRefusedBeforeMeasuring) {

@@ -7,6 +7,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -217,6 +218,99 @@ TEST_F(ServeTest, ARos2OnlyDriverDrivesTheServer) {
   EXPECT_EQ(stamps_echoed, forces) << "every force answers a pose that was sent";
   // The first forces may precede the first pose's frame (ramp-in from no input): nearly all echo.
   EXPECT_GE(frames_echoed, forces - 5);
+}
+
+// The Geomagic Touch driver's messages (ros2_preset = "omni"): a participant with omni_msgs'
+// and diagnostic_msgs' IDL types only publishes OmniState on /phantom/state in millimetres at
+// 1 kHz with the driver's QoS (reliable, keep-last 1) and reads OmniFeedback on
+// /phantom/force_feedback, whose lock position is the proxy in millimetres; `felt serve` also
+// publishes its status on /diagnostics, where the same participant reads the accepted count.
+TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
+  const int domain = 200 + (getpid() + 15) % 30;
+  const std::string scene = (std::filesystem::path(testing::TempDir()) / "omni_preset.toml");
+  std::ofstream(scene) << ReadFile(kScene)
+                       << "\n[transport]\n[[transport.devices]]\nid = \"default\"\n"
+                          "ros2_preset = \"omni\"\n";
+  Child server = StartServe(
+      "--scene " + scene + " --duration 30 --no-realtime --domain " + std::to_string(domain),
+      "serve_omni");
+  // `felt serve`'s server id ("felt-" + its pid: sh execs it) names its diagnostics.
+  const std::string server_id = "felt-" + std::to_string(server.process.pid());
+  using namespace felt::transport;
+  DdsSettings dds;
+  dds.domain_id = static_cast<uint32_t>(domain);
+  Participant driver(AcquireDomain(dds));
+  const Entity state_topic =
+      CreateTopic(driver, &omni_msgs_msg_dds__OmniState__desc, "rt/phantom/state");
+  const Entity feedback_topic =
+      CreateTopic(driver, &omni_msgs_msg_dds__OmniFeedback__desc, "rt/phantom/force_feedback");
+  const Entity diagnostics_topic =
+      CreateTopic(driver, &diagnostic_msgs_msg_dds__DiagnosticArray__desc, "rt/diagnostics");
+  dds_qos_t* qos = dds_create_qos();  // omni_state.cpp: depth 1, rclcpp's default otherwise
+  dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
+  const Entity writer = CreateWriter(driver, state_topic, qos, "state");
+  const Entity reader = CreateReader(driver, feedback_topic, qos, nullptr, "feedback");
+  const Entity diagnostics = CreateReader(driver, diagnostics_topic, qos, nullptr, "diagnostics");
+  dds_delete_qos(qos);
+
+  // 1 kHz for up to 20 s, x = 10 sin(...) mm, until 500 feedbacks and a diagnostics message
+  // reporting accepted samples came back.
+  omni_msgs_msg_dds__OmniState_ state{};
+  char empty[] = "";
+  state.header.frame_id = empty;
+  state.pose.orientation.w = 1.0;
+  int feedbacks = 0, finite = 0;
+  double max_proxy_x = 0;  // mm
+  std::string accepted;
+  void* ptrs[16] = {};
+  dds_sample_info_t infos[16];
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  for (int k = 0; (k < 800 || feedbacks < 500 || accepted.empty() || accepted == "0") &&
+                  std::chrono::steady_clock::now() < deadline;
+       ++k) {
+    Ros2StampOf(100'000'000'000 + int64_t{k} * 1'000'000, &state.header.stamp.sec,
+                &state.header.stamp.nanosec);
+    state.pose.position.x = 10.0 * std::sin(k * 0.002);  // mm
+    (void)dds_write(writer.get(), &state);
+    dds_return_t n = dds_take(reader.get(), ptrs, infos, 16, 16);
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto* f = static_cast<const omni_msgs_msg_dds__OmniFeedback_*>(ptrs[i]);
+      ++feedbacks;
+      if (std::isfinite(f->force.x) && std::isfinite(f->force.y) && std::isfinite(f->force.z)) {
+        ++finite;
+      }
+      max_proxy_x = std::max(max_proxy_x, std::abs(f->position.x));
+    }
+    if (n > 0) (void)dds_return_loan(reader.get(), ptrs, n);
+    n = dds_take(diagnostics.get(), ptrs, infos, 16, 16);
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto* d = static_cast<const diagnostic_msgs_msg_dds__DiagnosticArray_*>(ptrs[i]);
+      for (uint32_t s = 0; s < d->status._length; ++s) {
+        const auto& st = d->status._buffer[s];
+        if (std::string(st.hardware_id) != server_id) continue;  // another test's server
+        for (uint32_t v = 0; v < st.values._length; ++v) {
+          if (std::string(st.values._buffer[v].key) == "pointer_accepted") {
+            accepted = st.values._buffer[v].value;
+          }
+        }
+      }
+    }
+    if (n > 0) (void)dds_return_loan(diagnostics.get(), ptrs, n);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  server.process.Signal(SIGTERM);
+  EXPECT_EQ(WaitExit(server.process, std::chrono::seconds(10)), 0) << ReadFile(server.log);
+  EXPECT_GE(feedbacks, 500) << ReadFile(server.log);
+  EXPECT_EQ(finite, feedbacks);
+  // The proxy follows the tip, which swings to 10 mm in x (the cloth may push it further, tens
+  // of mm): in millimetres its |x| exceeds 5, in metres it would stay below 0.1.
+  EXPECT_GT(max_proxy_x, 5.0) << "the lock position is the proxy in millimetres";
+  EXPECT_LT(max_proxy_x, 500.0);
+  EXPECT_FALSE(accepted.empty()) << "no DiagnosticArray with pointer_accepted on /diagnostics";
+  EXPECT_NE(accepted, "0");
 }
 
 TEST_F(ServeTest, BadSceneExitsTwoAndStartsNothing) {

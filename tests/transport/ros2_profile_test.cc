@@ -14,7 +14,10 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
+#include "dds/ddsi/ddsi_serdata.h"
+#include "ros2/messages.h"
 #include "ros2_types.h"
 #include "tests/transport/transport_test_util.h"
 #include "transport/dds_config.h"
@@ -179,6 +182,303 @@ TEST_P(Ros2DriverTest, ARos2OnlyDriverDrivesADeviceAndReadsStampedForces) {
   pose.header.stamp.sec += 1;
   (void)dds_write(pose_writer.get(), &pose);
   EXPECT_TRUE(WaitUntil([&] { return server.Stats().rejected_nonfinite > nonfinite; }, kWait));
+}
+
+TEST(Ros2ProfileTest, TheOmniPresetNamesTheTouchDriversTopicsAndMillimetres) {
+  const Ros2DeviceTopics omni = Ros2PresetTopics(Ros2Preset::kOmni, "left");
+  EXPECT_EQ(Ros2DdsTopic(omni.pose, "pose"), "rt/phantom/state");
+  EXPECT_EQ(Ros2DdsTopic(omni.wrench, "wrench"), "rt/phantom/force_feedback");
+  EXPECT_EQ(omni.twist, "");
+  EXPECT_EQ(omni.length_scale, 0.001);
+  EXPECT_STREQ(Ros2PoseTypeName(omni.pose_type), "OmniState");
+  EXPECT_STREQ(Ros2WrenchTypeName(omni.wrench_type), "OmniFeedback");
+  const Ros2DeviceTopics crtk = Ros2PresetTopics(Ros2Preset::kCrtk, "left");
+  EXPECT_EQ(crtk.pose, DefaultRos2Topics("left").pose);
+  EXPECT_STREQ(Ros2PoseTypeName(crtk.pose_type), "PoseStamped");
+  EXPECT_STREQ(Ros2WrenchTypeName(crtk.wrench_type), "WrenchStamped");
+}
+
+// The Geomagic Touch driver (omni_common) as a participant that knows only omni_msgs' IDL types:
+// OmniState with its pose in millimetres and velocity in m/s on <ns>/state, OmniFeedback read
+// on <ns>/force_feedback, both with the driver's QoS (rclcpp's default with depth 1: reliable,
+// keep-last 1). The server sees metres; the driver reads newtons and the proxy in millimetres.
+TEST(Ros2ProfileTest, ATouchDriverSpeakingOmniMsgsDrivesADeviceInMillimetres) {
+  const std::string ns = "/phantom" + UniqueSuffix();
+  ServerTransportConfig config;
+  config.dds = TestDds();
+  config.topics = UniqueTopics();
+  config.devices = {TestDevice("touch")};
+  DeviceLimits& touch = config.devices[0];
+  touch.profile = TransportProfile::kRos2;
+  touch.ros2 = Ros2PresetTopics(Ros2Preset::kOmni, "touch");
+  touch.ros2.pose = ns + "/state";
+  touch.ros2.wrench = ns + "/force_feedback";
+  ServerTransport server(config);
+
+  Participant driver(AcquireDomain(TestDds()));
+  const Entity state_topic =
+      CreateTopic(driver, &omni_msgs_msg_dds__OmniState__desc, "rt" + ns + "/state");
+  const Entity feedback_topic =
+      CreateTopic(driver, &omni_msgs_msg_dds__OmniFeedback__desc, "rt" + ns + "/force_feedback");
+  Qos qos(dds_create_qos());
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
+  const Entity state_writer = CreateWriter(driver, state_topic, qos.get(), "state");
+  const Entity feedback_reader = CreateReader(driver, feedback_topic, qos.get(), nullptr, "fb");
+  ASSERT_TRUE(WaitUntil(
+      [&] { return server.MatchedPointerWriters() >= 1 && server.MatchedForceReaders() >= 1; },
+      kWait));
+
+  // The driver's message: header.frame_id left empty (as omni_state.cpp does), pose in mm.
+  omni_msgs_msg_dds__OmniState_ state{};
+  char empty[] = "";
+  state.header.frame_id = empty;
+  state.header.stamp = {1'764'000'001, 500'000};
+  state.locked = false;
+  state.close_gripper = true;
+  state.pose.position = {12.5, -30.0, 45.0};  // mm
+  state.pose.orientation.w = 1.0;
+  state.current = {0.1, 0.2, 0.3};
+  state.velocity = {0.05, -0.25, 0.125};  // m/s
+  PointerSampleView view;
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        (void)dds_write(state_writer.get(), &state);
+        return server.LatestPointer(0, &view);
+      },
+      kWait));
+  EXPECT_DOUBLE_EQ(view.position_m_D[0], 0.0125);
+  EXPECT_DOUBLE_EQ(view.position_m_D[1], -0.030);
+  EXPECT_DOUBLE_EQ(view.position_m_D[2], 0.045);
+  EXPECT_EQ(view.velocity_m_per_s_D[0], 0.05);  // the message's velocity, not a difference
+  EXPECT_EQ(view.velocity_m_per_s_D[1], -0.25);
+  EXPECT_EQ(view.velocity_m_per_s_D[2], 0.125);
+  EXPECT_EQ(view.device_time_ns, 1'764'000'001'000'500'000);
+
+  // A pose 600 mm out is outside the workspace box (0.5 m): the gate sees metres.
+  const uint64_t workspace = server.Stats().rejected_workspace;
+  state.pose.position.x = 600.0;
+  state.header.stamp.nanosec += 1'000'000;
+  (void)dds_write(state_writer.get(), &state);
+  EXPECT_TRUE(WaitUntil([&] { return server.Stats().rejected_workspace > workspace; }, kWait));
+
+  // A force reaches the driver in newtons; the lock position is the proxy's, in mm.
+  ForceCommandView force;
+  force.device_index = 0;
+  force.answers_device_time_ns = view.device_time_ns;
+  force.force_N_D = {0.5, -1.0, 2.0};
+  force.proxy_position_m_D = {0.0125, -0.0295, 0.045};
+  omni_msgs_msg_dds__OmniFeedback_ got{};
+  void* ptrs[1] = {&got};
+  dds_sample_info_t info{};
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        server.PushForce(force);
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        return dds_take(feedback_reader.get(), ptrs, &info, 1, 1) == 1 && info.valid_data;
+      },
+      kWait));
+  EXPECT_EQ(got.force.x, 0.5);
+  EXPECT_EQ(got.force.y, -1.0);
+  EXPECT_EQ(got.force.z, 2.0);
+  EXPECT_DOUBLE_EQ(got.position.x, 12.5);
+  EXPECT_DOUBLE_EQ(got.position.y, -29.5);
+  EXPECT_DOUBLE_EQ(got.position.z, 45.0);
+}
+
+// The bytes Cyclone puts on the wire for `sample` of the IDL type `desc`: written by a local
+// writer, taken serialised (dds_takecdr), encapsulation header included.
+std::vector<uint8_t> CycloneBytes(const dds_topic_descriptor_t* desc, const void* sample) {
+  Participant p(AcquireDomain(TestDds()));
+  const Entity topic = CreateTopic(p, desc, "felt_idl_bytes" + UniqueSuffix());
+  Qos qos(dds_create_qos());
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_ALL, 0);
+  const Entity reader = CreateReader(p, topic, qos.get(), nullptr, "bytes reader");
+  const Entity writer = CreateWriter(p, topic, qos.get(), "bytes writer");
+  EXPECT_GE(dds_write(writer.get(), sample), 0);
+  ddsi_serdata* data = nullptr;
+  dds_sample_info_t info{};
+  std::vector<uint8_t> bytes;
+  EXPECT_TRUE(WaitUntil([&] { return dds_takecdr(reader.get(), &data, 1, &info, 0) == 1; }, kWait));
+  if (data == nullptr) return bytes;
+  bytes.resize(ddsi_serdata_size(data));
+  ddsi_serdata_to_ser(data, 0, bytes.size(), bytes.data());
+  ddsi_serdata_unref(data);
+  return bytes;
+}
+
+// Compares Cyclone's bytes with the ros2 serializer's (checked against npm's
+// @foxglove/rosmsg2-serialization in tests/ros2): the same encapsulation kind (CDR little-endian),
+// the same body; Cyclone may pad the body to a multiple of 4 (the padding is zero).
+void ExpectSameCdr(const std::vector<uint8_t>& cyclone, const std::vector<uint8_t>& ros2) {
+  ASSERT_GE(cyclone.size(), 4u);
+  ASSERT_GE(ros2.size(), 4u);
+  EXPECT_EQ(cyclone[0], ros2[0]);
+  EXPECT_EQ(cyclone[1], ros2[1]);  // 0x01: CDR little-endian (XCDR1)
+  ASSERT_GE(cyclone.size(), ros2.size());
+  EXPECT_LT(cyclone.size() - ros2.size(), 4u);
+  EXPECT_TRUE(std::equal(ros2.begin() + 4, ros2.end(), cyclone.begin() + 4))
+      << "the IDL type's layout differs from the ROS 2 message's";
+  for (size_t i = ros2.size(); i < cyclone.size(); ++i) EXPECT_EQ(cyclone[i], 0) << i;
+}
+
+TEST(Ros2ProfileTest, TheOmniAndDiagnosticIdlTypesHaveTheRos2MessagesBytes) {
+  // OmniState: odd values in every field, a frame_id whose length forces padding.
+  ros2::OmniState r;
+  r.header.stamp = {1'764'000'002, 123'456'789};
+  r.header.frame_id = "touch";
+  r.locked = true;
+  r.close_gripper = false;
+  r.pose.position = {12.5, -30.25, 45.125};
+  r.pose.orientation = {0.1, 0.2, 0.3, 0.9};
+  r.current = {0.5, 0.25, -0.75};
+  r.velocity = {0.01, -0.02, 0.03};
+  omni_msgs_msg_dds__OmniState_ c{};
+  char frame[] = "touch";
+  c.header.stamp = {1'764'000'002, 123'456'789};
+  c.header.frame_id = frame;
+  c.locked = true;
+  c.close_gripper = false;
+  c.pose.position = {12.5, -30.25, 45.125};
+  c.pose.orientation = {0.1, 0.2, 0.3, 0.9};
+  c.current = {0.5, 0.25, -0.75};
+  c.velocity = {0.01, -0.02, 0.03};
+  std::vector<uint8_t> expected;
+  ros2::Serialize(r, &expected);
+  ExpectSameCdr(CycloneBytes(&omni_msgs_msg_dds__OmniState__desc, &c), expected);
+
+  ros2::OmniFeedback rf;
+  rf.force = {0.5, -1.0, 2.0};
+  rf.position = {12.5, -29.5, 45.0};
+  const omni_msgs_msg_dds__OmniFeedback_ cf{{0.5, -1.0, 2.0}, {12.5, -29.5, 45.0}};
+  ros2::Serialize(rf, &expected);
+  ExpectSameCdr(CycloneBytes(&omni_msgs_msg_dds__OmniFeedback__desc, &cf), expected);
+
+  // DiagnosticArray: two statuses, the second with no values; strings of lengths 1..5.
+  ros2::DiagnosticArray rd;
+  rd.header.stamp = {7, 8};
+  rd.header.frame_id = "";
+  rd.status.resize(2);
+  rd.status[0] = {1, "felt", "ok", "srv", {{"a", "1"}, {"bb", "22"}, {"ccc", "333"}}};
+  rd.status[1] = {3, "x", "stale", "hw", {}};
+  ros2::Serialize(rd, &expected);
+  char empty[] = "", felt[] = "felt", ok[] = "ok", srv[] = "srv", x[] = "x", stale[] = "stale",
+       hw[] = "hw", a[] = "a", one[] = "1", bb[] = "bb", two[] = "22", ccc[] = "ccc",
+       three[] = "333";
+  diagnostic_msgs_msg_dds__KeyValue_ kv[3] = {{a, one}, {bb, two}, {ccc, three}};
+  diagnostic_msgs_msg_dds__DiagnosticStatus_ st[2] = {};
+  st[0] = {1, felt, ok, srv, {3, 3, kv, false}};
+  st[1] = {3, x, stale, hw, {0, 0, nullptr, false}};
+  diagnostic_msgs_msg_dds__DiagnosticArray_ cd{};
+  cd.header.stamp = {7, 8};
+  cd.header.frame_id = empty;
+  cd.status = {2, 2, st, false};
+  ExpectSameCdr(CycloneBytes(&diagnostic_msgs_msg_dds__DiagnosticArray__desc, &cd), expected);
+}
+
+// The value of `key` in a DiagnosticStatus, or "<absent>".
+std::string DiagnosticValue(const diagnostic_msgs_msg_dds__DiagnosticStatus_& s, const char* key) {
+  for (uint32_t i = 0; i < s.values._length; ++i) {
+    if (std::string(s.values._buffer[i].key) == key) return s.values._buffer[i].value;
+  }
+  return "<absent>";
+}
+
+// Felt's status on ROS 2's /diagnostics: a subscriber with the diagnostic_msgs IDL types only and
+// ROS 2's default QoS reads felt/status's fields as KeyValue strings, the transport counters
+// filled in; on with a ROS 2 device, or asked for with Felt's profile only, else absent.
+TEST(Ros2ProfileTest, StatusReachesRos2DiagnosticsWithEveryFieldAsText) {
+  for (const bool ros2_device : {true, false}) {
+    SCOPED_TRACE(ros2_device ? "a ROS 2 device" : "ros2_diagnostics = true");
+    const std::string ns = "/felt" + UniqueSuffix();
+    ServerTransportConfig config;
+    config.dds = TestDds();
+    config.topics = UniqueTopics();
+    config.devices = {TestDevice("left")};
+    if (ros2_device) {
+      config.devices[0].profile = TransportProfile::kRos2;
+      config.devices[0].ros2.pose = ns + "/measured_cp";
+      config.devices[0].ros2.wrench = ns + "/servo_cf";
+    } else {
+      config.ros2_diagnostics = true;
+    }
+    config.ros2_diagnostics_topic = ns + "/diagnostics";
+    ServerTransport server(config);
+
+    Participant tool(AcquireDomain(TestDds()));
+    const Entity topic = CreateTopic(tool, &diagnostic_msgs_msg_dds__DiagnosticArray__desc,
+                                     "rt" + ns + "/diagnostics");
+    const Qos qos = RosQos(false);
+    const Entity reader = CreateReader(tool, topic, qos.get(), nullptr, "diagnostics");
+    ASSERT_TRUE(WaitUntil([&] { return MatchedWriters(reader) >= 1; }, kWait));
+
+    ServerStatusView status;
+    status.server_id = "felt-7";
+    status.wall_time_ns = 1'764'000'003'000'000'042;
+    status.realtime = true;
+    status.haptic_ticks = 12345;
+    status.haptic_lateness_us = {3.5, 20.25, 40.0, 81.0};
+    status.sim_stalled = true;
+    status.pointer_accepted = 999;  // replaced by the transport's own count (0)
+    status.devices_connected = 1;
+    status.passivity_energy_J = -0.125;
+    void* ptrs[1] = {nullptr};
+    dds_sample_info_t info{};
+    const diagnostic_msgs_msg_dds__DiagnosticArray_* got = nullptr;
+    ASSERT_TRUE(WaitUntil(
+        [&] {
+          EXPECT_TRUE(server.PublishStatus(status));
+          std::this_thread::sleep_for(std::chrono::milliseconds(2));
+          if (dds_take(reader.get(), ptrs, &info, 1, 1) != 1) return false;
+          if (info.valid_data) {
+            got = static_cast<const diagnostic_msgs_msg_dds__DiagnosticArray_*>(ptrs[0]);
+            return true;
+          }
+          (void)dds_return_loan(reader.get(), ptrs, 1);
+          return false;
+        },
+        kWait));
+    EXPECT_EQ(got->header.stamp.sec, 1'764'000'003);
+    EXPECT_EQ(got->header.stamp.nanosec, 42u);
+    ASSERT_EQ(got->status._length, 1u);
+    const diagnostic_msgs_msg_dds__DiagnosticStatus_& st = got->status._buffer[0];
+    EXPECT_STREQ(st.name, "felt: server felt-7");
+    EXPECT_STREQ(st.hardware_id, "felt-7");
+    EXPECT_EQ(st.level, 1);  // WARN: the sim stalled
+    EXPECT_STREQ(st.message, "sim stalled");
+    EXPECT_EQ(DiagnosticValue(st, "realtime"), "true");
+    EXPECT_EQ(DiagnosticValue(st, "haptic_ticks"), "12345");
+    EXPECT_EQ(DiagnosticValue(st, "haptic_lateness_us.p50"), "3.5");
+    EXPECT_EQ(DiagnosticValue(st, "haptic_lateness_us.p99"), "20.25");
+    EXPECT_EQ(DiagnosticValue(st, "haptic_lateness_us.max"), "81");
+    EXPECT_EQ(DiagnosticValue(st, "pointer_accepted"), "0");
+    EXPECT_EQ(DiagnosticValue(st, "devices_connected"), "1");
+    EXPECT_EQ(DiagnosticValue(st, "passivity_energy_J"), "-0.125");
+    // Every felt/status field is there: 23 fields, 4 of them percentiles of 4 keys.
+    EXPECT_EQ(st.values._length, 23u - 4u + 4u * 4u);
+    (void)dds_return_loan(reader.get(), ptrs, 1);
+  }
+
+  // Felt's profile only, not asked for: no diagnostics writer.
+  const std::string ns = "/felt" + UniqueSuffix();
+  ServerTransportConfig config;
+  config.dds = TestDds();
+  config.topics = UniqueTopics();
+  config.devices = {TestDevice("left")};
+  config.ros2_diagnostics_topic = ns + "/diagnostics";
+  ServerTransport server(config);
+  Participant tool(AcquireDomain(TestDds()));
+  const Entity topic = CreateTopic(tool, &diagnostic_msgs_msg_dds__DiagnosticArray__desc,
+                                   "rt" + ns + "/diagnostics");
+  const Qos qos = RosQos(false);
+  const Entity reader = CreateReader(tool, topic, qos.get(), nullptr, "diagnostics");
+  ServerStatusView status;
+  status.server_id = "felt-8";
+  EXPECT_TRUE(server.PublishStatus(status));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(MatchedWriters(reader), 0u);
 }
 
 INSTANTIATE_TEST_SUITE_P(DefaultAndSensorDataQos, Ros2DriverTest, ::testing::Bool(),

@@ -123,6 +123,72 @@ frame_id = "base"
   EXPECT_NE(error.find("device 'right-hand' needs its topics named"), std::string::npos) << error;
 }
 
+TEST(TransportSceneTest, TheOmniPresetReadsTheTouchDriversStateInMillimetres) {
+  // The preset alone: the ROS 2 profile, the driver's topics and types, its mm to m.
+  ServerTransportConfig c = Parse(R"(
+[transport]
+[[transport.devices]]
+id = "left"
+ros2_preset = "omni"
+)",
+                                  Devices({"left", "right"}));
+  const Ros2DeviceTopics& t = c.devices[0].ros2;
+  EXPECT_EQ(c.devices[0].profile, TransportProfile::kRos2);
+  EXPECT_EQ(t.pose, "/phantom/state");
+  EXPECT_EQ(t.twist, "");
+  EXPECT_EQ(t.wrench, "/phantom/force_feedback");
+  EXPECT_EQ(t.pose_type, Ros2PoseType::kOmniState);
+  EXPECT_EQ(t.wrench_type, Ros2WrenchType::kOmniFeedback);
+  EXPECT_EQ(t.length_scale, 0.001);
+  EXPECT_EQ(t.velocity_scale, 1.0);
+  EXPECT_EQ(c.devices[1].profile, TransportProfile::kFelt);  // the other device is untouched
+
+  // A second Touch (the driver's omni_name "right_touch") and the CRTK preset spelled out; keys
+  // override the preset.
+  c = Parse(R"(
+[transport]
+[[transport.devices]]
+id = "right"
+ros2_preset = "omni"
+pose_topic = "/right_touch/state"
+wrench_topic = "/right_touch/force_feedback"
+length_scale = 0.01
+[[transport.devices]]
+id = "left"
+ros2_preset = "crtk"
+wrench_type = "OmniFeedback"
+)",
+            Devices({"left", "right"}));
+  EXPECT_EQ(c.devices[1].ros2.pose, "/right_touch/state");
+  EXPECT_EQ(c.devices[1].ros2.wrench, "/right_touch/force_feedback");
+  EXPECT_EQ(c.devices[1].ros2.pose_type, Ros2PoseType::kOmniState);
+  EXPECT_EQ(c.devices[1].ros2.length_scale, 0.01);
+  EXPECT_EQ(c.devices[0].profile, TransportProfile::kRos2);
+  EXPECT_EQ(c.devices[0].ros2.pose, "/left/measured_cp");
+  EXPECT_EQ(c.devices[0].ros2.twist, "/left/measured_cv");
+  EXPECT_EQ(c.devices[0].ros2.pose_type, Ros2PoseType::kPoseStamped);
+  EXPECT_EQ(c.devices[0].ros2.wrench_type, Ros2WrenchType::kOmniFeedback);
+  EXPECT_EQ(c.devices[0].ros2.length_scale, 1.0);
+
+  // pose_type alone: OmniState drops the CRTK twist and takes the driver's millimetres.
+  EXPECT_FALSE(c.ros2_diagnostics);  // (on anyway with a ROS 2 device: ServerTransport)
+  c = Parse(R"(
+[transport]
+profile = "ros2"
+ros2_diagnostics = true
+[[transport.devices]]
+id = "left"
+pose_type = "OmniState"
+)",
+            Devices({"left"}));
+  EXPECT_TRUE(c.ros2_diagnostics);
+  EXPECT_EQ(c.devices[0].ros2.pose, "/left/measured_cp");
+  EXPECT_EQ(c.devices[0].ros2.twist, "");
+  EXPECT_EQ(c.devices[0].ros2.pose_type, Ros2PoseType::kOmniState);
+  EXPECT_EQ(c.devices[0].ros2.wrench_type, Ros2WrenchType::kWrenchStamped);
+  EXPECT_EQ(c.devices[0].ros2.length_scale, 0.001);
+}
+
 TEST(TransportSceneTest, ErrorsNameFileLineAndField) {
   const auto two = Devices({"left", "right"});
   struct Case {
@@ -151,6 +217,28 @@ TEST(TransportSceneTest, ErrorsNameFileLineAndField) {
        "qualified ROS 2 topic name (it must start with '/')"},
       {"[transport]\n[[transport.devices]]\nid = \"left\"\nwrench_topic = \"/a//b\"\n",
        "transport.devices[0].wrench_topic"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nros2_preset = \"touch\"\n",
+       "t.toml:4:1: transport.devices[0].ros2_preset: unknown value 'touch'"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nprofile = \"felt\"\n"
+       "ros2_preset = \"omni\"\n",
+       "t.toml:5:1: transport.devices[0].ros2_preset: a ROS 2 preset needs profile = \"ros2\""},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\npose_type = \"Pose\"\n",
+       "t.toml:4:1: transport.devices[0].pose_type: unknown value 'Pose'"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nwrench_type = \"Wrench\"\n",
+       "t.toml:4:1: transport.devices[0].wrench_type: unknown value 'Wrench'"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nros2_preset = \"omni\"\n"
+       "length_scale = 0\n",
+       "t.toml:5:1: transport.devices[0].length_scale"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nros2_preset = \"omni\"\n"
+       "velocity_scale = -1\n",
+       "t.toml:5:1: transport.devices[0].velocity_scale"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nros2_preset = \"omni\"\n"
+       "twist_topic = \"/phantom/twist\"\n",
+       "t.toml:5:1: transport.devices[0].twist_topic: an OmniState carries its own velocity"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nros2_preset = \"omni\"\n"
+       "frame_id = \"base\"\n",
+       "t.toml:5:1: transport.devices[0].frame_id: an OmniFeedback has no header"},
+      {"[transport]\nros2_preset = \"omni\"\n", "t.toml:2:1: transport.ros2_preset"},
   };
   for (const Case& c : cases) {
     const std::string error = ErrorOf(c.text, two);
