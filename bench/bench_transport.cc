@@ -242,6 +242,21 @@ transport::Ros2DeviceTopics BenchRos2Topics(const std::string& ns) {
   return t;
 }
 
+// Writes what a device process measured to `path` for ReadE2eClientResult: one line of counts,
+// then one end-to-end time per line [us]. Returns 0, or 3 (after a message naming `who`) when the
+// file cannot be written.
+int WriteE2eClientResult(const E2eClientResult& result, const std::string& path, const char* who) {
+  std::ofstream out(path);
+  out << result.samples_sent << " " << result.forces_received << " " << result.answered << "\n";
+  out.precision(9);
+  for (double v : result.e2e_us) out << v << "\n";
+  if (!out) {
+    std::fprintf(stderr, "%s: cannot write %s\n", who, path.c_str());
+    return 3;
+  }
+  return 0;
+}
+
 // The device side, run in its own process: publishes the trace at 1 kHz on absolute deadlines and
 // times each sample's first answer. Writes E2eClientResult to args.out.
 int RunE2eClient(const transport::DdsSettings& dds, const E2eClientArgs& args, double seconds) {
@@ -310,15 +325,7 @@ int RunE2eClient(const transport::DdsSettings& dds, const E2eClientArgs& args, d
     if (first_answer_us[seq] >= 0.0) result.e2e_us.push_back(first_answer_us[seq]);
   }
   result.answered = result.e2e_us.size();
-  std::ofstream out(args.out);
-  out << result.samples_sent << " " << result.forces_received << " " << result.answered << "\n";
-  out.precision(9);
-  for (double v : result.e2e_us) out << v << "\n";
-  if (!out) {
-    std::fprintf(stderr, "bench transport e2e client: cannot write %s\n", args.out.c_str());
-    return 3;
-  }
-  return 0;
+  return WriteE2eClientResult(result, args.out, "bench transport e2e client");
 }
 
 // The device side on the ROS 2 profile, in its own process: a ROS 2 driver stand-in
@@ -388,15 +395,7 @@ int RunRos2E2eClient(const transport::DdsSettings& dds, const E2eClientArgs& arg
     result.e2e_us.push_back(static_cast<double>(firsts[i].second - firsts[i].first) / 1e3);
   }
   result.answered = result.e2e_us.size();
-  std::ofstream out(args.out);
-  out << result.samples_sent << " " << result.forces_received << " " << result.answered << "\n";
-  out.precision(9);
-  for (double v : result.e2e_us) out << v << "\n";
-  if (!out) {
-    std::fprintf(stderr, "bench transport ros2 e2e client: cannot write %s\n", args.out.c_str());
-    return 3;
-  }
-  return 0;
+  return WriteE2eClientResult(result, args.out, "bench transport ros2 e2e client");
 }
 
 E2eClientResult ReadE2eClientResult(const std::string& path) {
