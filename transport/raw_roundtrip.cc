@@ -170,13 +170,17 @@ RawRoundTripResult RunRawRoundTrip(const RawRoundTripOptions& options) {
     const int64_t end_ns = measure_from_ns + static_cast<int64_t>(options.seconds * 1e9);
     int64_t next_ns = start_ns;
     uint64_t seq = 0;
+    // A ping is measured when its deadline (not the time it was sent) lies after the warm-up, so
+    // warm-up pings sent late (a stalled loop, a secure handshake) are never counted: seq >=
+    // first_measured (ping k's deadline is start + (k - 1) period).
+    const auto first_measured = static_cast<uint64_t>((kWarmupNs + period_ns - 1) / period_ns) + 1;
     while (next_ns < end_ns + 50000000) {  // 50 ms after the last ping for late answers
       SleepUntil(next_ns);
       const int64_t now_ns = MonotonicNowNs();
       if (next_ns < end_ns) {
         ping.seq = ++seq;
         ping.device_time_ns = now_ns;
-        if (dds_write(ping_writer.get(), &ping) >= 0 && now_ns >= measure_from_ns) {
+        if (dds_write(ping_writer.get(), &ping) >= 0 && ping.seq >= first_measured) {
           ++result.pings_sent;
         }
       }
@@ -189,7 +193,7 @@ RawRoundTripResult RunRawRoundTrip(const RawRoundTripOptions& options) {
         const dds_return_t n = dds_take(pong_reader.get(), ptrs.data(), infos.data(), 8, 8);
         const int64_t received_ns = MonotonicNowNs();
         for (dds_return_t i = 0; i < n; ++i) {
-          if (!infos[i].valid_data || pongs[i].answers_device_time_ns < measure_from_ns) continue;
+          if (!infos[i].valid_data || pongs[i].answers_seq < first_measured) continue;
           ++result.pongs_received;
           result.roundtrip_us.push_back(
               static_cast<double>(received_ns - pongs[i].answers_device_time_ns) / 1e3);
