@@ -101,7 +101,11 @@ TEST(ViewSlowClient, AStalledClientCostsTheLoopsNothing) {
   // Never more than its slot plus the frame in flight.
   EXPECT_LE(vs.max_queued_bytes, 2 * frame_bytes);
   EXPECT_LE(max_queued, 2 * frame_bytes);
-  EXPECT_LT(rss_after - rss_stalled, 4'000'000) << "the process grew with a stalled client";
+  if (!sanitized) {
+    // Not under a sanitizer: ASan's quarantine keeps freed blocks resident (7 MB here in CI), so
+    // RSS there says nothing about live memory; the view's own bound is max_queued_bytes above.
+    EXPECT_LT(rss_after - rss_stalled, 4'000'000) << "the process grew with a stalled client";
+  }
   EXPECT_GT(with.ticks, 0u);
   if (!sanitized) {
     // Loose: a shared two-core machine's lateness varies by itself from window to window.
