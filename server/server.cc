@@ -166,12 +166,7 @@ ViewTap* Server::EnableViewTap() {
     if (running_) throw std::logic_error("Server::EnableViewTap: call it before Start()");
     view_tap_ = std::make_unique<ViewTap>(model().num_particles(), haptic_.device_count());
     // The cloth as it is now (the rest state before Start), so a viewer has a cloth at once.
-    ViewCloth& out = view_tap_->cloth.write_slot();
-    const ClothState& state = sim_.cloth();
-    for (size_t i = 0; i < state.x.size(); ++i) {
-      for (int k = 0; k < 3; ++k) out.xyz_m[3 * i + k] = static_cast<float>(state.x[i][k]);
-    }
-    view_tap_->cloth.Publish();
+    PublishViewCloth();
   }
   return view_tap_.get();
 }
@@ -182,15 +177,17 @@ void Server::SimFrame(double frame_dt_s, int64_t publish_ns) {
   if (stall_ns > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(stall_ns));
   sim_.Frame(frame_dt_s, publish_ns);
   if (view_tap_ == nullptr) return;
+  PublishViewCloth();
+}
+
+void Server::PublishViewCloth() {
   // The view's copy of the positions as float32 (sized once: no allocation).
   ViewCloth& out = view_tap_->cloth.write_slot();
   const ClothState& state = sim_.cloth();
   out.frame = sim_.counters().frames.load(std::memory_order_relaxed);
   out.time_s = state.time_s;
   for (size_t i = 0; i < state.x.size(); ++i) {
-    out.xyz_m[3 * i] = static_cast<float>(state.x[i].x());
-    out.xyz_m[3 * i + 1] = static_cast<float>(state.x[i].y());
-    out.xyz_m[3 * i + 2] = static_cast<float>(state.x[i].z());
+    for (int k = 0; k < 3; ++k) out.xyz_m[3 * i + k] = static_cast<float>(state.x[i][k]);
   }
   view_tap_->cloth.Publish();
 }

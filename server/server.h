@@ -161,6 +161,8 @@ class Server : NonCopyable {
   ViewTap* view_tap() const { return view_tap_.get(); }
 
  private:
+  // Copies the cloth's positions into the view tap's cloth slot and publishes it (view on only).
+  void PublishViewCloth();
   void HapticThread();
   void SimThread();
   void MonitorThread();
