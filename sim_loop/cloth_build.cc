@@ -204,6 +204,9 @@ void ValidateProvot(const ProvotSpec& s) {
     Fail("provot.iterations",
          "must be in [1, " + Show(kMaxProvotIterations) + "], got " + Show(s.iterations));
   }
+  if (!(s.sweep_headroom >= 0.0 && s.sweep_headroom < 0.5)) {
+    Fail("provot.sweep_headroom", "must be in [0, 0.5), got " + Show(s.sweep_headroom));
+  }
 }
 
 // Appends the springs of one type between (c, r) and (c + dc, r + dr) for every valid pair, and
@@ -323,6 +326,7 @@ std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const Pro
     if (kept) out.push_back({f.dc, f.dr, limit(f), 1, {}});
   }
   for (ProvotFamily& f : out) {
+    f.sweep_length_m = (1.0 - spec.sweep_headroom) * f.max_length_m;
     f.runs = ProvotRuns(f, model.width, model.height);
     // A run whose pairs are all free skips the pinned-end shares (most runs of most cloths).
     const auto pinned = [&](int32_t p) { return model.inv_mass_per_kg[p] == 0.0; };
@@ -648,6 +652,14 @@ ClothModel BuildClothModel(const SimSpec& spec) {
     for (size_t p = 0; p < model.inv_mass_per_kg.size(); ++p) {
       model.provot_movable[p] = model.inv_mass_per_kg[p] > 0.0 ? 1.0f : 0.0f;
     }
+    // The finishing worklist holds the spring families' own limits; the sweeps aim below them.
+    if (spec.provot.finish) {
+      for (const ProvotFamily& f : model.provot_families) {
+        if (f.level != 1) continue;
+        model.limit_families.push_back({f.dc, f.dr, f.dr * model.width + f.dc, f.max_length_m,
+                                        f.max_length_m * f.max_length_m});
+      }
+    }
     if (spec.provot.long_range_attachments) {
       model.attachments = BuildAttachments(model, spec.provot);
       DenseAttachments(&model);
@@ -695,6 +707,8 @@ ClothState MakeClothState(const ClothModel& model) {
   s.restart.assign(n, 0);
   s.soa.assign(12 * SoaStride(static_cast<size_t>(n)), 0.0);
   s.provot_soa.assign(3 * ProvotSoaStride(n), 0.0f);
+  s.limit_queued.assign(model.limit_families.size() * n, 0);
+  s.limit_ring.assign(std::max<size_t>(1, model.limit_families.size() * n), 0);
   if (model.integrator == IntegratorKind::kImplicitEuler) {
     BuildImplicitPattern(model, &s);
   }

@@ -687,7 +687,7 @@ double ObstacleDistance(const ObstacleSpec& o, const Vec3& p, Vec3* normal) {
 }
 
 ProvotLimits ProvotLimitsOf(const ProvotFamily& f) {
-  const float max_len = static_cast<float>(f.max_length_m);
+  const float max_len = static_cast<float>(f.sweep_length_m);
   const float max2 = max_len * max_len;
   return {max2, kLoose2 * max2};
 }
@@ -745,6 +745,8 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
     vo[3 * p + 1] += inv_h * my;
     vo[3 * p + 2] += inv_h * mz;
   }
+  // The springs the sweeps left over their limits, exactly (ProvotSpec::finish).
+  ApplyLimitWorklist(model, h_s, state);
 }
 
 void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state) {

@@ -12,6 +12,7 @@
 #include "sim_loop/cloth_scene.h"
 #include "tests/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in collision_alloc_test.cc
 #include "tests/sim_loop/cloth_test_util.h"
+#include "tests/test_env.h"
 
 namespace felt {
 namespace {
@@ -54,27 +55,14 @@ double WorstStretch(int32_t grid, bool horizontal, int frames) {
 }
 
 // Issue 21's target: the shipped settings hold 10 % after every frame, the release transient (its
-// peak at frames 5-8) and the settling included, at every grid. Missed today: over 120 frames,
-// hanging 1.111-1.126 and released horizontal 1.120-1.138 (10: 1.138, 128: 1.133), so it is
-// disabled rather than loosened; run it with --gtest_also_run_disabled_tests. Enable it when the
-// limiter meets it.
-TEST(ClothStepTest, DISABLED_ShippedSettingsHoldTheStretchLimitAfterEveryFrame) {
+// peak at frames 5-8) and the settling included, at every grid, hanging and released flat. Before
+// the finishing worklist (ProvotSpec::finish) the sweeps alone reached 1.111-1.138 here. Under the
+// sanitizers (ten times slower) the grids up to 64 only.
+TEST(ClothStepTest, ShippedSettingsHoldTheStretchLimitAfterEveryFrame) {
   for (int32_t grid : {10, 20, 32, 40, 50, 64, 128}) {
+    if (grid > 64 && felt::testing::Sanitized()) continue;
     for (bool horizontal : {false, true}) {
       EXPECT_LE(WorstStretch(grid, horizontal, 120), 1.10 + 1e-9)
-          << grid << (horizontal ? " horizontal" : " hanging");
-    }
-  }
-}
-
-// A guard, not the target (the test above): the shipped settings stay within the stretch they
-// reach today (the release peaks above: 1.111-1.138 on these grids), so a change that makes the
-// limiter worse fails here while issue 21 is open.
-TEST(ClothStepTest, ShippedSettingsDoNotStretchPastTodaysRelease) {
-  for (int32_t grid : {10, 20, 32, 64}) {
-    for (bool horizontal : {false, true}) {
-      if (grid >= 64 && horizontal) continue;  // the slowest case adds nothing the others miss
-      EXPECT_LE(WorstStretch(grid, horizontal, 30), 1.145)
           << grid << (horizontal ? " horizontal" : " hanging");
     }
   }
