@@ -156,6 +156,7 @@ struct ClothModel {
   // Provot (ProvotSpec, validated).
   bool provot_enabled = false;    ///< Provot's constraints are applied after each substep
   int32_t provot_iterations = 0;  ///< Gauss-Seidel sweeps per substep
+  int32_t provot_coarse_sweeps = 0;  ///< the first sweeps that visit the multiresolution families
 
   // Self-collision (SelfCollisionSpec, validated; issue 22). Nothing is built without it.
   bool self_collision_enabled = false;              ///< the scene declared [self_collision]

@@ -204,6 +204,10 @@ void ValidateProvot(const ProvotSpec& s) {
     Fail("provot.iterations",
          "must be in [1, " + Show(kMaxProvotIterations) + "], got " + Show(s.iterations));
   }
+  if (s.coarse_sweeps < 1 || s.coarse_sweeps > kMaxProvotIterations) {
+    Fail("provot.coarse_sweeps",
+         "must be in [1, " + Show(kMaxProvotIterations) + "], got " + Show(s.coarse_sweeps));
+  }
   if (!(s.sweep_headroom >= 0.0 && s.sweep_headroom < 0.5)) {
     Fail("provot.sweep_headroom", "must be in [0, 0.5), got " + Show(s.sweep_headroom));
   }
@@ -571,6 +575,7 @@ ClothModel BuildClothModel(const SimSpec& spec) {
   model.cg_tolerance = is.cg_tolerance;
   model.provot_enabled = spec.provot.enabled;
   model.provot_iterations = spec.provot.iterations;
+  model.provot_coarse_sweeps = spec.provot.coarse_sweeps;
   if (spec.self_collision) {
     const SelfCollisionSpec& sc = *spec.self_collision;
     if (!(sc.thickness_m > 0.0) || !(sc.thickness_m < 0.5 * cs.spacing_m)) {

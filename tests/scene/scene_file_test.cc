@@ -354,7 +354,7 @@ TEST(SceneFileErrors, UnknownKey) {
   EXPECT_EQ(ErrorOf("[cloth]\n[provot]\nzzz = 1\naaa = 2\n"),
             "t.toml:3:1: provot.zzz: unknown key 'zzz' in [provot]; known keys: enabled, "
             "max_elongation, iterations, shear, long_range_attachments, multiresolution, "
-            "sweep_headroom, finish");
+            "coarse_sweeps, sweep_headroom, finish");
   EXPECT_EQ(ErrorOf("[cloth]\n[[cloth.pins]]\nkind = \"corner\"\nname = \"top_left\"\ncol = 3\n"),
             "t.toml:5:1: cloth.pins[0].col: unknown key 'col' in cloth.pins[0]; known keys: kind, "
             "name, motion");

@@ -69,6 +69,7 @@ void ReferenceProvot(const ClothModel& model, double h_s, ClothState* state) {
   for (int32_t sweep = 0; sweep < model.provot_iterations; ++sweep) {
     bool loose = false;
     for (const ProvotFamily& f : model.provot_families) {
+      if (f.level > 1 && sweep >= model.provot_coarse_sweeps) continue;
       const ProvotLimits lim = ProvotLimitsOf(f);
       for (const auto& [p, q] : PairsOf(f, model.width)) {
         const float dx = x[q].x() - x[p].x(), dy = x[q].y() - x[p].y(), dz = x[q].z() - x[p].z();
