@@ -46,6 +46,7 @@ struct Args {
   std::vector<int32_t> felt_sweeps = TradeoffOptions{}.sweeps;
   std::vector<int32_t> felt_small_steps = TradeoffOptions{}.small_steps;
   std::vector<double> felt_limits = TradeoffOptions{}.limits;
+  std::vector<int32_t> felt_sweeps_alone = TradeoffOptions{}.sweeps_alone;
   bool no_bullet = false;
   std::string gnuplot_script = TradeoffOptions{}.gnuplot_script;
   bool no_plot = false;
@@ -173,6 +174,7 @@ std::string Command(const Args& args) {
     list("--felt-sweeps", args.felt_sweeps, defaults.sweeps);
     list("--felt-small-steps", args.felt_small_steps, defaults.small_steps);
     list("--felt-limits", args.felt_limits, defaults.limits);
+    list("--felt-sweeps-alone", args.felt_sweeps_alone, defaults.sweeps_alone);
     if (args.no_bullet) cmd += " --no-bullet";
     if (args.gnuplot_script != defaults.gnuplot_script) {
       cmd += " --gnuplot-script " + args.gnuplot_script;
@@ -192,6 +194,7 @@ int RunTradeoff(const Args& args) {
     o.sweeps = {1};
     o.small_steps = {6};
     o.limits = {0.05};
+    o.sweeps_alone = {3};
     o.bullet_iterations = {1, 10};
     o.settle_frames = 10;
   }
@@ -211,6 +214,7 @@ int RunTradeoff(const Args& args) {
   if (args.felt_sweeps != defaults.sweeps) o.sweeps = args.felt_sweeps;
   if (args.felt_small_steps != defaults.small_steps) o.small_steps = args.felt_small_steps;
   if (args.felt_limits != defaults.limits) o.limits = args.felt_limits;
+  if (args.felt_sweeps_alone != defaults.sweeps_alone) o.sweeps_alone = args.felt_sweeps_alone;
   o.bullet = !args.no_bullet;
   o.gnuplot_script = args.gnuplot_script;
   o.plot = !args.no_plot;
@@ -377,6 +381,11 @@ app::CommandRun Setup(CLI::App& cmd) {
                  "scene's sweeps)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  cmd.add_option("--felt-sweeps-alone", args->felt_sweeps_alone,
+                 "with --tradeoff: provot.iterations to sweep without the finishing worklist "
+                 "(provot.finish=false, provot.sweep_headroom=0; auto substeps)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, kMaxProvotIterations));
   cmd.add_flag("--no-bullet", args->no_bullet, "with --tradeoff: leave Bullet's rows out");
   cmd.add_option("--gnuplot-script", args->gnuplot_script, "with --tradeoff: the plot's script")
       ->capture_default_str();
