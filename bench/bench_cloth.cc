@@ -277,7 +277,8 @@ int Run(const Args& args) {
   md +=
       "The default curtain (scenes/curtain.toml: pinned at its two top corners, leapfrog "
       "Verlet, auto substeps, Provot 10% with long range attachments and multiresolution "
-      "families along rows, columns and diagonals, 3 sweeps) resized to each grid "
+      "families along rows, columns and diagonals, 3 sweeps aiming 1 % under the limit with the "
+      "multiresolution families in the first, then the finishing worklist) resized to each grid "
       "over the same 0.496 m square. " +
       std::to_string(args.settle_frames) + " frames settle (not timed), then " +
       std::to_string(args.timed_frames()) +

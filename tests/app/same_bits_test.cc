@@ -72,9 +72,9 @@ struct ScenePin {
 
 // Frames: two seconds of the scene (one for the 128 x 128 curtain), through its release transient.
 constexpr ScenePin kScenePins[] = {
-    {"curtain.toml", 120, "27b5bdfccef33f40"},      {"curtain_128.toml", 60, "615b023a47b68b7b"},
-    {"curtain_rail.toml", 120, "7325cec5c4d8069b"}, {"flag.toml", 120, "4bd2eb07ed83701f"},
-    {"sphere_drop.toml", 120, "221f38f48233c50a"},  {"tablecloth.toml", 120, "d85626b02c444f87"},
+    {"curtain.toml", 120, "e3dec571ca4ae936"},      {"curtain_128.toml", 60, "8779a44d708c75ff"},
+    {"curtain_rail.toml", 120, "9b87d5f4d68ba01e"}, {"flag.toml", 120, "e1016961ebb7d0d2"},
+    {"sphere_drop.toml", 120, "f78666445b8ce62d"},  {"tablecloth.toml", 120, "889797279bba5cdc"},
 };
 
 TEST(SameBits, EveryBundledSceneKeepsItsStateHash) {
@@ -122,9 +122,9 @@ struct TracePin {
 };
 
 constexpr TracePin kTracePins[] = {
-    {"circle", "ea7f13dceebaf969"},      {"fast_swipe", "5f4bb3fd9c806d2f"},
-    {"pinch_drag", "6c02634f1bd4e283"},  {"poke_hold", "2d3f80c992b871d3"},
-    {"slow_stroke", "162587267c37473f"},
+    {"circle", "36f3e5a6d9c818a5"},      {"fast_swipe", "7844c897d30125f2"},
+    {"pinch_drag", "30f91b4b422a5e0c"},  {"poke_hold", "749c914ea19c83e4"},
+    {"slow_stroke", "0a251e0d63bdea13"},
 };
 
 TEST(SameBits, EveryBundledTraceKeepsItsCompareForces) {
