@@ -139,6 +139,12 @@ TEST(ClothModelTest, ValidationErrorsNameTheFieldAndRule) {
        "provot.iterations: must be in [1, 10000], got 0"},
       {[](SimSpec* s) { s->provot.iterations = 10001; },
        "provot.iterations: must be in [1, 10000], got 10001"},
+      {[](SimSpec* s) { s->provot.coarse_sweeps = 0; },
+       "provot.coarse_sweeps: must be in [1, 10000], got 0"},
+      {[](SimSpec* s) { s->provot.sweep_headroom = -0.1; },
+       "provot.sweep_headroom: must be in [0, 0.5), got -0.10000000000000001"},
+      {[](SimSpec* s) { s->provot.sweep_headroom = 0.5; },
+       "provot.sweep_headroom: must be in [0, 0.5), got 0.5"},
       {[](SimSpec* s) {
          s->integration.integrator = IntegratorKind::kExplicitEuler;
          s->cloth.structural->damping_N_s_per_m = 0;
