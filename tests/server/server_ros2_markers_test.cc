@@ -213,6 +213,53 @@ TEST(ServerRos2Markers, ARos2SubscriberSeesTheClothAndTheProxyPressingIt) {
   EXPECT_GT(server.Report()->contacts, 0u);
 }
 
+// ros2_markers_device: the markers in that device's frame, where its driver's pose is: the
+// proxy's centre is WorldToDevice of the proxy, the cloth's points WorldToDevice of the
+// particles, the sphere's diameter divided by the device's scale.
+TEST(ServerRos2Markers, InADevicesFrameTheWorkspaceMapIsUndone) {
+  using testing_server::Driver;
+  DeviceSpec device = testing_server::DeviceAt("left", Vec3(0.05, -0.02, 0.1));
+  device.scale = 2.5;
+  device.rotation_WD = Eigen::AngleAxisd(0.7, Vec3(0.2, 1.0, -0.3).normalized()).toRotationMatrix();
+  ServerSpec spec = testing_server::SmallCurtain({device});
+  LatestPointerSource source(1);
+  CapturingForceSink sink(1);
+  ServerOptions options;
+  options.apply_realtime = false;
+  options.monitor_log = false;
+  Server server(spec, &source, &sink, options);
+  ViewTap* view = server.EnableViewTap();  // the same copies as the feed's tap, to compare with
+  transport::ServerTransportConfig config;
+  config.dds = transport::testing::TestDds();
+  config.topics = transport::testing::UniqueTopics();
+  config.devices = {transport::testing::TestDevice("left")};
+  config.ros2_markers.enabled = false;  // the array is built; nothing is published
+  config.ros2_markers.device = "left";
+  transport::ServerTransport dds(config);
+  Ros2MarkerFeed feed(&server, &dds, config.ros2_markers);
+  Driver driver(&server, &source);
+  for (int i = 0; i < 200; ++i) driver.Tick(1, testing_server::PressFeed());
+  EXPECT_FALSE(feed.PublishOnce(WallNowNs()));  // markers off: not published
+  const ros2::MarkerArray& a = feed.markers();
+  const Vec3 proxy_D = WorldToDevice(device, server.haptic().last_result(0).proxy_W_m);
+  EXPECT_NEAR(a.markers[1].pose.position.x, proxy_D.x(), 1e-12);
+  EXPECT_NEAR(a.markers[1].pose.position.y, proxy_D.y(), 1e-12);
+  EXPECT_NEAR(a.markers[1].pose.position.z, proxy_D.z(), 1e-12);
+  EXPECT_NEAR(a.markers[1].scale.x, 2.0 * device.radius_m / 2.5, 1e-15);
+  ASSERT_TRUE(view->cloth.Acquire());
+  const std::vector<float>& xyz = view->cloth.read_slot().xyz_m;
+  for (size_t t = 0; t < server.model().triangles.size(); ++t) {
+    for (size_t k = 0; k < 3; ++k) {
+      const size_t v = 3 * static_cast<size_t>(server.model().triangles[t][k]);
+      const Vec3 x_D = WorldToDevice(device, Vec3(xyz[v], xyz[v + 1], xyz[v + 2]));
+      const ros2::Vector3& p = a.markers[0].points[3 * t + k];
+      ASSERT_NEAR(p.x, x_D.x(), 1e-12) << t;
+      ASSERT_NEAR(p.y, x_D.y(), 1e-12) << t;
+      ASSERT_NEAR(p.z, x_D.z(), 1e-12) << t;
+    }
+  }
+}
+
 TEST(ServerRos2Markers, TheLoopsFillObserverTapsWithoutAllocating) {
   using testing_server::Driver;
   ServerSpec spec = testing_server::SmallCurtain();
