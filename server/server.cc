@@ -176,14 +176,7 @@ std::unique_ptr<ViewTap> Server::NewTap() {
   taps_.reserve(kMaxObserverTaps);
   auto tap = std::make_unique<ViewTap>(model().num_particles(), haptic_.device_count());
   // The cloth as it is now (the rest state before Start), so an observer has a cloth at once.
-  ViewCloth& out = tap->cloth.write_slot();
-  const ClothState& state = sim_.cloth();
-  out.frame = sim_.counters().frames.load(std::memory_order_relaxed);
-  out.time_s = state.time_s;
-  for (size_t i = 0; i < state.x.size(); ++i) {
-    for (int k = 0; k < 3; ++k) out.xyz_m[3 * i + k] = static_cast<float>(state.x[i][k]);
-  }
-  tap->cloth.Publish();
+  PublishViewCloth(tap.get());
   taps_.push_back(tap.get());
   return tap;
 }
@@ -211,18 +204,19 @@ void Server::SimFrame(double frame_dt_s, int64_t publish_ns) {
 }
 
 void Server::PublishViewCloth() {
-  // Each observer's copy of the positions as float32 (sized once: no allocation).
+  for (ViewTap* tap : taps_) PublishViewCloth(tap);
+}
+
+void Server::PublishViewCloth(ViewTap* tap) {
+  // One observer's copy of the positions as float32 (sized once: no allocation).
   const ClothState& state = sim_.cloth();
-  const uint64_t frame = sim_.counters().frames.load(std::memory_order_relaxed);
-  for (ViewTap* tap : taps_) {
-    ViewCloth& out = tap->cloth.write_slot();
-    out.frame = frame;
-    out.time_s = state.time_s;
-    for (size_t i = 0; i < state.x.size(); ++i) {
-      for (int k = 0; k < 3; ++k) out.xyz_m[3 * i + k] = static_cast<float>(state.x[i][k]);
-    }
-    tap->cloth.Publish();
+  ViewCloth& out = tap->cloth.write_slot();
+  out.frame = sim_.counters().frames.load(std::memory_order_relaxed);
+  out.time_s = state.time_s;
+  for (size_t i = 0; i < state.x.size(); ++i) {
+    for (int k = 0; k < 3; ++k) out.xyz_m[3 * i + k] = static_cast<float>(state.x[i][k]);
   }
+  tap->cloth.Publish();
 }
 
 std::unique_ptr<ServerReport> Server::Report() const {

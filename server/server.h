@@ -171,6 +171,8 @@ class Server : NonCopyable {
  private:
   // Copies the cloth's positions into each tap's cloth slot and publishes it (taps only).
   void PublishViewCloth();
+  // Copies the cloth's positions into one tap's cloth slot and publishes it.
+  void PublishViewCloth(ViewTap* tap);
   // Copies the devices of the last tick into each tap's devices slot and publishes it.
   void PublishViewDevices();
   // A new tap, filled with the current cloth, its pointer appended to taps_ (set-up).
