@@ -248,18 +248,24 @@ int64_t SelfCollisionResponse::DetectAll(std::span<const Vec3> x1, SelfCollision
   const AllPairsCcdOptions options = CcdPassOptions();
   const int32_t count = static_cast<int32_t>(broad->candidates().size());
   int64_t hits = 0;
-  for (int32_t i = 0; i < count; ++i) {
-    CcdPairHit h;
-    ++stats->narrow_tests;
-    const bool hit = NarrowTest(i, x1, options, &h);
-    cand_hit_[i] = hit ? 1 : 0;
-    if (!hit) continue;
-    ++hits;
-    if (hits_.size() < hits_.capacity()) hits_.push_back(h);
-  }
+  for (int32_t i = 0; i < count; ++i) TestCandidate(i, x1, options, stats, &hits);
   narrow_valid_ = true;
   if (static_cast<size_t>(hits) > hits_.size()) ++stats->overflows;
   return hits;
+}
+
+// The narrow test of candidate i on x_before_ -> x1: its result kept for the next round, a hit
+// counted in *hits and kept while hits_ has room (DetectAll and Detect count the overflow).
+void SelfCollisionResponse::TestCandidate(int32_t i, std::span<const Vec3> x1,
+                                          const AllPairsCcdOptions& options,
+                                          SelfCollisionStats* stats, int64_t* hits) {
+  CcdPairHit h;
+  ++stats->narrow_tests;
+  const bool hit = NarrowTest(i, x1, options, &h);
+  cand_hit_[i] = hit ? 1 : 0;
+  if (!hit) return;
+  ++*hits;
+  if (hits_.size() < hits_.capacity()) hits_.push_back(h);
 }
 
 // True when the candidates and narrow results of the last detection still cover x_trial_: every
@@ -302,14 +308,7 @@ int64_t SelfCollisionResponse::Detect(std::span<const Vec3> x1, SelfCollisionSta
         retest = (moved_[e[0]] | moved_[e[1]] | moved_[f[0]] | moved_[f[1]]) != 0;
       }
     }
-    if (!retest) continue;
-    CcdPairHit h;
-    ++stats->narrow_tests;
-    const bool hit = NarrowTest(i, x1, options, &h);
-    cand_hit_[i] = hit ? 1 : 0;
-    if (!hit) continue;
-    ++hits;
-    if (hits_.size() < hits_.capacity()) hits_.push_back(h);
+    if (retest) TestCandidate(i, x1, options, stats, &hits);
   }
   for (int32_t p : moved_list_) moved_[p] = 0;
   moved_list_.clear();

@@ -145,6 +145,8 @@ class SelfCollisionResponse {
   SelfBroadPhase* Broad();
   int64_t Detect(std::span<const Vec3> x1, SelfCollisionStats* stats);
   int64_t DetectAll(std::span<const Vec3> x1, SelfCollisionStats* stats);
+  void TestCandidate(int32_t i, std::span<const Vec3> x1, const AllPairsCcdOptions& options,
+                     SelfCollisionStats* stats, int64_t* hits);
   void RunBroadPhase(std::span<const Vec3> x1, SelfCollisionStats* stats);
   bool WithinBroadBoxes(int32_t p, const Vec3& q, double margin_m) const;
   bool CanDetectIncrementally() const;
