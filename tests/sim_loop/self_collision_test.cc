@@ -187,7 +187,9 @@ TEST(SelfCollisionScene, CulledDetectionEqualsTheAllPairsReferenceOnEveryFrame) 
       // The reference with its box prefilter (the same result, faster; ccd_all_pairs.h).
       AllPairsCcdOptions options = response.CcdPassOptions();
       options.box_prefilter = true;
-      const int32_t frames = testing::Sanitized() ? 10 : 60;
+      // Under a sanitizer 20 frames: the fold drop's first collisions come at frames 12-13 (the
+      // CI's ASan run of 10 frames found none and failed the check below).
+      const int32_t frames = testing::Sanitized() ? 20 : 60;
       for (int32_t f = 0; f < frames; ++f) {
         StepFrame(model, {}, 1.0 / 60.0, &state);
         const std::vector<CcdPairHit> ref =
