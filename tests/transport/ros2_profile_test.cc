@@ -30,6 +30,19 @@ namespace {
 
 using namespace ::felt::transport::testing;  // tests/transport/transport_test_util.h
 
+// Writes `sample` (a ROS 2 message of the writer's type) until the server holds a pointer sample
+// for device `index` (best-effort: the first writes may precede the match); false after kWait.
+template <typename Sample>
+bool WriteUntilHeard(const Entity& writer, const Sample& sample, ServerTransport& server,
+                     uint32_t index, PointerSampleView* view) {
+  return WaitUntil(
+      [&] {
+        (void)dds_write(writer.get(), &sample);
+        return server.LatestPointer(index, view);
+      },
+      kWait);
+}
+
 TEST(Ros2ProfileTest, RosNamesMapToRtTopicsAndBadNamesAreRefusedWithTheReason) {
   EXPECT_EQ(Ros2DdsTopic("/left/measured_cp", "pose"), "rt/left/measured_cp");
   EXPECT_EQ(Ros2DdsTopic("/phantom/force_feedback", "wrench"), "rt/phantom/force_feedback");
@@ -136,12 +149,7 @@ TEST_P(Ros2DriverTest, ARos2OnlyDriverDrivesADeviceAndReadsStampedForces) {
   pose.pose.position = {0.01, -0.02, 0.03};
   pose.pose.orientation.w = 1.0;
   PointerSampleView view;
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        (void)dds_write(pose_writer.get(), &pose);
-        return server.LatestPointer(1, &view);
-      },
-      kWait));
+  ASSERT_TRUE(WriteUntilHeard(pose_writer, pose, server, 1, &view));
   EXPECT_EQ(view.position_m_D[0], 0.01);
   EXPECT_EQ(view.position_m_D[1], -0.02);
   EXPECT_EQ(view.position_m_D[2], 0.03);
@@ -244,12 +252,7 @@ TEST(Ros2ProfileTest, ATouchDriverSpeakingOmniMsgsDrivesADeviceInMillimetres) {
   state.current = {0.1, 0.2, 0.3};
   state.velocity = {0.05, -0.25, 0.125};  // m/s
   PointerSampleView view;
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        (void)dds_write(state_writer.get(), &state);
-        return server.LatestPointer(0, &view);
-      },
-      kWait));
+  ASSERT_TRUE(WriteUntilHeard(state_writer, state, server, 0, &view));
   EXPECT_DOUBLE_EQ(view.position_m_D[0], 0.0125);
   EXPECT_DOUBLE_EQ(view.position_m_D[1], -0.030);
   EXPECT_DOUBLE_EQ(view.position_m_D[2], 0.045);
@@ -501,12 +504,7 @@ TEST(Ros2ProfileTest, TheForceDimensionDriverReadsItsForcesAsAFloat64MultiArray)
     pose.pose.position = {0.02, -0.01, 0.03};
     pose.pose.orientation.w = 1.0;
     PointerSampleView view;
-    ASSERT_TRUE(WaitUntil(
-        [&] {
-          (void)dds_write(pose_writer.get(), &pose);
-          return server.LatestPointer(0, &view);
-        },
-        kWait));
+    ASSERT_TRUE(WriteUntilHeard(pose_writer, pose, server, 0, &view));
     EXPECT_EQ(view.position_m_D[0], 0.02);
     EXPECT_EQ(view.position_m_D[2], 0.03);
 
