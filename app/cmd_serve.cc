@@ -23,6 +23,7 @@
 #include "recordings/trace.h"
 #include "rt/periodic_loop.h"
 #include "scene/scene_file.h"
+#include "server/ros2_marker_feed.h"
 #include "server/server.h"
 #include "server/server_spec.h"
 #include "server/transport_io.h"
@@ -96,6 +97,7 @@ int Serve(const ServeArgs& args) {
 
   // Input and output: a trace in-process, or the DDS transport.
   std::unique_ptr<transport::ServerTransport> dds;
+  transport::Ros2MarkerSettings marker_settings;
   std::unique_ptr<PointerSource> source;
   std::unique_ptr<ForceSink> sink;
   std::optional<double> duration_s = args.duration_s;
@@ -114,6 +116,7 @@ int Serve(const ServeArgs& args) {
     if (!args.security.empty()) config.dds.security_dir = args.security;
     if (!args.identity.empty()) config.dds.identity = args.identity;
     const uint32_t domain = config.dds.domain_id;
+    marker_settings = config.ros2_markers;
     const std::string security = config.dds.security_dir;
     dds = std::make_unique<transport::ServerTransport>(std::move(config));
     source = std::make_unique<TransportPointerSource>(dds.get());
@@ -138,6 +141,14 @@ int Serve(const ServeArgs& args) {
     };
   }
   Server server(std::move(spec), source.get(), sink.get(), options);
+  // The cloth and proxies as ROS 2 markers, when the transport publishes them (a ROS 2 device,
+  // or [transport] ros2_markers = true): a tap of its own, before Start.
+  std::unique_ptr<Ros2MarkerFeed> markers;
+  if (dds_ptr != nullptr && dds_ptr->markers_enabled()) {
+    markers = std::make_unique<Ros2MarkerFeed>(&server, dds_ptr, marker_settings);
+    spdlog::info("serve: ROS 2 markers on {} at {} Hz (frame '{}')", marker_settings.topic,
+                 marker_settings.rate_hz, marker_settings.frame_id);
+  }
   // The live view: before Start, so the loops publish into its tap from the first frame.
   std::unique_ptr<ViewServer> view;
   if (args.view_port) {
@@ -154,6 +165,7 @@ int Serve(const ServeArgs& args) {
                server.spec().haptic.haptic_rate_hz, server.spec().sim.integration.frame_rate_hz,
                duration_s ? fmt::format(", {:.1f} s", *duration_s) : ", until SIGINT/SIGTERM");
   server.Start();
+  if (markers) markers->Start();
 
   // Wait for the end: the duration or a signal.
   const int64_t end_ns =
@@ -162,6 +174,7 @@ int Serve(const ServeArgs& args) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   const bool by_signal = StopRequested().load();
+  if (markers) markers->Stop();
   server.Stop();
   if (view) {
     const ViewStats vs = view->stats();

@@ -84,6 +84,8 @@ class SelfBroadPhase {
   std::span<const Triangle> triangles() const { return triangles_; }
   /// MeshEdges(triangles()): the edge numbering of edge-edge candidates and hits.
   std::span<const MeshEdge> edges() const { return edges_; }
+  /// Capacity of the candidate buffer (pairs): candidates().size() never exceeds it.
+  int64_t max_candidates() const { return max_candidates_; }
 
  protected:
   /// Copies the mesh, numbers its edges and reserves the candidate buffer. Throws

@@ -2,9 +2,11 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "collision/ccd_proximity.h"
 #include "collision/geometry.h"
@@ -73,6 +75,9 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   if (!(settings.ccd_thickness_fraction > 0.0 && settings.ccd_thickness_fraction <= 1.0)) {
     throw std::invalid_argument("self-collision: ccd_thickness_fraction must be in (0, 1]");
   }
+  if (settings.passes_per_frame < 1) {
+    throw std::invalid_argument("self_collision.passes_per_frame: < 1");
+  }
   if (settings.max_zone_iterations < 1) {
     throw std::invalid_argument("self_collision.max_zone_iterations: < 1");
   }
@@ -89,10 +94,25 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   // Colliding pairs per detection: a vertex touches a handful of faces in a fold; 8 per primitive
   // is far above what the hard scenes reach (an overflow is counted and handled by the fail-safe).
   hits_.reserve(8 * (static_cast<size_t>(n) + edges));
-  for (std::vector<Vec3>* a : {&x_before_, &x_trial_, &vel_, &candidates_end_, &zone_mx_, &zone_mv_,
-                               &zone_l_, &zone_pin_v_, &zone_omega_}) {
+  for (std::vector<Vec3>* a :
+       {&x_before_, &x_trial_, &vel_, &broad_lo_, &broad_hi_, &ccd_lo_, &ccd_hi_, &zone_mx_,
+        &zone_mv_, &zone_l_, &zone_pin_v_, &zone_omega_}) {
     a->assign(static_cast<size_t>(n), Vec3::Zero());
   }
+  cand_hit_.assign(static_cast<size_t>(Broad()->max_candidates()), 0);
+  moved_.assign(static_cast<size_t>(n), 0);
+  moved_list_.reserve(static_cast<size_t>(n));
+  if (!(settings.broad_inflation >= 0.0) || !std::isfinite(settings.broad_inflation)) {
+    throw std::invalid_argument("self_collision.broad_inflation: must be >= 0");
+  }
+  // The broad phase pads by the half thickness plus the inflation (the 1e-5 as in
+  // self_broadphase.cc). A position may lie this far outside the last sweep's boxes and its
+  // candidates still cover a test at distance d: a box padded by d / 2 (1 + 1e-5) around it
+  // stays inside the broad phase's padded box (10 % kept back for rounding).
+  const double h = settings.thickness_m;
+  broad_pad_m_ = 0.5 * h * (1.0 + 2.0 * settings.broad_inflation) * (1.0 + 1e-5);
+  ccd_margin_m_ = 0.9 * (broad_pad_m_ - 0.5 * h * settings.ccd_thickness_fraction * (1.0 + 1e-5));
+  prox_margin_m_ = 0.9 * (broad_pad_m_ - 0.5 * h * (1.0 + 1e-5));
   dirty_.assign(static_cast<size_t>(n), 0);
   dirty_list_.reserve(static_cast<size_t>(n));
   parent_.resize(static_cast<size_t>(n));
@@ -122,35 +142,176 @@ void SelfCollisionResponse::BeginStep(std::span<const Vec3> x) {
   std::copy(x.begin(), x.end(), x_before_.begin());
 }
 
-// The broad phase runs with the full thickness as padding, the narrow phase with the CCD
-// thickness: the candidates then also hold every pair within the thickness at x1 (each box
-// contains its primitive at x1 padded by h / 2), which the next substep's proximity pass reuses
-// when it starts from x1 (Resolve).
-int64_t SelfCollisionResponse::Detect(std::span<const Vec3> x1, SelfCollisionStats* stats) {
-  SelfBroadPhase* broad = Broad();
-  hits_.clear();
-  const SelfBroadPhaseStats bs = broad->FindCandidates(x_before_, x1, settings_.thickness_m);
-  candidates_end_valid_ = !bs.overflow;
-  if (candidates_end_valid_) std::copy(x1.begin(), x1.end(), candidates_end_.begin());
-  if (bs.overflow) {
-    ++stats->overflows;
-    return std::max<int64_t>(bs.vertex_triangle + bs.edge_edge, 1);  // unseen pairs: fail-safe
+void SelfCollisionResponse::KeepFirstPass(bool on) {
+  keep_first_pass_ = on;
+  if (on) {
+    first_end_.assign(x_before_.size(), Vec3::Zero());
+    first_hits_.reserve(hits_.capacity());
+  } else {
+    first_end_.clear();
   }
+  first_hits_.clear();
+}
+
+AllPairsCcdOptions SelfCollisionResponse::CcdPassOptions() const {
   AllPairsCcdOptions options;
   options.ccd.thickness_m = settings_.thickness_m * settings_.ccd_thickness_fraction;
-  const std::span<const MeshEdge> edges = broad->edges();
-  int64_t hits = 0;
-  for (const SelfCandidate& c : broad->candidates()) {
-    CcdPairHit h;
-    const bool hit = c.kind == CcdPairHit::Kind::kVertexTriangle
-                         ? VertexTrianglePairHit(x_before_, x1, c.first, c.second,
-                                                 triangles_[c.second], options, &h)
-                         : EdgeEdgePairHit(x_before_, x1, c.first, edges[c.first], c.second,
-                                           edges[c.second], options, &h);
-    if (!hit) continue;
-    ++hits;
-    if (hits_.size() < hits_.capacity()) hits_.push_back(h);
+  return options;
+}
+
+// Vertex p's swept box x_before -> x1, padded as the broad phase pads for the CCD thickness.
+void SelfCollisionResponse::SetCcdBox(int32_t p, std::span<const Vec3> x1) {
+  const double pad = 0.5 * settings_.thickness_m * settings_.ccd_thickness_fraction * (1.0 + 1e-5);
+  ccd_lo_[p] = x_before_[p].cwiseMin(x1[p]).array() - pad;
+  ccd_hi_[p] = x_before_[p].cwiseMax(x1[p]).array() + pad;
+}
+
+namespace {
+// True when the boxes [alo, ahi] and [blo, bhi] share a point (closed).
+bool SelfResponseBoxesMeet(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3& bhi) {
+  return alo.x() <= bhi.x() && blo.x() <= ahi.x() && alo.y() <= bhi.y() && blo.y() <= ahi.y() &&
+         alo.z() <= bhi.z() && blo.z() <= ahi.z();
+}
+}  // namespace
+
+// One candidate's continuous test over x_before -> x1. The candidates come from boxes padded by
+// the full thickness; a pair whose boxes padded by the CCD's thickness (ccd_lo_, ccd_hi_) do not
+// meet cannot be reported by the test (the broad phase's own argument), so it is skipped first.
+bool SelfCollisionResponse::NarrowTest(int32_t candidate, std::span<const Vec3> x1,
+                                       const AllPairsCcdOptions& options, CcdPairHit* hit) {
+  const SelfBroadPhase* broad = bvh_ ? static_cast<const SelfBroadPhase*>(&*bvh_) : &*hash_;
+  const SelfCandidate& c = broad->candidates()[candidate];
+  if (c.kind == CcdPairHit::Kind::kVertexTriangle) {
+    const Triangle& t = triangles_[c.second];
+    const Vec3 lo = ccd_lo_[t[0]].cwiseMin(ccd_lo_[t[1]]).cwiseMin(ccd_lo_[t[2]]);
+    const Vec3 hi = ccd_hi_[t[0]].cwiseMax(ccd_hi_[t[1]]).cwiseMax(ccd_hi_[t[2]]);
+    if (!SelfResponseBoxesMeet(ccd_lo_[c.first], ccd_hi_[c.first], lo, hi)) return false;
+    return VertexTrianglePairHit(x_before_, x1, c.first, c.second, t, options, hit);
   }
+  const MeshEdge& e = broad->edges()[c.first];
+  const MeshEdge& f = broad->edges()[c.second];
+  if (!SelfResponseBoxesMeet(
+          ccd_lo_[e[0]].cwiseMin(ccd_lo_[e[1]]), ccd_hi_[e[0]].cwiseMax(ccd_hi_[e[1]]),
+          ccd_lo_[f[0]].cwiseMin(ccd_lo_[f[1]]), ccd_hi_[f[0]].cwiseMax(ccd_hi_[f[1]]))) {
+    return false;
+  }
+  return EdgeEdgePairHit(x_before_, x1, c.first, e, c.second, f, options, hit);
+}
+
+// The broad phase on x_before_ -> x1 with boxes padded by broad_pad_m_ (FindCandidates pads by
+// half its thickness argument, times 1 + 1e-5); remembers each vertex's sweep.
+void SelfCollisionResponse::RunBroadPhase(std::span<const Vec3> x1, SelfCollisionStats* stats) {
+  narrow_valid_ = false;
+  const SelfBroadPhaseStats bs =
+      Broad()->FindCandidates(x_before_, x1, 2.0 * broad_pad_m_ / (1.0 + 1e-5));
+  ++stats->broad_phases;
+  broad_valid_ = !bs.overflow;
+  if (bs.overflow) ++stats->overflows;
+  const int32_t n = static_cast<int32_t>(x_before_.size());
+  for (int32_t p = 0; p < n; ++p) {
+    broad_lo_[p] = x_before_[p].cwiseMin(x1[p]);
+    broad_hi_[p] = x_before_[p].cwiseMax(x1[p]);
+  }
+}
+
+// True when q lies within margin_m [m] of vertex p's box in the last broad phase.
+bool SelfCollisionResponse::WithinBroadBoxes(int32_t p, const Vec3& q, double margin_m) const {
+  return (q.array() >= broad_lo_[p].array() - margin_m).all() &&
+         (q.array() <= broad_hi_[p].array() + margin_m).all();
+}
+
+// Every candidate's continuous test over x_before_ -> x1. The candidates of the last broad phase
+// are reused when every vertex's sweep lies within the CCD's margin of its boxes there (APCCD's
+// skipped broad phase); otherwise the broad phase runs first.
+int64_t SelfCollisionResponse::DetectAll(std::span<const Vec3> x1, SelfCollisionStats* stats) {
+  SelfBroadPhase* broad = Broad();
+  hits_.clear();
+  for (int32_t p : moved_list_) moved_[p] = 0;
+  moved_list_.clear();
+  const int32_t n = static_cast<int32_t>(x_before_.size());
+  bool reuse = broad_valid_;
+  for (int32_t p = 0; reuse && p < n; ++p) {
+    reuse = WithinBroadBoxes(p, x_before_[p], ccd_margin_m_) &&
+            WithinBroadBoxes(p, x1[p], ccd_margin_m_);
+  }
+  if (reuse) {
+    ++stats->broad_reuses;
+  } else {
+    RunBroadPhase(x1, stats);
+  }
+  narrow_valid_ = false;
+  if (!broad_valid_) {
+    // Overflow: unseen pairs, the fail-safe's last resort.
+    return std::max<int64_t>(static_cast<int64_t>(broad->candidates().size()), 1);
+  }
+  for (int32_t p = 0; p < n; ++p) SetCcdBox(p, x1);
+  const AllPairsCcdOptions options = CcdPassOptions();
+  const int32_t count = static_cast<int32_t>(broad->candidates().size());
+  int64_t hits = 0;
+  for (int32_t i = 0; i < count; ++i) TestCandidate(i, x1, options, stats, &hits);
+  narrow_valid_ = true;
+  if (static_cast<size_t>(hits) > hits_.size()) ++stats->overflows;
+  return hits;
+}
+
+// The narrow test of candidate i on x_before_ -> x1: its result kept for the next round, a hit
+// counted in *hits and kept while hits_ has room (DetectAll and Detect count the overflow).
+void SelfCollisionResponse::TestCandidate(int32_t i, std::span<const Vec3> x1,
+                                          const AllPairsCcdOptions& options,
+                                          SelfCollisionStats* stats, int64_t* hits) {
+  CcdPairHit h;
+  ++stats->narrow_tests;
+  const bool hit = NarrowTest(i, x1, options, &h);
+  cand_hit_[i] = hit ? 1 : 0;
+  if (!hit) return;
+  ++*hits;
+  if (hits_.size() < hits_.capacity()) hits_.push_back(h);
+}
+
+// True when the candidates and narrow results of the last detection still cover x_trial_: every
+// vertex moved since then ends within the CCD's margin of its boxes (x_before_ is unchanged
+// within a pass, and was within it at that detection).
+bool SelfCollisionResponse::CanDetectIncrementally() const {
+  if (!narrow_valid_ || !broad_valid_) return false;
+  for (int32_t p : moved_list_) {
+    if (!WithinBroadBoxes(p, x_trial_[p], ccd_margin_m_)) return false;
+  }
+  return true;
+}
+
+// Detection of the motion x_before -> x1 (x1 is x_trial_). After a first detection of all
+// candidates, a round only re-tests the candidates that have a vertex moved since the last
+// detection, or that collided then (a pair whose four trajectories did not change has the same
+// result), as long as the moved vertices stay within the CCD's margin of the broad phase's
+// boxes; otherwise every candidate is tested again (DetectAll). Hits in candidate order.
+int64_t SelfCollisionResponse::Detect(std::span<const Vec3> x1, SelfCollisionStats* stats) {
+  if (!CanDetectIncrementally()) return DetectAll(x1, stats);
+  ++stats->incremental_detections;
+  const SelfBroadPhase* broad = Broad();
+  hits_.clear();
+  for (int32_t p : moved_list_) SetCcdBox(p, x1);
+  const AllPairsCcdOptions options = CcdPassOptions();
+  const std::span<const SelfCandidate> cands = broad->candidates();
+  const std::span<const MeshEdge> edges = broad->edges();
+  const int32_t count = static_cast<int32_t>(cands.size());
+  int64_t hits = 0;
+  for (int32_t i = 0; i < count; ++i) {
+    const SelfCandidate& c = cands[i];
+    bool retest = cand_hit_[i] != 0;
+    if (!retest) {
+      if (c.kind == CcdPairHit::Kind::kVertexTriangle) {
+        const Triangle& t = triangles_[c.second];
+        retest = (moved_[c.first] | moved_[t[0]] | moved_[t[1]] | moved_[t[2]]) != 0;
+      } else {
+        const MeshEdge& e = edges[c.first];
+        const MeshEdge& f = edges[c.second];
+        retest = (moved_[e[0]] | moved_[e[1]] | moved_[f[0]] | moved_[f[1]]) != 0;
+      }
+    }
+    if (retest) TestCandidate(i, x1, options, stats, &hits);
+  }
+  for (int32_t p : moved_list_) moved_[p] = 0;
+  moved_list_.clear();
   if (static_cast<size_t>(hits) > hits_.size()) ++stats->overflows;
   return hits;
 }
@@ -167,6 +328,10 @@ void SelfCollisionResponse::FlushTrial(double h_s) {
   for (int32_t p : dirty_list_) {
     x_trial_[p] = x_before_[p] + h_s * vel_[p];
     dirty_[p] = 0;
+    if (!moved_[p]) {
+      moved_[p] = 1;
+      moved_list_.push_back(p);
+    }
   }
   dirty_list_.clear();
 }
@@ -211,14 +376,21 @@ Vec3 SelfResponsePairDelta(const Vec3& v_rel, const Vec3& n, double extra_normal
 void SelfCollisionResponse::Proximity(double h_s, SelfCollisionStats* stats) {
   SelfBroadPhase* broad = Broad();
   const double thick = settings_.thickness_m;
-  // The last detection's candidates cover every pair within the thickness at its end positions;
-  // when this substep starts exactly there (the common case), no broad phase is needed.
-  const bool reuse = candidates_end_valid_ &&
-                     std::equal(x_before_.begin(), x_before_.end(), candidates_end_.begin());
-  if (!reuse) {
-    const SelfBroadPhaseStats bs = broad->FindCandidates(x_before_, x_before_, thick);
-    if (bs.overflow) ++stats->overflows;
+  // The last broad phase's candidates cover every pair within the thickness at positions within
+  // prox_margin_m_ of its boxes; when this pass starts there (the common case: the last pass
+  // ended inside its sweep), no broad phase is needed. Otherwise one on the static positions.
+  bool reuse = broad_valid_;
+  const int32_t num = static_cast<int32_t>(x_before_.size());
+  for (int32_t p = 0; reuse && p < num; ++p) {
+    reuse = WithinBroadBoxes(p, x_before_[p], prox_margin_m_);
   }
+  if (!reuse) {
+    const auto start = std::chrono::steady_clock::now();
+    RunBroadPhase(x_before_, stats);
+    stats->detect_s +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  narrow_valid_ = false;  // these candidates carry no narrow results
   const std::span<const MeshEdge> edges = broad->edges();
   const double k_over_m = settings_.repulsion_stiffness_N_per_m / particle_mass_kg_;
   for (const SelfCandidate& c : broad->candidates()) {
@@ -398,13 +570,30 @@ SelfCollisionStats SelfCollisionResponse::Resolve(double h_s, std::span<Vec3> x,
   // 1. Proximity repulsion at x_before.
   Proximity(h_s, &stats);
   FlushTrial(h_s);
+  // Every detection is timed (stats.detect_s).
+  const auto detect = [&]() {
+    const auto start = std::chrono::steady_clock::now();
+    const int64_t found = Detect(x_trial_, &stats);
+    const double s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    stats.detect_s += s;
+    return std::pair<int64_t, double>(found, s);
+  };
   // 2. CCD rounds: inelastic impulses with friction on every colliding pair, Gauss-Seidel in the
   // hits' order (deterministic), detection repeated while collisions remain.
   int64_t remaining = 0;
   for (int32_t round = 0; round <= settings_.iterations; ++round) {
-    remaining = Detect(x_trial_, &stats);
+    const auto [found, seconds] = detect();
+    remaining = found;
     ++stats.ccd_rounds;
-    if (round == 0) stats.ccd_hits = remaining;
+    if (round == 0) {
+      stats.ccd_hits = remaining;
+      stats.first_detect_s = seconds;
+      if (keep_first_pass_) {
+        std::copy(x_trial_.begin(), x_trial_.end(), first_end_.begin());
+        first_hits_.assign(hits_.begin(), hits_.end());  // capacity reserved: no allocation
+      }
+    }
     if (remaining == 0 || round == settings_.iterations) break;
     for (const CcdPairHit& hit : hits_) {
       Vec3 v_rel = Vec3::Zero();
@@ -430,7 +619,7 @@ SelfCollisionStats SelfCollisionResponse::Resolve(double h_s, std::span<Vec3> x,
       }
       RigidZones(h_s, &stats);
       ++stats.zone_rounds;
-      remaining = Detect(x_trial_, &stats);
+      remaining = detect().first;
     }
     if (remaining > 0) {
       // The zones did not settle (or a buffer overflowed): the free vertices of every zone keep
@@ -443,7 +632,7 @@ SelfCollisionStats SelfCollisionResponse::Resolve(double h_s, std::span<Vec3> x,
             if (inv_mass_[p] > 0.0) SetVelocity(static_cast<int32_t>(p), Vec3::Zero());
           }
           FlushTrial(h_s);
-          remaining = Detect(x_trial_, &stats);
+          remaining = detect().first;
           break;
         }
         const size_t before = zone_list_.size();
@@ -454,12 +643,29 @@ SelfCollisionStats SelfCollisionResponse::Resolve(double h_s, std::span<Vec3> x,
           if (inv_mass_[p] > 0.0) SetVelocity(p, Vec3::Zero());
         }
         FlushTrial(h_s);
-        remaining = Detect(x_trial_, &stats);
+        remaining = detect().first;
         if (zone_list_.size() == before && round > 0) break;  // nothing more to freeze
       }
     }
   }
   stats.unresolved = remaining;
+  totals_.proximity_pairs += stats.proximity_pairs;
+  totals_.proximity_impulses += stats.proximity_impulses;
+  totals_.ccd_hits += stats.ccd_hits;
+  totals_.ccd_impulses += stats.ccd_impulses;
+  totals_.ccd_rounds += stats.ccd_rounds;
+  totals_.zone_rounds += stats.zone_rounds;
+  totals_.impact_zones += stats.impact_zones;
+  totals_.zone_vertices += stats.zone_vertices;
+  totals_.frozen = totals_.frozen || stats.frozen;
+  totals_.unresolved += stats.unresolved;
+  totals_.overflows += stats.overflows;
+  totals_.broad_phases += stats.broad_phases;
+  totals_.broad_reuses += stats.broad_reuses;
+  totals_.incremental_detections += stats.incremental_detections;
+  totals_.narrow_tests += stats.narrow_tests;
+  totals_.detect_s += stats.detect_s;
+  totals_.first_detect_s += stats.first_detect_s;
   // The corrected motion, as Provot's constraints apply theirs: x += dx, v += dx / h.
   for (size_t p = 0; p < n; ++p) {
     if (inv_mass_[p] == 0.0) continue;

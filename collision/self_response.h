@@ -64,6 +64,19 @@ struct SelfCollisionSettings {
   /// at every time) are not collisions; any contact (distance 0) still is (Bridson et al. 2002
   /// run the collision pass with a smaller proximity than the repulsion's).
   double ccd_thickness_fraction = 0.1;
+  /// Self-collision passes per frame of the cloth step (Bridson et al. 2002 §7 take a
+  /// collision step longer than the dynamics' substeps): each Resolve covers ceil(substeps /
+  /// passes_per_frame) substeps, the last one ends with the frame. One pass per frame let piles
+  /// be pressed flat onto the floor within the pass (the fold drop's hits overflowed and its
+  /// zones froze), a pass per substep costs the most; 8 was the compromise measured
+  /// (docs/self_collision.md). A pass per substep for basic Verlet, whose velocity comes from
+  /// the last substep's positions (sim_loop/cloth_self_collision.cc: SelfPassSubsteps). >= 1.
+  int32_t passes_per_frame = 8;
+  /// APCCD's inflated bounding volumes (Tang et al., 004_aff31237b107e6f0.txt): the broad
+  /// phase's boxes are padded by this fraction of thickness_m beyond the half thickness, so
+  /// that later passes whose vertices all stay within the extra padding reuse its candidates
+  /// and skip the broad phase (a skipping-frame session). 0 = a broad phase every pass (>= 0).
+  double broad_inflation = 1.0;
 };
 
 /// What one Resolve call did.
@@ -81,6 +94,15 @@ struct SelfCollisionStats {
   /// pins): the substep may end with a new intersection.
   int64_t unresolved = 0;
   int64_t overflows = 0;  ///< detections whose candidate or hit buffer overflowed (then fail-safe)
+  int32_t broad_phases = 0;  ///< broad-phase runs (FindCandidates), proximity's included
+  int32_t broad_reuses = 0;  ///< detections that reused an earlier broad phase's candidates
+  /// Detections that re-tested only the candidates with a vertex moved since the last one.
+  int32_t incremental_detections = 0;
+  int64_t narrow_tests = 0;  ///< continuous pair tests run (VertexTriangleCcd / EdgeEdgeCcd)
+  /// Wall time in detection [s]: the broad phases, the box filter and the continuous pair tests
+  /// of every CCD and zone round (not the proximity pass's distance tests or any impulse).
+  double detect_s = 0.0;
+  double first_detect_s = 0.0;  ///< of which the first CCD detection (all candidates), s
 };
 
 /// The response of one cloth mesh. Copyable (a copy owns its own buffers); not thread-safe.
@@ -101,11 +123,36 @@ class SelfCollisionResponse {
 
   /// The substep's start positions (from BeginStep) [m].
   std::span<const Vec3> x_before() const { return x_before_; }
+
+  /// Keeps, from now on, a copy of each Resolve's first CCD detection: the end positions it
+  /// tested (the motion x_before -> first_pass_end()) and the colliding pairs it found, so that a
+  /// caller can compare them with an all-pairs reference (AllPairsCcd) on the same motion.
+  /// Allocates (call at set-up); Resolve stays real-time safe.
+  void KeepFirstPass(bool on);
+  /// The end positions of the last Resolve's first CCD detection [m] (empty unless kept).
+  std::span<const Vec3> first_pass_end() const { return first_end_; }
+  /// The colliding pairs of the last Resolve's first CCD detection, in candidate order (empty
+  /// unless kept).
+  std::span<const CcdPairHit> first_pass_hits() const { return first_hits_; }
+  /// The continuous test's options of the CCD passes (thickness_m * ccd_thickness_fraction).
+  AllPairsCcdOptions CcdPassOptions() const;
   const SelfCollisionSettings& settings() const { return settings_; }
+  /// Sums of every Resolve's stats since construction (frozen: any pass froze), for callers that
+  /// measure over several passes (felt bench self-collision).
+  const SelfCollisionStats& totals() const { return totals_; }
 
  private:
   SelfBroadPhase* Broad();
   int64_t Detect(std::span<const Vec3> x1, SelfCollisionStats* stats);
+  int64_t DetectAll(std::span<const Vec3> x1, SelfCollisionStats* stats);
+  void TestCandidate(int32_t i, std::span<const Vec3> x1, const AllPairsCcdOptions& options,
+                     SelfCollisionStats* stats, int64_t* hits);
+  void RunBroadPhase(std::span<const Vec3> x1, SelfCollisionStats* stats);
+  bool WithinBroadBoxes(int32_t p, const Vec3& q, double margin_m) const;
+  bool CanDetectIncrementally() const;
+  bool NarrowTest(int32_t candidate, std::span<const Vec3> x1, const AllPairsCcdOptions& options,
+                  CcdPairHit* hit);
+  void SetCcdBox(int32_t p, std::span<const Vec3> x1);
   void Proximity(double h_s, SelfCollisionStats* stats);
   bool ApplyPairImpulse(const std::array<int32_t, 4>& vid, const std::array<double, 4>& w,
                         const Vec3& dv);
@@ -122,8 +169,26 @@ class SelfCollisionResponse {
   std::optional<SelfBvh> bvh_;
   std::vector<CcdPairHit> hits_;  ///< capacity fixed at construction
   std::vector<Vec3> x_before_;    ///< [n] substep start
-  std::vector<Vec3> candidates_end_;   ///< [n] x1 of the last detection (its candidates cover it)
-  bool candidates_end_valid_ = false;  ///< the broad phase holds that detection's candidates
+  // The last broad phase (on x_before_ -> x1, boxes padded by broad_pad_m_ per side): each
+  // vertex's unpadded swept box. Its candidates hold every pair within distance d at any
+  // positions less than 0.9 (broad_pad_m_ - d / 2) outside these boxes: the proximity pass
+  // (d = thickness) and the CCD (d = its thickness) reuse them while the vertices stay there.
+  std::vector<Vec3> broad_lo_, broad_hi_;  ///< [n] m
+  bool broad_valid_ = false;               ///< the broad phase holds those candidates
+  double broad_pad_m_ = 0.0;
+  double ccd_margin_m_ = 0.0;   ///< how far outside the boxes the CCD may reuse them, m
+  double prox_margin_m_ = 0.0;  ///< how far outside the boxes the proximity pass may, m
+  // The narrow phase's state: cand_hit_[i] is candidate i's CCD result for x_trial_, up to the
+  // vertices in moved_list_ (changed since the last detection).
+  bool narrow_valid_ = false;
+  std::vector<uint8_t> cand_hit_;  ///< [max candidates]
+  std::vector<uint8_t> moved_;     ///< [n]
+  std::vector<int32_t> moved_list_;
+  std::vector<Vec3> ccd_lo_, ccd_hi_;  ///< [n] swept box padded for the CCD thickness, m
+  SelfCollisionStats totals_;
+  bool keep_first_pass_ = false;
+  std::vector<Vec3> first_end_;
+  std::vector<CcdPairHit> first_hits_;
   std::vector<Vec3> x_trial_;     ///< [n] x_before + h vel (exactly x where vel is untouched)
   std::vector<Vec3> vel_;         ///< [n] candidate average velocity of the substep, m/s
   std::vector<uint8_t> dirty_;    ///< [n] 1 if vel_ changed since x_trial_ was updated

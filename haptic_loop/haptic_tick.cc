@@ -60,13 +60,29 @@ void HapticLoop::Tick(int64_t now_ns, double dt_s) {
   Bump(counters_.ticks);
   bool arrived = false;
   const TickCloth cloth = TakeNewestSnapshot(now_ns, &arrived);
-  // Mode patch: the patch to this tick, before the proxies run on it.
+  // Mode patch: the patch to this tick, before the proxies run on it (with the contact springs
+  // of the last tick).
   if (patch_ != nullptr) StepPatch(cloth, dt_s);
-  // A new snapshot: hand the reactions of the frame that ended to the sim (or retry a batch that
-  // found the queue full).
-  if (arrived || staged_pending_) StageReactions();
   // Each device: newest sample, proxy while the input is fresh, safety, force out.
   for (uint32_t i = 0; i < devices_.size(); ++i) TickDevice(i, now_ns, dt_s, cloth);
+  if (patch_ != nullptr) KeepPatchSprings();
+  // A new snapshot: hand the reactions of the frame that ended, this tick's included, to the sim
+  // (or retry a batch that found the queue full). Staged before the proxies ran, the sim's next
+  // frame missed this tick's contact: with a frame every tick (the truth of felt compare) the
+  // cloth answered the hand two ticks late instead of one.
+  if (arrived || staged_pending_) StageReactions();
+}
+
+void HapticLoop::KeepPatchSprings() {
+  // The contact springs of this tick, for the next tick's patch step (StageReactions drains them
+  // from the accumulators).
+  patch_spring_count_ = 0;
+  for (const Device& d : devices_) {
+    if (d.fresh && d.proxy.reaction.has_contact_spring()) {
+      patch_springs_[static_cast<size_t>(patch_spring_count_++)] =
+          d.proxy.reaction.contact_spring();
+    }
+  }
 }
 
 HapticLoop::TickCloth HapticLoop::TakeNewestSnapshot(int64_t now_ns, bool* arrived) {
@@ -151,7 +167,6 @@ void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
   // jump as particles left the window, and the proxy went through).
   const std::vector<Triangle>& tris = *cloth.newest->triangles;
   const int32_t width = patch_->width();
-  int32_t springs = 0;
   for (size_t i = 0; i < devices_.size(); ++i) {
     const Device& d = devices_[i];
     const ProxyState& ps = d.proxy;
@@ -176,17 +191,15 @@ void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
       if (centre < 0) consider(ps.hand_seed);
     }
     patch_centres_[i] = centre;
-    if (d.fresh && ps.reaction.has_contact_spring()) {
-      patch_springs_[springs++] = ps.reaction.contact_spring();
-    }
   }
   // Particles entering a window start where the previous tick's cloth had them.
   const double tau_s = cloth.since_newest_s;
   patch_->Place(patch_centres_, *cloth.newest, std::max(0.0, tau_s - dt_s), dt_s);
   if (!patch_->active()) return;
-  const PatchStepResult step = patch_->Step(
-      std::span<const ExternalForce>(patch_springs_.data(), static_cast<size_t>(springs)), dt_s,
-      *cloth.newest, tau_s);
+  const PatchStepResult step =
+      patch_->Step(std::span<const ExternalForce>(patch_springs_.data(),
+                                                  static_cast<size_t>(patch_spring_count_)),
+                   dt_s, *cloth.newest, tau_s);
   overlay_.offset_m = patch_->DistanceFromDrive();
   Bump(counters_.patch_ticks);
   if (step.recovered) Bump(counters_.patch_nan_events);

@@ -133,6 +133,8 @@ class HapticLoop {
 
   TickCloth TakeNewestSnapshot(int64_t now_ns, bool* arrived);
   void StepPatch(const TickCloth& cloth, double dt_s);
+  // Mode patch: copies this tick's contact springs for the next tick's StepPatch.
+  void KeepPatchSprings();
   void StageReactions();
   void TickDevice(uint32_t index, int64_t now_ns, double dt_s, const TickCloth& cloth);
   bool ReadInput(uint32_t index, int64_t now_ns, Device* d);
@@ -165,7 +167,8 @@ class HapticLoop {
   std::unique_ptr<ClothPatch> patch_;
   PatchOverlay overlay_;
   std::vector<int32_t> patch_centres_;       // [devices]
-  std::vector<ExternalForce> patch_springs_;  // [devices]
+  std::vector<ExternalForce> patch_springs_;  // [devices] the last tick's contact springs
+  int32_t patch_spring_count_ = 0;            // entries of patch_springs_ in use
 };
 
 }  // namespace felt

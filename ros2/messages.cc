@@ -50,6 +50,12 @@ constexpr std::string_view kMarkerMsg =
     "std_msgs/ColorRGBA[] colors\nstring texture_resource\nsensor_msgs/CompressedImage texture\n"
     "visualization_msgs/UVCoordinate[] uv_coordinates\nstring text\nstring mesh_resource\n"
     "visualization_msgs/MeshFile mesh_file\nbool mesh_use_embedded_materials\n";
+constexpr std::string_view kMarkerArrayMsg = "visualization_msgs/Marker[] markers\n";
+constexpr std::string_view kMultiArrayDimensionMsg = "string label\nuint32 size\nuint32 stride\n";
+constexpr std::string_view kMultiArrayLayoutMsg =
+    "std_msgs/MultiArrayDimension[] dim\nuint32 data_offset\n";
+constexpr std::string_view kFloat64MultiArrayMsg =
+    "std_msgs/MultiArrayLayout layout\nfloat64[] data\n";
 constexpr std::string_view kOmniStateMsg =
     "std_msgs/Header header\nbool locked\nbool close_gripper\ngeometry_msgs/Pose pose\n"
     "geometry_msgs/Vector3 current\ngeometry_msgs/Vector3 velocity\n";
@@ -76,6 +82,9 @@ constexpr Dep kDepColorRgba{"std_msgs/ColorRGBA", kColorRgbaMsg};
 constexpr Dep kDepCompressedImage{"sensor_msgs/CompressedImage", kCompressedImageMsg};
 constexpr Dep kDepUvCoordinate{"visualization_msgs/UVCoordinate", kUvCoordinateMsg};
 constexpr Dep kDepMeshFile{"visualization_msgs/MeshFile", kMeshFileMsg};
+constexpr Dep kDepMarker{"visualization_msgs/Marker", kMarkerMsg};
+constexpr Dep kDepMultiArrayLayout{"std_msgs/MultiArrayLayout", kMultiArrayLayoutMsg};
+constexpr Dep kDepMultiArrayDimension{"std_msgs/MultiArrayDimension", kMultiArrayDimensionMsg};
 
 // The schema text: top, then "\n" + 80 '=' + "\nMSG: pkg/Type\n" + text per dependency
 // (rosbag2's message definition format, also what @foxglove/rosmsg parses).
@@ -165,6 +174,70 @@ ColorRGBA GetColor(CdrReader& r, const char* field) {
   return c;
 }
 
+void PutMarker(CdrWriter& w, const Marker& m) {
+  Put(w, m.header);
+  w.String(m.ns);
+  w.I32(m.id);
+  w.I32(m.type);
+  w.I32(m.action);
+  Put(w, m.pose);
+  Put(w, m.scale);
+  Put(w, m.color);
+  w.I32(m.lifetime.sec);
+  w.U32(m.lifetime.nanosec);
+  w.Bool(m.frame_locked);
+  w.SequenceLength(m.points.size());
+  for (const Vector3& p : m.points) Put(w, p);
+  w.SequenceLength(m.colors.size());
+  for (const ColorRGBA& c : m.colors) Put(w, c);
+  w.String("");      // texture_resource
+  Put(w, Header{});  // texture: sensor_msgs/CompressedImage {header, format, data}
+  w.String("");
+  w.SequenceLength(0);
+  w.SequenceLength(0);  // uv_coordinates
+  w.String(m.text);
+  w.String(m.mesh_resource);
+  w.String("");  // mesh_file: visualization_msgs/MeshFile {filename, data}
+  w.SequenceLength(0);
+  w.Bool(m.mesh_use_embedded_materials);
+}
+
+// One Marker from `r` (its fields; the message end is the caller's).
+Marker GetMarker(CdrReader& r) {
+  Marker m;
+  m.header = GetHeader(r);
+  m.ns = r.String("ns");
+  m.id = r.I32("id");
+  m.type = r.I32("type");
+  m.action = r.I32("action");
+  m.pose = GetPose(r);
+  m.scale = GetXyz(r, {"scale.x", "scale.y", "scale.z"});
+  m.color = GetColor(r, "color");
+  m.lifetime.sec = r.I32("lifetime.sec");
+  m.lifetime.nanosec = r.U32("lifetime.nanosec");
+  m.frame_locked = r.Bool("frame_locked");
+  m.points.resize(r.SequenceLength("points", 24));
+  for (Vector3& p : m.points) p = GetXyz(r, {"points[].x", "points[].y", "points[].z"});
+  m.colors.resize(r.SequenceLength("colors", 16));
+  for (ColorRGBA& c : m.colors) c = GetColor(r, "colors[]");
+  (void)r.String("texture_resource");
+  (void)GetTime(r, "texture.header.stamp.sec", "texture.header.stamp.nanosec");
+  (void)r.String("texture.header.frame_id");
+  (void)r.String("texture.format");
+  r.SkipBytes("texture.data", r.SequenceLength("texture.data", 1));
+  const uint32_t uv = r.SequenceLength("uv_coordinates", 8);
+  for (uint32_t i = 0; i < uv; ++i) {
+    (void)r.F32("uv_coordinates[].u");
+    (void)r.F32("uv_coordinates[].v");
+  }
+  m.text = r.String("text");
+  m.mesh_resource = r.String("mesh_resource");
+  (void)r.String("mesh_file.filename");
+  r.SkipBytes("mesh_file.data", r.SequenceLength("mesh_file.data", 1));
+  m.mesh_use_embedded_materials = r.Bool("mesh_use_embedded_materials");
+  return m;
+}
+
 }  // namespace
 
 Time TimeFromNs(int64_t ns) {
@@ -231,6 +304,24 @@ const MessageType& TypeOf<Marker>() {
   return type;
 }
 template <>
+const MessageType& TypeOf<MarkerArray>() {
+  static const std::string schema =
+      ComposeSchema(kMarkerArrayMsg, {kDepMarker, kDepHeader, kDepTime, kDepPose, kDepPoint,
+                                      kDepQuaternion, kDepVector3, kDepColorRgba, kDepDuration,
+                                      kDepCompressedImage, kDepUvCoordinate, kDepMeshFile});
+  static const MessageType type = MakeType("visualization_msgs/msg/MarkerArray",
+                                           "visualization_msgs::msg::dds_::MarkerArray_", schema);
+  return type;
+}
+template <>
+const MessageType& TypeOf<Float64MultiArray>() {
+  static const std::string schema =
+      ComposeSchema(kFloat64MultiArrayMsg, {kDepMultiArrayLayout, kDepMultiArrayDimension});
+  static const MessageType type =
+      MakeType("std_msgs/msg/Float64MultiArray", "std_msgs::msg::dds_::Float64MultiArray_", schema);
+  return type;
+}
+template <>
 const MessageType& TypeOf<OmniState>() {
   static const std::string schema = ComposeSchema(
       kOmniStateMsg, {kDepHeader, kDepTime, kDepPose, kDepPoint, kDepQuaternion, kDepVector3});
@@ -247,10 +338,10 @@ const MessageType& TypeOf<OmniFeedback>() {
 }
 
 std::span<const MessageType* const> AllTypes() {
-  static const std::array<const MessageType*, 7> all = {
-      &TypeOf<PoseStamped>(),     &TypeOf<TwistStamped>(), &TypeOf<WrenchStamped>(),
-      &TypeOf<DiagnosticArray>(), &TypeOf<Marker>(),       &TypeOf<OmniState>(),
-      &TypeOf<OmniFeedback>()};
+  static const std::array<const MessageType*, 9> all = {
+      &TypeOf<PoseStamped>(),       &TypeOf<TwistStamped>(), &TypeOf<WrenchStamped>(),
+      &TypeOf<DiagnosticArray>(),   &TypeOf<Marker>(),       &TypeOf<MarkerArray>(),
+      &TypeOf<Float64MultiArray>(), &TypeOf<OmniState>(),    &TypeOf<OmniFeedback>()};
   return all;
 }
 
@@ -295,31 +386,26 @@ void Serialize(const DiagnosticArray& m, std::vector<uint8_t>* out) {
 
 void Serialize(const Marker& m, std::vector<uint8_t>* out) {
   CdrWriter w(out);
-  Put(w, m.header);
-  w.String(m.ns);
-  w.I32(m.id);
-  w.I32(m.type);
-  w.I32(m.action);
-  Put(w, m.pose);
-  Put(w, m.scale);
-  Put(w, m.color);
-  w.I32(m.lifetime.sec);
-  w.U32(m.lifetime.nanosec);
-  w.Bool(m.frame_locked);
-  w.SequenceLength(m.points.size());
-  for (const Vector3& p : m.points) Put(w, p);
-  w.SequenceLength(m.colors.size());
-  for (const ColorRGBA& c : m.colors) Put(w, c);
-  w.String("");      // texture_resource
-  Put(w, Header{});  // texture: sensor_msgs/CompressedImage {header, format, data}
-  w.String("");
-  w.SequenceLength(0);
-  w.SequenceLength(0);  // uv_coordinates
-  w.String(m.text);
-  w.String(m.mesh_resource);
-  w.String("");  // mesh_file: visualization_msgs/MeshFile {filename, data}
-  w.SequenceLength(0);
-  w.Bool(m.mesh_use_embedded_materials);
+  PutMarker(w, m);
+}
+
+void Serialize(const MarkerArray& m, std::vector<uint8_t>* out) {
+  CdrWriter w(out);
+  w.SequenceLength(m.markers.size());
+  for (const Marker& marker : m.markers) PutMarker(w, marker);
+}
+
+void Serialize(const Float64MultiArray& m, std::vector<uint8_t>* out) {
+  CdrWriter w(out);
+  w.SequenceLength(m.dim.size());
+  for (const MultiArrayDimension& d : m.dim) {
+    w.String(d.label);
+    w.U32(d.size);
+    w.U32(d.stride);
+  }
+  w.U32(m.data_offset);
+  w.SequenceLength(m.data.size());
+  for (double v : m.data) w.F64(v);
 }
 
 void Serialize(const OmniState& m, std::vector<uint8_t>* out) {
@@ -394,37 +480,33 @@ DiagnosticArray ParseDiagnosticArray(std::span<const uint8_t> cdr) {
 
 Marker ParseMarker(std::span<const uint8_t> cdr) {
   CdrReader r(cdr, TypeOf<Marker>().name);
-  Marker m;
-  m.header = GetHeader(r);
-  m.ns = r.String("ns");
-  m.id = r.I32("id");
-  m.type = r.I32("type");
-  m.action = r.I32("action");
-  m.pose = GetPose(r);
-  m.scale = GetXyz(r, {"scale.x", "scale.y", "scale.z"});
-  m.color = GetColor(r, "color");
-  m.lifetime.sec = r.I32("lifetime.sec");
-  m.lifetime.nanosec = r.U32("lifetime.nanosec");
-  m.frame_locked = r.Bool("frame_locked");
-  m.points.resize(r.SequenceLength("points", 24));
-  for (Vector3& p : m.points) p = GetXyz(r, {"points[].x", "points[].y", "points[].z"});
-  m.colors.resize(r.SequenceLength("colors", 16));
-  for (ColorRGBA& c : m.colors) c = GetColor(r, "colors[]");
-  (void)r.String("texture_resource");
-  (void)GetTime(r, "texture.header.stamp.sec", "texture.header.stamp.nanosec");
-  (void)r.String("texture.header.frame_id");
-  (void)r.String("texture.format");
-  r.SkipBytes("texture.data", r.SequenceLength("texture.data", 1));
-  const uint32_t uv = r.SequenceLength("uv_coordinates", 8);
-  for (uint32_t i = 0; i < uv; ++i) {
-    (void)r.F32("uv_coordinates[].u");
-    (void)r.F32("uv_coordinates[].v");
+  Marker m = GetMarker(r);
+  r.Finish();
+  return m;
+}
+
+MarkerArray ParseMarkerArray(std::span<const uint8_t> cdr) {
+  CdrReader r(cdr, TypeOf<MarkerArray>().name);
+  MarkerArray m;
+  // A marker takes well over 100 bytes; 100 bounds the count before anything is sized.
+  m.markers.resize(r.SequenceLength("markers", 100));
+  for (Marker& marker : m.markers) marker = GetMarker(r);
+  r.Finish();
+  return m;
+}
+
+Float64MultiArray ParseFloat64MultiArray(std::span<const uint8_t> cdr) {
+  CdrReader r(cdr, TypeOf<Float64MultiArray>().name);
+  Float64MultiArray m;
+  m.dim.resize(r.SequenceLength("layout.dim", 13));  // empty label (5) + size + stride
+  for (MultiArrayDimension& d : m.dim) {
+    d.label = r.String("layout.dim[].label");
+    d.size = r.U32("layout.dim[].size");
+    d.stride = r.U32("layout.dim[].stride");
   }
-  m.text = r.String("text");
-  m.mesh_resource = r.String("mesh_resource");
-  (void)r.String("mesh_file.filename");
-  r.SkipBytes("mesh_file.data", r.SequenceLength("mesh_file.data", 1));
-  m.mesh_use_embedded_materials = r.Bool("mesh_use_embedded_materials");
+  m.data_offset = r.U32("layout.data_offset");
+  m.data.resize(r.SequenceLength("data", 8));
+  for (double& v : m.data) v = r.F64("data[]");
   r.Finish();
   return m;
 }
@@ -470,6 +552,14 @@ DiagnosticArray Parse<DiagnosticArray>(std::span<const uint8_t> cdr) {
 template <>
 Marker Parse<Marker>(std::span<const uint8_t> cdr) {
   return ParseMarker(cdr);
+}
+template <>
+MarkerArray Parse<MarkerArray>(std::span<const uint8_t> cdr) {
+  return ParseMarkerArray(cdr);
+}
+template <>
+Float64MultiArray Parse<Float64MultiArray>(std::span<const uint8_t> cdr) {
+  return ParseFloat64MultiArray(cdr);
 }
 template <>
 OmniState Parse<OmniState>(std::span<const uint8_t> cdr) {

@@ -157,6 +157,31 @@ struct Marker {
   bool operator==(const Marker&) const = default;
 };
 
+/// visualization_msgs/MarkerArray: several markers in one message (RViz's "MarkerArray" display;
+/// Foxglove's 3D panel).
+struct MarkerArray {
+  std::vector<Marker> markers;
+  bool operator==(const MarkerArray&) const = default;
+};
+
+/// std_msgs/MultiArrayDimension: one dimension of a multi-array's layout.
+struct MultiArrayDimension {
+  std::string label;
+  uint32_t size = 0;
+  uint32_t stride = 0;
+  bool operator==(const MultiArrayDimension&) const = default;
+};
+
+/// std_msgs/Float64MultiArray: what ros2_control's forward command controllers
+/// (effort_controllers/JointGroupEffortController) read on `~/commands`, one value per joint of
+/// the controller, in its joint order (the Force Dimension driver: [fx, fy, fz, ...] in N).
+struct Float64MultiArray {
+  std::vector<MultiArrayDimension> dim;  ///< layout.dim (empty: a plain vector)
+  uint32_t data_offset = 0;              ///< layout.data_offset
+  std::vector<double> data;
+  bool operator==(const Float64MultiArray&) const = default;
+};
+
 /// omni_msgs/OmniState (Geomagic Touch ROS 2 driver, `phantom/state`). Its pose is in
 /// MILLIMETRES (the driver's default `units` parameter "mm", despite the .msg comment "meters");
 /// its velocity in m/s (the driver divides its mm/s estimate by 1000); current in A.
@@ -191,6 +216,10 @@ const MessageType& TypeOf<DiagnosticArray>();
 template <>
 const MessageType& TypeOf<Marker>();
 template <>
+const MessageType& TypeOf<MarkerArray>();
+template <>
+const MessageType& TypeOf<Float64MultiArray>();
+template <>
 const MessageType& TypeOf<OmniState>();
 template <>
 const MessageType& TypeOf<OmniFeedback>();
@@ -202,6 +231,8 @@ void Serialize(const TwistStamped& m, std::vector<uint8_t>* out);
 void Serialize(const WrenchStamped& m, std::vector<uint8_t>* out);
 void Serialize(const DiagnosticArray& m, std::vector<uint8_t>* out);
 void Serialize(const Marker& m, std::vector<uint8_t>* out);
+void Serialize(const MarkerArray& m, std::vector<uint8_t>* out);
+void Serialize(const Float64MultiArray& m, std::vector<uint8_t>* out);
 void Serialize(const OmniState& m, std::vector<uint8_t>* out);
 void Serialize(const OmniFeedback& m, std::vector<uint8_t>* out);
 
@@ -212,6 +243,8 @@ TwistStamped ParseTwistStamped(std::span<const uint8_t> cdr);
 WrenchStamped ParseWrenchStamped(std::span<const uint8_t> cdr);
 DiagnosticArray ParseDiagnosticArray(std::span<const uint8_t> cdr);
 Marker ParseMarker(std::span<const uint8_t> cdr);
+MarkerArray ParseMarkerArray(std::span<const uint8_t> cdr);
+Float64MultiArray ParseFloat64MultiArray(std::span<const uint8_t> cdr);
 OmniState ParseOmniState(std::span<const uint8_t> cdr);
 OmniFeedback ParseOmniFeedback(std::span<const uint8_t> cdr);
 
@@ -228,6 +261,10 @@ template <>
 DiagnosticArray Parse<DiagnosticArray>(std::span<const uint8_t> cdr);
 template <>
 Marker Parse<Marker>(std::span<const uint8_t> cdr);
+template <>
+MarkerArray Parse<MarkerArray>(std::span<const uint8_t> cdr);
+template <>
+Float64MultiArray Parse<Float64MultiArray>(std::span<const uint8_t> cdr);
 template <>
 OmniState Parse<OmniState>(std::span<const uint8_t> cdr);
 template <>

@@ -142,33 +142,56 @@ void Server::MonitorThread() {
 
 void Server::HapticTick(int64_t now_ns, double dt_s) {
   haptic_.Tick(now_ns, dt_s);
-  if (view_tap_ == nullptr) return;
-  // The view's copy of each device (fixed size: no allocation; one exchange to publish).
-  ViewDevices& out = view_tap_->devices.write_slot();
-  out.tick = haptic_.counters().ticks.load(std::memory_order_relaxed);
-  for (uint32_t i = 0; i < haptic_.device_count(); ++i) {
-    const ProxyTickResult& r = haptic_.last_result(i);
-    const GodObject& body = haptic_.proxy_state(i).body;
-    ViewDevice& d = out.devices[i];
-    d.goal_W_m = r.goal_W_m;
-    d.proxy_W_m = r.proxy_W_m;
-    d.force_W_N = r.force_W_N;
-    d.num_contacts = body.num_contacts;
-    d.contacts = body.contacts;
-    d.fresh = haptic_.input_fresh(i);
+  if (taps_.empty()) return;
+  PublishViewDevices();
+}
+
+void Server::PublishViewDevices() {
+  // Each observer's copy of each device (fixed size: no allocation; one exchange to publish).
+  for (ViewTap* tap : taps_) {
+    ViewDevices& out = tap->devices.write_slot();
+    out.tick = haptic_.counters().ticks.load(std::memory_order_relaxed);
+    for (uint32_t i = 0; i < haptic_.device_count(); ++i) {
+      const ProxyTickResult& r = haptic_.last_result(i);
+      const GodObject& body = haptic_.proxy_state(i).body;
+      ViewDevice& d = out.devices[i];
+      d.goal_W_m = r.goal_W_m;
+      d.proxy_W_m = r.proxy_W_m;
+      d.force_W_N = r.force_W_N;
+      d.num_contacts = body.num_contacts;
+      d.contacts = body.contacts;
+      d.fresh = haptic_.input_fresh(i);
+    }
+    tap->devices.Publish();
   }
-  view_tap_->devices.Publish();
+}
+
+std::unique_ptr<ViewTap> Server::NewTap() {
+  // The loop threads read taps_ without synchronisation: it must be complete before they start.
+  if (running_) throw std::logic_error("Server: observer taps are added before Start()");
+  if (taps_.size() >= kMaxObserverTaps) {
+    throw std::length_error("Server: at most " + std::to_string(kMaxObserverTaps) +
+                            " observer taps");
+  }
+  taps_.reserve(kMaxObserverTaps);
+  auto tap = std::make_unique<ViewTap>(model().num_particles(), haptic_.device_count());
+  // The cloth as it is now (the rest state before Start), so an observer has a cloth at once.
+  PublishViewCloth(tap.get());
+  taps_.push_back(tap.get());
+  return tap;
 }
 
 ViewTap* Server::EnableViewTap() {
   if (view_tap_ == nullptr) {
-    // The loop threads read view_tap_ without synchronisation: it must exist before they start.
     if (running_) throw std::logic_error("Server::EnableViewTap: call it before Start()");
-    view_tap_ = std::make_unique<ViewTap>(model().num_particles(), haptic_.device_count());
-    // The cloth as it is now (the rest state before Start), so a viewer has a cloth at once.
-    PublishViewCloth();
+    view_tap_ = NewTap();
   }
   return view_tap_.get();
+}
+
+ViewTap* Server::AddObserverTap() {
+  observer_taps_.push_back(NewTap());
+  return observer_taps_.back().get();
 }
 
 void Server::SimFrame(double frame_dt_s, int64_t publish_ns) {
@@ -176,20 +199,24 @@ void Server::SimFrame(double frame_dt_s, int64_t publish_ns) {
   const int64_t stall_ns = stall_request_ns_.exchange(0);
   if (stall_ns > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(stall_ns));
   sim_.Frame(frame_dt_s, publish_ns);
-  if (view_tap_ == nullptr) return;
+  if (taps_.empty()) return;
   PublishViewCloth();
 }
 
 void Server::PublishViewCloth() {
-  // The view's copy of the positions as float32 (sized once: no allocation).
-  ViewCloth& out = view_tap_->cloth.write_slot();
+  for (ViewTap* tap : taps_) PublishViewCloth(tap);
+}
+
+void Server::PublishViewCloth(ViewTap* tap) {
+  // One observer's copy of the positions as float32 (sized once: no allocation).
   const ClothState& state = sim_.cloth();
+  ViewCloth& out = tap->cloth.write_slot();
   out.frame = sim_.counters().frames.load(std::memory_order_relaxed);
   out.time_s = state.time_s;
   for (size_t i = 0; i < state.x.size(); ++i) {
     for (int k = 0; k < 3; ++k) out.xyz_m[3 * i + k] = static_cast<float>(state.x[i][k]);
   }
-  view_tap_->cloth.Publish();
+  tap->cloth.Publish();
 }
 
 std::unique_ptr<ServerReport> Server::Report() const {

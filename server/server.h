@@ -159,10 +159,24 @@ class Server : NonCopyable {
   ViewTap* EnableViewTap();
   /// The tap (null unless EnableViewTap was called). Its read sides belong to one observer thread.
   ViewTap* view_tap() const { return view_tap_.get(); }
+  /// A tap of its own for another observer thread (the ROS 2 marker feed,
+  /// server/ros2_marker_feed.h), filled like the view's: each call adds one (at most
+  /// kMaxObserverTaps in all, the view's included; throws std::length_error beyond). Same rules as
+  /// EnableViewTap: before Start (throws std::logic_error after it); set-up, allocates.
+  ViewTap* AddObserverTap();
+  /// The most taps the loops fill (each costs a copy of the cloth per frame, of the devices per
+  /// tick).
+  static constexpr size_t kMaxObserverTaps = 4;
 
  private:
-  // Copies the cloth's positions into the view tap's cloth slot and publishes it (view on only).
+  // Copies the cloth's positions into each tap's cloth slot and publishes it (taps only).
   void PublishViewCloth();
+  // Copies the cloth's positions into one tap's cloth slot and publishes it.
+  void PublishViewCloth(ViewTap* tap);
+  // Copies the devices of the last tick into each tap's devices slot and publishes it.
+  void PublishViewDevices();
+  // A new tap, filled with the current cloth, its pointer appended to taps_ (set-up).
+  std::unique_ptr<ViewTap> NewTap();
   void HapticThread();
   void SimThread();
   void MonitorThread();
@@ -183,6 +197,10 @@ class Server : NonCopyable {
   PointerSource* source_;  // the haptic loop's source (for its arrival signal)
   int tick_device_;        // TickDeviceIndex: the device whose arrivals trigger the tick
   std::unique_ptr<ViewTap> view_tap_;  // null unless EnableViewTap (written before the threads)
+  std::vector<std::unique_ptr<ViewTap>> observer_taps_;  // AddObserverTap's (before the threads)
+  // Every tap the loops fill (view_tap_ and observer_taps_; reserved kMaxObserverTaps: the loops
+  // iterate it without allocating; written before the threads).
+  std::vector<ViewTap*> taps_;
 
   // Threads and their real-time outcome (written before `*_ready_`, read after).
   std::atomic<bool> stop_{false};

@@ -131,10 +131,18 @@ void ApplyPins(const ClothModel& model, double t_s, ClothState* state);
 /// consistent; leapfrog restarts the particle from it at the next substep (scratch.restart).
 void SyncVerletHistory(const ClothModel& model, int32_t particle, double h_s, ClothState* state);
 
-/// Runs the self-collision response on the substep just taken (length h_s) and adds its counts to
-/// state->counters and *result (sim_loop/cloth_self_collision.cc). Real-time safe.
+/// Runs the self-collision response on the motion since its BeginStep (the last h_s seconds,
+/// one or more substeps) and adds its counts to state->counters and *result
+/// (sim_loop/cloth_self_collision.cc). Real-time safe.
 void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* state,
                         FrameResult* result);
+
+/// Substeps covered by one self-collision pass of a frame cut into `substeps`:
+/// ceil(substeps / SelfCollisionSettings::passes_per_frame); always 1 for basic Verlet, whose
+/// velocity comes from the last substep's positions, so a correction spread over a longer step
+/// would be amplified.
+int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& self,
+                         int32_t substeps);
 
 /// The exact count of intersecting non-adjacent triangle pairs at the frame's end into
 /// result->self_intersections and counters.self_intersections_max (O(T^2); opt-in diagnostic).

@@ -1,5 +1,6 @@
 // The cloth step's self-collision hook (issue 22): the response of collision/self_response.h on
-// each substep, and the opt-in exact intersection count at the end of a frame.
+// the motion of a frame (or of every few substeps), and the opt-in exact intersection count at
+// the end of a frame.
 
 #include <algorithm>
 #include <chrono>
@@ -30,6 +31,13 @@ void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* sta
   result->self_ccd_hits += st.ccd_hits;
   result->self_impact_zones += st.impact_zones;
   result->self_unresolved += st.unresolved;
+}
+
+int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& self,
+                         int32_t substeps) {
+  if (model.integrator == IntegratorKind::kBasicVerlet) return 1;
+  const int32_t passes = std::max(1, self.settings().passes_per_frame);
+  return std::max(1, (substeps + passes - 1) / passes);
 }
 
 void CountFrameIntersections(const ClothModel& model, ClothState* state, FrameResult* result) {

@@ -194,7 +194,7 @@ struct ProvotSpec {
 struct SelfCollisionSpec {
   double thickness_m = 0.002;  ///< cloth thickness, m, > 0 and below half the grid spacing
   /// Broad phase; the BVH by default: cheaper than the hash at every size of
-  /// bench/results/self_collision.md (2.35 vs 3.20 ms per substep at 32 x 32, 12.4 vs 22.6 at 64).
+  /// bench/results/self_collision.md (31.7 vs 57.8 ms per frame at 32 x 32, 111 vs 141 at 64).
   SelfCullingMethod method = SelfCullingMethod::kBvh;
   int32_t iterations = 4;  ///< CCD impulse rounds per substep, in [0, 100]
   double friction = 0.1;   ///< Coulomb coefficient between layers, >= 0

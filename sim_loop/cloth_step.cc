@@ -72,8 +72,12 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   const bool provot = model.provot_enabled && !model.provot_families.empty();
   const double t0 = state->time_s;
   SelfCollisionResponse* self = s.self_collision ? &*s.self_collision : nullptr;
+  // Self-collision passes cover several substeps (a few per frame; Bridson et al. 2002's
+  // collision step): self_h is the time since the pass's BeginStep.
+  const int32_t self_every = self ? SelfPassSubsteps(model, *self, substeps) : 1;
+  double self_h = 0.0;
   for (int32_t k = 0; k < substeps; ++k) {
-    if (self) self->BeginStep(state->x);  // self-collision: the substep's start positions
+    if (self && self_h == 0.0) self->BeginStep(state->x);  // the pass's start positions
     // Integrate, then constrain: Provot (000 slide 9), obstacles, pins at the substep's end time.
     if (obstacles) std::copy(state->x.begin(), state->x.end(), s.x_start.begin());
     if (k > 0) AdvanceCouplingSprings(k * h, &s.coupling);  // predicted hands (zero: held)
@@ -81,9 +85,15 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
     if (provot) ApplyProvot(model, h, state);
     if (obstacles) ApplyObstacles(model, h, state);
     ApplyPins(model, t0 + (k + 1) * h, state);
-    // Self-collision (issue 22) on the substep's whole motion x_before -> x, after every other
+    // Self-collision (issue 22) on the pass's whole motion x_before -> x, after every other
     // constraint (collision/self_response.h; sim_loop/cloth_self_collision.cc).
-    if (self) ApplySelfCollision(h, self, state, &result);
+    if (self) {
+      self_h += h;
+      if ((k + 1) % self_every == 0 || k + 1 == substeps) {
+        ApplySelfCollision(self_h, self, state, &result);
+        self_h = 0.0;
+      }
+    }
   }
   state->time_s = t0 + dt;
 

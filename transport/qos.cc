@@ -43,6 +43,14 @@ Qos Ros2DiagnosticsWriterQos() {
   return qos;
 }
 
+Qos Ros2MarkerWriterQos() {
+  Qos qos = NewQos();
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_durability(qos.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
+  return qos;
+}
+
 const char* QosPolicyName(uint32_t policy_id) {
   switch (static_cast<dds_qos_policy_id_t>(policy_id)) {
     case DDS_USERDATA_QOS_POLICY_ID:

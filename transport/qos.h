@@ -54,6 +54,13 @@ Qos Ros2WrenchWriterQos();
 /// volatile, as diagnostic_updater publishes; it matches ROS 2 tools' default subscriptions.
 Qos Ros2DiagnosticsWriterQos();
 
+/// The ROS 2 markers' writer (visualization_msgs/MarkerArray): reliable (100 ms blocking at most,
+/// on the marker feed's thread, never a loop's), keep-last 1 (markers are state: a slow subscriber
+/// gets the newest cloth, never a backlog), transient-local. It matches RViz's default marker
+/// subscription (reliable, volatile, keep-last 5), one set to transient-local durability, and a
+/// best-effort one (Foxglove's bridge, SensorDataQoS). Throws std::bad_alloc only.
+Qos Ros2MarkerWriterQos();
+
 /// The name of a DDS QoS policy id (dds_qos_policy_id_t: "DEADLINE", "RELIABILITY", ...), as
 /// the incompatible-QoS statuses report it; "UNKNOWN" for an id this Cyclone does not define.
 const char* QosPolicyName(uint32_t policy_id);

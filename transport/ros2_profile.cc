@@ -22,11 +22,31 @@ const char* Ros2PoseTypeName(Ros2PoseType type) {
 }
 
 const char* Ros2WrenchTypeName(Ros2WrenchType type) {
-  return type == Ros2WrenchType::kOmniFeedback ? "OmniFeedback" : "WrenchStamped";
+  switch (type) {
+    case Ros2WrenchType::kOmniFeedback:
+      return "OmniFeedback";
+    case Ros2WrenchType::kFloat64MultiArray:
+      return "Float64MultiArray";
+    case Ros2WrenchType::kWrenchStamped:
+      break;
+  }
+  return "WrenchStamped";
 }
 
 Ros2DeviceTopics Ros2PresetTopics(Ros2Preset preset, const std::string& device_id) {
   if (preset == Ros2Preset::kCrtk) return DefaultRos2Topics(device_id);
+  if (preset == Ros2Preset::kFd) {
+    // forcedimension_ros2: fd_bringup/launch/fd.launch.py runs the controller manager in
+    // namespace "fd"; its ee_pose_broadcaster publishes the relative "ee_pose" (/fd/ee_pose) and
+    // the forward command controller fd_controller subscribes "~/commands"
+    // (/fd/fd_controller/commands), fd_controllers.yaml's joints fd_x, fd_y, fd_z.
+    Ros2DeviceTopics t;
+    t.pose = "/fd/ee_pose";
+    t.wrench = "/fd/fd_controller/commands";
+    t.wrench_type = Ros2WrenchType::kFloat64MultiArray;
+    t.wrench_array_length = 3;
+    return t;
+  }
   // omni_common's omni_state.cpp: "<omni_name>/state" and "<omni_name>/force_feedback", relative
   // names resolved in the root namespace, omni_name "phantom" in its launch file.
   Ros2DeviceTopics t;

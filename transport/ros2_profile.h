@@ -47,9 +47,15 @@ enum class Ros2WrenchType {
   /// driver's lock position (Felt writes the proxy position there, in the driver's units). It has
   /// no header: no stamp echo, no frame.
   kOmniFeedback,
+  /// std_msgs/Float64MultiArray (a ros2_control forward command controller's `~/commands`, e.g.
+  /// the Force Dimension driver's /fd/fd_controller/commands): data = [fx, fy, fz] [N], then zeros
+  /// up to Ros2DeviceTopics::wrench_array_length (the controller's joints: torques, gripper).
+  /// No header: no stamp echo, no frame.
+  kFloat64MultiArray,
 };
 
-/// The type's ROS 2 name: "PoseStamped", "OmniState"; "WrenchStamped", "OmniFeedback".
+/// The type's ROS 2 name: "PoseStamped", "OmniState"; "WrenchStamped", "OmniFeedback",
+/// "Float64MultiArray".
 const char* Ros2PoseTypeName(Ros2PoseType type);
 const char* Ros2WrenchTypeName(Ros2WrenchType type);
 
@@ -72,6 +78,10 @@ struct Ros2DeviceTopics {
   /// Metres per second per unit of the velocity read (TwistStamped's linear part, OmniState's
   /// velocity) (> 0): 1 for both (the Touch driver's velocity is m/s with its units "mm").
   double velocity_scale = 1.0;
+  /// Float64MultiArray only: the array's length, the number of joints of the driver's controller
+  /// (its forward command controller ignores an array of another length), 3..16; forces in the
+  /// first three, zeros after.
+  uint32_t wrench_array_length = 3;
 };
 
 /// CRTK's names under the device's id as namespace: /<id>/measured_cp, /<id>/measured_cv,
@@ -86,6 +96,11 @@ enum class Ros2Preset {
   /// /phantom/state (length_scale 0.001: its mm), no twist, OmniFeedback out on
   /// /phantom/force_feedback.
   kOmni,
+  /// The Force Dimension ros2_control driver (ICube-Robotics/forcedimension_ros2, its fd_bringup
+  /// launch, namespace "fd"): PoseStamped in on /fd/ee_pose (m, frame "fd_base"), no twist
+  /// (velocity by finite difference), Float64MultiArray [fx, fy, fz] out on
+  /// /fd/fd_controller/commands (its JointGroupEffortController on joints fd_x, fd_y, fd_z).
+  kFd,
 };
 
 /// The topics and types of `preset` for the device `device_id`.

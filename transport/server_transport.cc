@@ -91,6 +91,26 @@ void ValidateConfig(const ServerTransportConfig& config) {
       if (!(d.ros2.velocity_scale > 0 && std::isfinite(d.ros2.velocity_scale))) {
         throw std::invalid_argument(field + ".ros2.velocity_scale: must be positive and finite");
       }
+      if (d.ros2.wrench_type == Ros2WrenchType::kFloat64MultiArray &&
+          (d.ros2.wrench_array_length < 3 || d.ros2.wrench_array_length > 16)) {
+        throw std::invalid_argument(field + ".ros2.wrench_array_length: must be 3..16");
+      }
+    }
+  }
+  const Ros2MarkerSettings& markers = config.ros2_markers;
+  if (!(markers.max_rate_hz > 0 && std::isfinite(markers.max_rate_hz))) {
+    throw std::invalid_argument("ServerTransportConfig.ros2_markers.max_rate_hz: must be positive");
+  }
+  if (!(markers.rate_hz > 0 && markers.rate_hz <= markers.max_rate_hz)) {
+    throw std::invalid_argument("ServerTransportConfig.ros2_markers.rate_hz: must be in (0, " +
+                                std::to_string(markers.max_rate_hz) + "] (max_rate_hz)");
+  }
+  if (!markers.device.empty()) {
+    bool found = false;
+    for (const DeviceLimits& d : config.devices) found = found || d.device_id == markers.device;
+    if (!found) {
+      throw std::invalid_argument("ServerTransportConfig.ros2_markers.device \"" + markers.device +
+                                  "\": not a device of the configuration");
     }
   }
   if (config.force_queue_capacity == 0) {
@@ -104,6 +124,14 @@ void ValidateConfig(const ServerTransportConfig& config) {
 void NameThisThread(const char* name) { pthread_setname_np(pthread_self(), name); }
 
 }  // namespace
+
+bool Ros2MarkersOn(const ServerTransportConfig& config) {
+  if (config.ros2_markers.enabled) return *config.ros2_markers.enabled;
+  for (const DeviceLimits& d : config.devices) {
+    if (d.profile == TransportProfile::kRos2) return true;
+  }
+  return false;
+}
 
 class ServerTransport::Impl {
  public:
@@ -139,6 +167,8 @@ class ServerTransport::Impl {
     std::mutex frame_mutex;
     std::string echoed_frame;
     std::atomic<bool> qos_logged{false};
+    // Float64MultiArray only: the data buffer, sized once (writer thread).
+    std::vector<double> command;
   };
 
   static void OnDataAvailable(dds_entity_t reader, void* arg);
@@ -153,6 +183,7 @@ class ServerTransport::Impl {
   void WriteRos2Force(Ros2Device* device, const ForceCommandView& force,
                       geometry_msgs_msg_dds__WrenchStamped_* message, std::string* frame);
   void WriteOmniFeedback(Ros2Device* device, const ForceCommandView& force);
+  void WriteFloat64MultiArray(Ros2Device* device, const ForceCommandView& force);
   void WaitsetLoop();
   void WriterLoop();
   void DrainPointers();
@@ -191,6 +222,13 @@ class ServerTransport::Impl {
   Entity pointer_reader_, force_writer_, status_writer_;
   Entity waitset_, stop_guard_, read_condition_;
   Entity diagnostics_topic_, diagnostics_writer_;  // ROS 2 diagnostics (absent: off)
+  Entity markers_topic_, markers_writer_;          // ROS 2 markers (absent: off)
+  // PublishMarkers' IDL buffers, reused between calls (markers_mutex_ held).
+  std::mutex markers_mutex_;
+  std::vector<visualization_msgs_msg_dds__Marker_> marker_structs_;
+  std::vector<std::vector<geometry_msgs_msg_dds__Point_>> marker_points_;
+  std::vector<std::vector<std_msgs_msg_dds__ColorRGBA_>> marker_colors_;
+  std::atomic<uint64_t> markers_{0}, dds_errors_markers_{0};
   // Writes `status` (transport fields already filled) as a DiagnosticArray. Monitor thread.
   bool WriteDiagnostics(const ServerStatusView& status);
 
@@ -286,6 +324,14 @@ ServerTransport::Impl::Impl(ServerTransportConfig config)
       const Qos diagnostics_qos = Ros2DiagnosticsWriterQos();
       diagnostics_writer_ =
           CreateWriter(participant_, diagnostics_topic_, diagnostics_qos.get(), topic);
+    }
+    // ROS 2 markers (the marker feed publishes them), when on.
+    if (Ros2MarkersOn(config_)) {
+      const std::string topic = Ros2DdsTopic(config_.ros2_markers.topic, "ros2_markers_topic");
+      markers_topic_ =
+          CreateTopic(participant_, &visualization_msgs_msg_dds__MarkerArray__desc, topic);
+      const Qos markers_qos = Ros2MarkerWriterQos();
+      markers_writer_ = CreateWriter(participant_, markers_topic_, markers_qos.get(), topic);
     }
     // The ROS 2 profile's devices: listeners on Cyclone's receive thread in either mode.
     ros2_.resize(devices_.size());
@@ -536,6 +582,8 @@ void ServerTransport::Impl::WriterLoop() {
       if (ros2 != nullptr) {
         if (ros2->topics.wrench_type == Ros2WrenchType::kOmniFeedback) {
           WriteOmniFeedback(ros2, force);
+        } else if (ros2->topics.wrench_type == Ros2WrenchType::kFloat64MultiArray) {
+          WriteFloat64MultiArray(ros2, force);
         } else {
           WriteRos2Force(ros2, force, &wrench, &frame);
         }
@@ -569,11 +617,14 @@ void ServerTransport::Impl::CreateRos2Entities(Ros2Device* d, const Qos& reader_
       participant_,
       omni_state ? &omni_msgs_msg_dds__OmniState__desc : &geometry_msgs_msg_dds__PoseStamped__desc,
       pose);
-  d->wrench_topic = CreateTopic(participant_,
-                                d->topics.wrench_type == Ros2WrenchType::kOmniFeedback
-                                    ? &omni_msgs_msg_dds__OmniFeedback__desc
-                                    : &geometry_msgs_msg_dds__WrenchStamped__desc,
-                                wrench);
+  const dds_topic_descriptor_t* wrench_desc = &geometry_msgs_msg_dds__WrenchStamped__desc;
+  if (d->topics.wrench_type == Ros2WrenchType::kOmniFeedback) {
+    wrench_desc = &omni_msgs_msg_dds__OmniFeedback__desc;
+  } else if (d->topics.wrench_type == Ros2WrenchType::kFloat64MultiArray) {
+    wrench_desc = &std_msgs_msg_dds__Float64MultiArray__desc;
+    d->command.assign(d->topics.wrench_array_length, 0.0);
+  }
+  d->wrench_topic = CreateTopic(participant_, wrench_desc, wrench);
   const Qos writer_qos = Ros2WrenchWriterQos();
   d->wrench_writer = CreateWriter(participant_, d->wrench_topic, writer_qos.get(), wrench);
   using ListenerPtr = std::unique_ptr<dds_listener_t, void (*)(dds_listener_t*)>;
@@ -728,6 +779,24 @@ void ServerTransport::Impl::WriteOmniFeedback(Ros2Device* d, const ForceCommandV
   }
 }
 
+void ServerTransport::Impl::WriteFloat64MultiArray(Ros2Device* d, const ForceCommandView& force) {
+  // data = [fx, fy, fz, 0, ...]: the controller's joints in order (forcedimension_ros2's
+  // fd_controllers.yaml: fd_x, fd_y, fd_z, then roll, pitch, yaw torques and the gripper), N;
+  // layout empty, as `ros2 topic pub ... "data: [...]"` sends it.
+  for (int k = 0; k < 3; ++k) d->command[static_cast<size_t>(k)] = force.force_N_D[k];
+  std_msgs_msg_dds__Float64MultiArray_ m{};
+  m.layout.dim = {0, 0, nullptr, false};
+  m.layout.data_offset = 0;
+  m.data._maximum = m.data._length = static_cast<uint32_t>(d->command.size());
+  m.data._buffer = d->command.data();
+  m.data._release = false;
+  if (dds_write(d->wrench_writer.get(), &m) < 0) {
+    Bump(dds_errors_write_);
+  } else {
+    Bump(published_);
+  }
+}
+
 ServerTransport::ServerTransport(ServerTransportConfig config)
     : impl_(std::make_unique<Impl>(std::move(config))) {}
 
@@ -869,6 +938,77 @@ bool ServerTransport::Impl::WriteDiagnostics(const ServerStatusView& status) {
   return dds_write(diagnostics_writer_.get(), &m) >= 0;
 }
 
+bool ServerTransport::markers_enabled() const { return impl_->markers_writer_.get() != 0; }
+
+bool ServerTransport::PublishMarkers(const ros2::MarkerArray& markers) {
+  Impl& impl = *impl_;
+  if (impl.markers_writer_.get() == 0) return false;
+  std::lock_guard<std::mutex> lock(impl.markers_mutex_);
+  // The IDL struct pointing into `markers` (strings) and into buffers reused between calls.
+  const size_t n = markers.markers.size();
+  impl.marker_structs_.resize(n);
+  impl.marker_points_.resize(n);
+  impl.marker_colors_.resize(n);
+  const auto chars = [](const std::string& s) { return const_cast<char*>(s.c_str()); };
+  static char empty[] = "";
+  for (size_t i = 0; i < n; ++i) {
+    const ros2::Marker& in = markers.markers[i];
+    visualization_msgs_msg_dds__Marker_& out = impl.marker_structs_[i];
+    out = visualization_msgs_msg_dds__Marker_{};
+    out.header.stamp = {in.header.stamp.sec, in.header.stamp.nanosec};
+    out.header.frame_id = chars(in.header.frame_id);
+    out.ns = chars(in.ns);
+    out.id = in.id;
+    out.type = in.type;
+    out.action = in.action;
+    out.pose.position = {in.pose.position.x, in.pose.position.y, in.pose.position.z};
+    out.pose.orientation = {in.pose.orientation.x, in.pose.orientation.y, in.pose.orientation.z,
+                            in.pose.orientation.w};
+    out.scale = {in.scale.x, in.scale.y, in.scale.z};
+    out.color = {in.color.r, in.color.g, in.color.b, in.color.a};
+    out.lifetime = {in.lifetime.sec, in.lifetime.nanosec};
+    out.frame_locked = in.frame_locked;
+    std::vector<geometry_msgs_msg_dds__Point_>& points = impl.marker_points_[i];
+    points.resize(in.points.size());
+    for (size_t k = 0; k < in.points.size(); ++k) {
+      points[k] = {in.points[k].x, in.points[k].y, in.points[k].z};
+    }
+    out.points = {static_cast<uint32_t>(points.size()), static_cast<uint32_t>(points.size()),
+                  points.data(), false};
+    std::vector<std_msgs_msg_dds__ColorRGBA_>& colors = impl.marker_colors_[i];
+    colors.resize(in.colors.size());
+    for (size_t k = 0; k < in.colors.size(); ++k) {
+      colors[k] = {in.colors[k].r, in.colors[k].g, in.colors[k].b, in.colors[k].a};
+    }
+    out.colors = {static_cast<uint32_t>(colors.size()), static_cast<uint32_t>(colors.size()),
+                  colors.data(), false};
+    // Humble's fields Felt leaves empty: texture, uv_coordinates, mesh_file.
+    out.texture_resource = empty;
+    out.texture.header.frame_id = empty;
+    out.texture.format = empty;
+    out.texture.data = {0, 0, nullptr, false};
+    out.uv_coordinates = {0, 0, nullptr, false};
+    out.text = chars(in.text);
+    out.mesh_resource = chars(in.mesh_resource);
+    out.mesh_file.filename = empty;
+    out.mesh_file.data = {0, 0, nullptr, false};
+    out.mesh_use_embedded_materials = in.mesh_use_embedded_materials;
+  }
+  visualization_msgs_msg_dds__MarkerArray_ m{};
+  m.markers = {static_cast<uint32_t>(n), static_cast<uint32_t>(n), impl.marker_structs_.data(),
+               false};
+  if (dds_write(impl.markers_writer_.get(), &m) < 0) {
+    Bump(impl.dds_errors_markers_);
+    return false;
+  }
+  Bump(impl.markers_);
+  return true;
+}
+
+uint32_t ServerTransport::MatchedMarkerReaders() const {
+  return impl_->markers_writer_.get() == 0 ? 0 : MatchedReaders(impl_->markers_writer_);
+}
+
 TransportStats ServerTransport::Stats() const {
   const Impl& impl = *impl_;
   TransportStats s;
@@ -885,8 +1025,9 @@ TransportStats ServerTransport::Stats() const {
   s.forces_bad_device = Load(impl.bad_device_);
   s.forces_published = Load(impl.published_);
   s.statuses_published = Load(impl.statuses_);
-  s.dds_errors =
-      Load(impl.dds_errors_receive_) + Load(impl.dds_errors_write_) + Load(impl.dds_errors_status_);
+  s.markers_published = Load(impl.markers_);
+  s.dds_errors = Load(impl.dds_errors_receive_) + Load(impl.dds_errors_write_) +
+                 Load(impl.dds_errors_status_) + Load(impl.dds_errors_markers_);
   s.incompatible_qos = impl.IncompatibleQos();
   s.receive_hop = SummarizeHops(impl.receive_hop_);
   s.write_hop = SummarizeHops(impl.write_hop_);

@@ -8,10 +8,12 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "base/non_copyable.h"
+#include "ros2/messages.h"
 #include "rt/arrival_signal.h"
 #include "rt/clock.h"
 #include "transport/ros2_profile.h"
@@ -41,6 +43,20 @@ struct DeviceLimits {
   Ros2DeviceTopics ros2;
 };
 
+/// The cloth and proxies as ROS 2 markers (ros2/markers.h, server/ros2_marker_feed.h): scene keys
+/// [transport] ros2_markers*, docs/transport.md.
+struct Ros2MarkerSettings {
+  /// On, off, or unset: on exactly when a device is on the ROS 2 profile (Ros2MarkersOn).
+  std::optional<bool> enabled;
+  std::string topic = "/felt/markers";  ///< visualization_msgs/MarkerArray (DDS "rt" + this)
+  std::string frame_id = "world";       ///< header.frame_id of the markers
+  double rate_hz = 30.0;                ///< publications per second, (0, max_rate_hz]
+  double max_rate_hz = 30.0;            ///< the bound on rate_hz a scene may raise
+  /// "" draws in Felt's world frame; a device id draws in that device's frame (its inverse
+  /// workspace map), where its driver's pose is, so the cloth overlays the device in RViz.
+  std::string device;
+};
+
 /// Everything the server transport needs; validated by the ServerTransport constructor.
 struct ServerTransportConfig {
   DdsSettings dds;                    ///< domain and Cyclone configuration
@@ -59,7 +75,13 @@ struct ServerTransportConfig {
   bool ros2_diagnostics = false;
   /// The ROS 2 topic of those diagnostics (DDS topic "rt" + this), as ROS 2 tools expect.
   std::string ros2_diagnostics_topic = "/diagnostics";
+  /// The cloth and proxies as a visualization_msgs/MarkerArray (PublishMarkers).
+  Ros2MarkerSettings ros2_markers;
 };
+
+/// Whether `config` publishes markers: ros2_markers.enabled when set, else whether any device is
+/// on the ROS 2 profile.
+bool Ros2MarkersOn(const ServerTransportConfig& config);
 
 /// Percentiles of a hop's cost, microseconds, as bin upper edges of a rt/loop_stats.h
 /// Histogram at 0.1 us resolution (never below the true value; max exact).
@@ -87,6 +109,7 @@ struct TransportStats {
   uint64_t forces_bad_device = 0;        ///< PushForce calls with device_index out of range
   uint64_t forces_published = 0;         ///< forces written to DDS
   uint64_t statuses_published = 0;       ///< statuses written to DDS
+  uint64_t markers_published = 0;        ///< MarkerArrays written to DDS (PublishMarkers)
   uint64_t dds_errors = 0;               ///< failed dds_take or dds_write calls
   uint64_t incompatible_qos = 0;  ///< DDS peers whose QoS does not match a Felt reader or writer
                                   ///< (requested/offered incompatible QoS totals, DDS's counts)
@@ -137,6 +160,16 @@ class ServerTransport : NonCopyable {
   /// False (counted in dds_errors) when a dds_write fails. Monitor thread; not real-time.
   /// Throws std::invalid_argument when server_id is empty or longer than 64 characters.
   bool PublishStatus(const ServerStatusView& status);
+
+  /// Whether the marker writer exists (Ros2MarkersOn of the configuration).
+  bool markers_enabled() const;
+  /// Publishes `markers` on the markers topic (ServerTransportConfig::ros2_markers): reliable,
+  /// keep-last 1, volatile (Ros2MarkerWriterQos). False when markers are off or dds_write fails
+  /// (counted in dds_errors). Not real-time (copies into the IDL type's buffers, reused between
+  /// calls); one thread at a time (the marker feed's).
+  bool PublishMarkers(const ros2::MarkerArray& markers);
+  /// Marker subscribers currently matched. Any thread.
+  uint32_t MatchedMarkerReaders() const;
 
   /// A copy of the counters and hop costs. Any thread.
   TransportStats Stats() const;

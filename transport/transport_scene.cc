@@ -43,7 +43,8 @@ void ReadRos2Topics(const SceneTable& entry, Ros2DeviceTopics* topics) {
       {"PoseStamped", Ros2PoseType::kPoseStamped}, {"OmniState", Ros2PoseType::kOmniState}};
   static constexpr NamedValue<Ros2WrenchType> kWrenchTypes[] = {
       {"WrenchStamped", Ros2WrenchType::kWrenchStamped},
-      {"OmniFeedback", Ros2WrenchType::kOmniFeedback}};
+      {"OmniFeedback", Ros2WrenchType::kOmniFeedback},
+      {"Float64MultiArray", Ros2WrenchType::kFloat64MultiArray}};
   const Ros2PoseType before = topics->pose_type;
   topics->pose_type = entry.Choice<Ros2PoseType>(
       "pose_type", topics->pose_type, std::span<const NamedValue<Ros2PoseType>>(kPoseTypes));
@@ -76,10 +77,56 @@ void ReadRos2Topics(const SceneTable& entry, Ros2DeviceTopics* topics) {
                "twist topic (leave twist_topic out)");
   }
   topics->frame_id = entry.String("frame_id", topics->frame_id);
-  if (topics->wrench_type == Ros2WrenchType::kOmniFeedback && !topics->frame_id.empty()) {
-    entry.Fail("frame_id",
-               "an OmniFeedback has no header: frame_id needs wrench_type = "
-               "\"WrenchStamped\"");
+  if (topics->wrench_type != Ros2WrenchType::kWrenchStamped && !topics->frame_id.empty()) {
+    const bool vowel = topics->wrench_type == Ros2WrenchType::kOmniFeedback;
+    entry.Fail("frame_id", std::string(vowel ? "an " : "a ") +
+                               Ros2WrenchTypeName(topics->wrench_type) +
+                               " has no header: frame_id needs wrench_type = \"WrenchStamped\"");
+  }
+  if (entry.Has("wrench_array_length") &&
+      topics->wrench_type != Ros2WrenchType::kFloat64MultiArray) {
+    entry.Fail("wrench_array_length",
+               "only a Float64MultiArray wrench has a length: it needs wrench_type = "
+               "\"Float64MultiArray\" (or ros2_preset = \"fd\")");
+  }
+  topics->wrench_array_length = static_cast<uint32_t>(entry.Integer(
+      "wrench_array_length", static_cast<int32_t>(topics->wrench_array_length), InRange(3, 16)));
+}
+
+// The [transport] ros2_markers* keys (the cloth and proxies as RViz markers).
+void ReadRos2Markers(const SceneTable& table, const std::vector<DeviceSpec>& devices,
+                     Ros2MarkerSettings* markers) {
+  if (table.Has("ros2_markers")) markers->enabled = table.Bool("ros2_markers", kRequired);
+  markers->topic = table.String("ros2_markers_topic", markers->topic);
+  try {
+    (void)Ros2DdsTopic(markers->topic, "ros2_markers_topic");
+  } catch (const std::invalid_argument& e) {
+    table.Fail("ros2_markers_topic", e.what());
+  }
+  markers->frame_id = table.String("ros2_markers_frame_id", markers->frame_id, /*non_empty=*/true);
+  markers->max_rate_hz =
+      table.Number("ros2_markers_max_rate_hz", markers->max_rate_hz, InRange(1.0, 1000.0));
+  markers->rate_hz =
+      table.Number("ros2_markers_rate_hz", markers->rate_hz, InRangeOpenMin(0.0, 1000.0));
+  if (markers->rate_hz > markers->max_rate_hz) {
+    table.Fail("ros2_markers_rate_hz",
+               "must be at most ros2_markers_max_rate_hz (" + std::to_string(markers->max_rate_hz) +
+                   " Hz; RViz and Foxglove need no more than 30): raise ros2_markers_max_rate_hz "
+                   "to publish faster");
+  }
+  markers->device = table.String("ros2_markers_device", markers->device);
+  if (!markers->device.empty()) {
+    std::string known;
+    bool found = false;
+    for (const DeviceSpec& d : devices) {
+      known += (known.empty() ? "" : ", ") + d.id;
+      found = found || d.id == markers->device;
+    }
+    if (!found) {
+      table.Fail(
+          "ros2_markers_device",
+          "'" + markers->device + "' is not a device of this scene (devices: " + known + ")");
+    }
   }
 }
 
@@ -94,7 +141,9 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
   if (table) {
     table->ExpectKeys({"domain", "dds_config", "security", "identity", "receive_mode",
                        "force_queue_capacity", "workspace_min_m", "workspace_max_m", "max_rate_hz",
-                       "burst_samples", "profile", "devices", "ros2_diagnostics"});
+                       "burst_samples", "profile", "devices", "ros2_diagnostics", "ros2_markers",
+                       "ros2_markers_topic", "ros2_markers_frame_id", "ros2_markers_rate_hz",
+                       "ros2_markers_max_rate_hz", "ros2_markers_device"});
     config.dds.domain_id = static_cast<uint32_t>(table->Integer("domain", 0, InRange(0, 230)));
     config.dds.config_file = table->String("dds_config", std::string());
     config.dds.security_dir = table->String("security", std::string());
@@ -107,6 +156,7 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
         static_cast<size_t>(table->Integer("force_queue_capacity", 256, InRange(1, 65536)));
     defaults = ReadLimits(*table, defaults);
     config.ros2_diagnostics = table->Bool("ros2_diagnostics", false);
+    ReadRos2Markers(*table, devices, &config.ros2_markers);
   }
   for (size_t i = 0; i < devices.size(); ++i) {
     limits[i] = defaults;
@@ -118,8 +168,8 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
     for (const SceneTable& entry : table->ArrayOfTables("devices")) {
       entry.ExpectKeys({"id", "workspace_min_m", "workspace_max_m", "max_rate_hz", "burst_samples",
                         "profile", "pose_topic", "twist_topic", "wrench_topic", "frame_id",
-                        "ros2_preset", "pose_type", "wrench_type", "length_scale",
-                        "velocity_scale"});
+                        "ros2_preset", "pose_type", "wrench_type", "length_scale", "velocity_scale",
+                        "wrench_array_length"});
       const std::string id = entry.String("id", kRequired, /*non_empty=*/true);
       if (!seen.insert(id).second) entry.Fail("id", "device '" + id + "' is listed twice");
       size_t index = devices.size();
@@ -136,8 +186,8 @@ ServerTransportConfig ParseTransportConfig(const SceneDocument& doc,
       limits[index].ros2 = DefaultRos2Topics(id);
       // A preset sets the topics and types at once (and the ROS 2 profile); keys override it.
       if (entry.Has("ros2_preset")) {
-        static constexpr NamedValue<Ros2Preset> kPresets[] = {{"crtk", Ros2Preset::kCrtk},
-                                                              {"omni", Ros2Preset::kOmni}};
+        static constexpr NamedValue<Ros2Preset> kPresets[] = {
+            {"crtk", Ros2Preset::kCrtk}, {"omni", Ros2Preset::kOmni}, {"fd", Ros2Preset::kFd}};
         const Ros2Preset preset = entry.Choice<Ros2Preset>(
             "ros2_preset", std::nullopt, std::span<const NamedValue<Ros2Preset>>(kPresets));
         limits[index].ros2 = Ros2PresetTopics(preset, id);

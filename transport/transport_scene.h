@@ -18,6 +18,14 @@
 //   profile = "felt"                    # or "ros2": every device's topics (ros2_profile.h)
 //   ros2_diagnostics = false            # status also on ROS 2's /diagnostics (DiagnosticArray,
 //                                       # 1 Hz); on anyway when a device uses the ROS 2 profile
+//   ros2_markers = true                 # the cloth and proxies as a visualization_msgs/
+//                                       # MarkerArray; default: on when a device uses ROS 2
+//   ros2_markers_topic = "/felt/markers"
+//   ros2_markers_frame_id = "world"     # header.frame_id of the markers
+//   ros2_markers_rate_hz = 30.0         # (0, ros2_markers_max_rate_hz]
+//   ros2_markers_max_rate_hz = 30.0     # raise it (up to 1000) to allow a faster rate
+//   ros2_markers_device = ""            # "": Felt's world frame; a device id: that device's
+//                                       # frame (inverse workspace map), where its pose lives
 //   [[transport.devices]]               # optional per-device overrides
 //   id = "left"                         # one of the scene's device ids
 //   workspace_min_m = [-0.1, -0.2, -0.2]
@@ -28,10 +36,14 @@
 //   frame_id = ""                       # of each force; "" echoes the answered pose's
 //   ros2_preset = "omni"                # "crtk" (the defaults above) or "omni": the Geomagic
 //                                       # Touch driver's /phantom/state (OmniState, mm) in and
-//                                       # /phantom/force_feedback (OmniFeedback) out; implies
+//                                       # /phantom/force_feedback (OmniFeedback) out; or "fd":
+//                                       # the Force Dimension ros2_control driver's /fd/ee_pose
+//                                       # in, /fd/fd_controller/commands out; implies
 //                                       # profile "ros2"; the keys below override it
 //   pose_type = "PoseStamped"           # or "OmniState" (then no twist topic: it has velocity)
-//   wrench_type = "WrenchStamped"       # or "OmniFeedback" (no header: no stamp, no frame_id)
+//   wrench_type = "WrenchStamped"       # or "OmniFeedback" (no header: no stamp, no frame_id),
+//                                       # or "Float64MultiArray" ([fx, fy, fz, 0...], no header)
+//   wrench_array_length = 3             # Float64MultiArray: the controller's joints, 3..16
 //   length_scale = 1.0                  # m per unit of the pose's position (OmniState: 0.001)
 //   velocity_scale = 1.0                # m/s per unit of the velocity read (twist or OmniState)
 

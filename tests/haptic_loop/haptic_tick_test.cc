@@ -147,6 +147,30 @@ namespace {
 // A frame that receives no batch (the sim running ahead of the haptic loop: two frames per tick,
 // or a late tick) keeps the hand's contact spring of the last batch, at most kMaxHeldSpringFrames
 // frames; a batch without a spring (a brief touch) is not held.
+TEST(HapticTick, TheBatchOfAnArrivalTickCarriesThatTicksOwnContact) {
+  // The reactions are staged after the proxies ran: the batch a new snapshot triggers holds the
+  // contact spring of that very tick (its sphere centred on the proxy where the tick left it), so
+  // with a frame every tick the cloth answers the hand one tick late, not two (docs/compare.md).
+  ServerSpec spec = SmallCurtain();
+  Loops loops(spec);
+  ReactionBatch batch;
+  int checked = 0;
+  for (int k = 0; k < 400; ++k) {
+    // Drain every batch the sim would read (the frames of Loops::Tick pop none before this tick).
+    loops.Tick(k, true, PressPosition(k));
+    while (loops.sim.reactions().TryPop(&batch)) {
+      if (k % 16 != 0 || batch.count != 1 || !(batch.forces[0].stiffness_N_per_m > 0.0)) continue;
+      const ExternalForce& e = batch.forces[0];
+      const Vec3 centre = e.anchor_m + e.radius_m * e.normal;
+      EXPECT_LT((centre - loops.haptic.proxy_state(0).body.p_W_m).norm(), 1e-12) << "tick " << k;
+      ++checked;
+    }
+  }
+  // The hand moves into the cloth for 200 ms: the proxy differs from tick to tick, so a batch
+  // holding the tick before's contact fails the check above.
+  EXPECT_GE(checked, 10);
+}
+
 TEST(SimFrameHold, AContactSpringIsHeldOverFramesWithoutABatchThenLetGo) {
   const ServerSpec spec = SmallCurtain();
   SimLoop sim(spec.sim, spec.proxy.structure);

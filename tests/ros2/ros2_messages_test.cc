@@ -93,6 +93,38 @@ Marker SampleSphere() {
   return m;
 }
 
+// The array Felt publishes: a cloth triangle list and two proxy spheres (their lengths differ, so
+// the alignment of each marker's doubles differs).
+MarkerArray SampleMarkerArray() {
+  MarkerArray a;
+  a.markers = {SampleTriangles(), SampleSphere(), SampleSphere()};
+  a.markers[2].ns = "felt_proxy_b";
+  a.markers[2].id = 1;
+  a.markers[2].text = "";
+  a.markers[2].colors.clear();
+  a.markers[2].points.clear();
+  return a;
+}
+
+// The Force Dimension controller's command: [fx, fy, fz] and, with an Omega.7's joints, zeros.
+Float64MultiArray SampleCommand(size_t n) {
+  Float64MultiArray m;
+  m.data.assign(n, 0.0);
+  m.data[0] = 0.5;
+  m.data[1] = -1.25;
+  m.data[2] = 2.0;
+  return m;
+}
+
+// A layout with dimensions (labels of several lengths), as other publishers send.
+Float64MultiArray SampleLaidOutArray() {
+  Float64MultiArray m;
+  m.dim = {{"joints", 7, 7}, {"ab", 1, 1}};
+  m.data_offset = 3;
+  m.data = {1e-300, -0.0, 3.5, 1e10};
+  return m;
+}
+
 OmniState SampleOmni() {
   OmniState m;
   m.header = SampleHeader("map");
@@ -166,6 +198,18 @@ Json J(const Marker& m) {
           {"mesh_file", {{"filename", ""}, {"data", Json::array()}}},
           {"mesh_use_embedded_materials", m.mesh_use_embedded_materials}};
 }
+Json J(const MarkerArray& m) {
+  Json markers = Json::array();
+  for (const Marker& marker : m.markers) markers.push_back(J(marker));
+  return {{"markers", markers}};
+}
+Json J(const Float64MultiArray& m) {
+  Json dim = Json::array();
+  for (const MultiArrayDimension& d : m.dim) {
+    dim.push_back({{"label", d.label}, {"size", d.size}, {"stride", d.stride}});
+  }
+  return {{"layout", {{"dim", dim}, {"data_offset", m.data_offset}}}, {"data", m.data}};
+}
 Json J(const OmniState& m) {
   return {{"header", J(m.header)}, {"locked", m.locked},      {"close_gripper", m.close_gripper},
           {"pose", J(m.pose)},     {"current", J(m.current)}, {"velocity", J(m.velocity)}};
@@ -213,6 +257,11 @@ std::vector<Case> AllCases() {
   cases.push_back(MakeCase("empty", DiagnosticArray{}));
   cases.push_back(MakeCase("triangle list", SampleTriangles()));
   cases.push_back(MakeCase("sphere", SampleSphere()));
+  cases.push_back(MakeCase("cloth and two proxies", SampleMarkerArray()));
+  cases.push_back(MakeCase("empty", MarkerArray{}));
+  cases.push_back(MakeCase("Omega.3 [fx, fy, fz]", SampleCommand(3)));
+  cases.push_back(MakeCase("Omega.7, 7 joints", SampleCommand(7)));
+  cases.push_back(MakeCase("with a layout", SampleLaidOutArray()));
   cases.push_back(MakeCase("Touch state", SampleOmni()));
   cases.push_back(MakeCase("feedback", SampleFeedback()));
   return cases;
@@ -258,6 +307,9 @@ TEST(Ros2Cdr, EveryTypeRoundTrips) {
   EXPECT_EQ(ParseDiagnosticArray(Bytes(SampleDiagnostics())), SampleDiagnostics());
   EXPECT_EQ(ParseMarker(Bytes(SampleTriangles())), SampleTriangles());
   EXPECT_EQ(ParseMarker(Bytes(SampleSphere())), SampleSphere());
+  EXPECT_EQ(ParseMarkerArray(Bytes(SampleMarkerArray())), SampleMarkerArray());
+  EXPECT_EQ(ParseFloat64MultiArray(Bytes(SampleCommand(7))), SampleCommand(7));
+  EXPECT_EQ(ParseFloat64MultiArray(Bytes(SampleLaidOutArray())), SampleLaidOutArray());
   EXPECT_EQ(ParseOmniState(Bytes(SampleOmni())), SampleOmni());
   EXPECT_EQ(ParseOmniFeedback(Bytes(SampleFeedback())), SampleFeedback());
 }
@@ -274,6 +326,8 @@ TEST(Ros2Cdr, EveryTruncationIsRefusedWithTypeFieldAndOffset) {
         if (name == "geometry_msgs/msg/WrenchStamped") (void)ParseWrenchStamped(prefix);
         if (name == "diagnostic_msgs/msg/DiagnosticArray") (void)ParseDiagnosticArray(prefix);
         if (name == "visualization_msgs/msg/Marker") (void)ParseMarker(prefix);
+        if (name == "visualization_msgs/msg/MarkerArray") (void)ParseMarkerArray(prefix);
+        if (name == "std_msgs/msg/Float64MultiArray") (void)ParseFloat64MultiArray(prefix);
         if (name == "omni_msgs/msg/OmniState") (void)ParseOmniState(prefix);
         if (name == "omni_msgs/msg/OmniFeedback") (void)ParseOmniFeedback(prefix);
         ADD_FAILURE() << c.type->name << " (" << c.label << "): prefix of " << n << " of "
@@ -345,6 +399,25 @@ TEST(Ros2Cdr, ErrorsNameTypeFieldAndOffset) {
   EXPECT_EQ(ParseOmniFeedback(b), SampleFeedback());
 }
 
+TEST(Ros2Cdr, Float64MultiArrayLayoutMatchesHandComputedBytes) {
+  // Header 4; dim count 0 (4..7); data_offset (8..11); data count 3 (12..15); the first float64
+  // aligns to 8 past the header: byte 20 (4 pad bytes); three doubles end at 44.
+  const std::vector<uint8_t> b = Bytes(SampleCommand(3));
+  ASSERT_EQ(b.size(), 44u);
+  uint32_t dims, offset, count;
+  std::memcpy(&dims, &b[4], 4);
+  std::memcpy(&offset, &b[8], 4);
+  std::memcpy(&count, &b[12], 4);
+  EXPECT_EQ(dims, 0u);
+  EXPECT_EQ(offset, 0u);
+  EXPECT_EQ(count, 3u);
+  double fx, fz;
+  std::memcpy(&fx, &b[20], 8);
+  std::memcpy(&fz, &b[36], 8);
+  EXPECT_EQ(fx, 0.5);
+  EXPECT_EQ(fz, 2.0);
+}
+
 TEST(Ros2Cdr, TimeFromNsFloorsAndRoundTrips) {
   EXPECT_EQ(TimeFromNs(1'500'000'000), (Time{1, 500'000'000}));
   EXPECT_EQ(TimeFromNs(-1), (Time{-1, 999'999'999}));
@@ -364,6 +437,10 @@ TEST(Ros2Schema, SchemasAreTheMsgTextsWithTheirDependencies) {
     EXPECT_NE(t->dds_name.find("::msg::dds_::"), std::string_view::npos) << t->dds_name;
   }
   EXPECT_EQ(TypeOf<WrenchStamped>().dds_name, "geometry_msgs::msg::dds_::WrenchStamped_");
+  EXPECT_EQ(TypeOf<MarkerArray>().dds_name, "visualization_msgs::msg::dds_::MarkerArray_");
+  EXPECT_NE(TypeOf<MarkerArray>().schema.find("MSG: visualization_msgs/Marker\n"),
+            std::string_view::npos);
+  EXPECT_EQ(TypeOf<Float64MultiArray>().dds_name, "std_msgs::msg::dds_::Float64MultiArray_");
 }
 
 TEST(Ros2Independent, EveryTypeMatchesFoxgloveRosmsg2Serialization) {

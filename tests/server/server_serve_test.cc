@@ -179,7 +179,14 @@ TEST_F(ServeTest, ARos2OnlyDriverDrivesTheServer) {
   dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 10);
   const Entity writer = CreateWriter(driver, pose_topic, qos, "pose");
   const Entity reader = CreateReader(driver, wrench_topic, qos, nullptr, "wrench");
+  // The markers felt serve publishes with a ROS 2 device, read with RViz's default QoS.
+  const Entity marker_topic =
+      CreateTopic(driver, &visualization_msgs_msg_dds__MarkerArray__desc, "rt/felt/markers");
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 5);
+  const Entity marker_reader = CreateReader(driver, marker_topic, qos, nullptr, "markers");
   dds_delete_qos(qos);
+  int marker_arrays = 0;
+  uint32_t marker_points = 0, marker_count = 0;
 
   // 1 kHz for up to 20 s: poses stamped 1 ms apart (sec 100 on), until 500 forces came back.
   geometry_msgs_msg_dds__PoseStamped_ pose{};
@@ -210,11 +217,28 @@ TEST_F(ServeTest, ARos2OnlyDriverDrivesTheServer) {
       }
     }
     if (n > 0) (void)dds_return_loan(reader.get(), ptrs, n);
+    void* mptr[1] = {nullptr};
+    dds_sample_info_t minfo{};
+    if (dds_take(marker_reader.get(), mptr, &minfo, 1, 1) == 1) {
+      if (minfo.valid_data) {
+        const auto* m = static_cast<const visualization_msgs_msg_dds__MarkerArray_*>(mptr[0]);
+        ++marker_arrays;
+        marker_count = m->markers._length;
+        marker_points = m->markers._length > 0 ? m->markers._buffer[0].points._length : 0;
+      }
+      (void)dds_return_loan(marker_reader.get(), mptr, 1);
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   server.process.Signal(SIGTERM);
   EXPECT_EQ(WaitExit(server.process, std::chrono::seconds(10)), 0) << ReadFile(server.log);
   EXPECT_GE(forces, 500) << ReadFile(server.log);
+  // The cloth (32 x 32: 2 x 31 x 31 triangles) and the one proxy, as markers.
+  EXPECT_GE(marker_arrays, 1) << ReadFile(server.log);
+  EXPECT_EQ(marker_count, 2u);
+  EXPECT_EQ(marker_points, 3u * 2u * 31u * 31u);
+  EXPECT_NE(ReadFile(server.log).find("ROS 2 markers on /felt/markers at 30 Hz"),
+            std::string::npos);
   EXPECT_EQ(stamps_echoed, forces) << "every force answers a pose that was sent";
   // The first forces may precede the first pose's frame (ramp-in from no input): nearly all echo.
   EXPECT_GE(frames_echoed, forces - 5);

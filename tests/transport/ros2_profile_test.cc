@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <chrono>
 #include <memory>
 #include <stdexcept>
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "dds/ddsi/ddsi_serdata.h"
+#include "ros2/markers.h"
 #include "ros2/messages.h"
 #include "ros2_types.h"
 #include "tests/transport/transport_test_util.h"
@@ -27,6 +29,19 @@ namespace felt::transport {
 namespace {
 
 using namespace ::felt::transport::testing;  // tests/transport/transport_test_util.h
+
+// Writes `sample` (a ROS 2 message of the writer's type) until the server holds a pointer sample
+// for device `index` (best-effort: the first writes may precede the match); false after kWait.
+template <typename Sample>
+bool WriteUntilHeard(const Entity& writer, const Sample& sample, ServerTransport& server,
+                     uint32_t index, PointerSampleView* view) {
+  return WaitUntil(
+      [&] {
+        (void)dds_write(writer.get(), &sample);
+        return server.LatestPointer(index, view);
+      },
+      kWait);
+}
 
 TEST(Ros2ProfileTest, RosNamesMapToRtTopicsAndBadNamesAreRefusedWithTheReason) {
   EXPECT_EQ(Ros2DdsTopic("/left/measured_cp", "pose"), "rt/left/measured_cp");
@@ -134,12 +149,7 @@ TEST_P(Ros2DriverTest, ARos2OnlyDriverDrivesADeviceAndReadsStampedForces) {
   pose.pose.position = {0.01, -0.02, 0.03};
   pose.pose.orientation.w = 1.0;
   PointerSampleView view;
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        (void)dds_write(pose_writer.get(), &pose);
-        return server.LatestPointer(1, &view);
-      },
-      kWait));
+  ASSERT_TRUE(WriteUntilHeard(pose_writer, pose, server, 1, &view));
   EXPECT_EQ(view.position_m_D[0], 0.01);
   EXPECT_EQ(view.position_m_D[1], -0.02);
   EXPECT_EQ(view.position_m_D[2], 0.03);
@@ -242,12 +252,7 @@ TEST(Ros2ProfileTest, ATouchDriverSpeakingOmniMsgsDrivesADeviceInMillimetres) {
   state.current = {0.1, 0.2, 0.3};
   state.velocity = {0.05, -0.25, 0.125};  // m/s
   PointerSampleView view;
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        (void)dds_write(state_writer.get(), &state);
-        return server.LatestPointer(0, &view);
-      },
-      kWait));
+  ASSERT_TRUE(WriteUntilHeard(state_writer, state, server, 0, &view));
   EXPECT_DOUBLE_EQ(view.position_m_D[0], 0.0125);
   EXPECT_DOUBLE_EQ(view.position_m_D[1], -0.030);
   EXPECT_DOUBLE_EQ(view.position_m_D[2], 0.045);
@@ -376,6 +381,241 @@ TEST(Ros2ProfileTest, TheOmniAndDiagnosticIdlTypesHaveTheRos2MessagesBytes) {
   cd.header.frame_id = empty;
   cd.status = {2, 2, st, false};
   ExpectSameCdr(CycloneBytes(&diagnostic_msgs_msg_dds__DiagnosticArray__desc, &cd), expected);
+}
+
+TEST(Ros2ProfileTest, TheMarkerAndMultiArrayIdlTypesHaveTheRos2MessagesBytes) {
+  // Float64MultiArray: the Omega.7 command (7 joints) with a layout of one dimension.
+  ros2::Float64MultiArray ra;
+  ra.dim = {{"joints", 7, 7}};
+  ra.data_offset = 0;
+  ra.data = {0.5, -1.25, 2.0, 0, 0, 0, 0.125};
+  std::vector<uint8_t> expected;
+  ros2::Serialize(ra, &expected);
+  char joints[] = "joints";
+  std_msgs_msg_dds__MultiArrayDimension_ dim[1] = {{joints, 7, 7}};
+  double data[7] = {0.5, -1.25, 2.0, 0, 0, 0, 0.125};
+  std_msgs_msg_dds__Float64MultiArray_ ca{};
+  ca.layout.dim = {1, 1, dim, false};
+  ca.layout.data_offset = 0;
+  ca.data = {7, 7, data, false};
+  ExpectSameCdr(CycloneBytes(&std_msgs_msg_dds__Float64MultiArray__desc, &ca), expected);
+
+  // MarkerArray: a triangle list of two triangles and a sphere, frame ids of odd lengths.
+  ros2::MarkerArray rm;
+  rm.markers.resize(2);
+  ros2::Marker& cloth = rm.markers[0];
+  cloth.header = {{1'764'000'004, 5}, "world"};
+  cloth.ns = "felt_cloth";
+  cloth.type = ros2::Marker::kTriangleList;
+  cloth.scale = {1, 1, 1};
+  cloth.color = {0.9f, 0.55f, 0.2f, 1.0f};
+  cloth.lifetime = {1, 0};
+  cloth.points = {{0, 0, 0}, {0.1, 0, 0}, {0, 0.1, 0}, {0.1, 0.1, 0.01}, {0.2, 0, 0}, {0, 0.2, 0}};
+  ros2::Marker& proxy = rm.markers[1];
+  proxy.header = {{1'764'000'004, 5}, "abc"};
+  proxy.ns = "felt_proxy";
+  proxy.id = 3;
+  proxy.type = ros2::Marker::kSphere;
+  proxy.pose.position = {0.01, 0.2, -0.03};
+  proxy.scale = {0.008, 0.008, 0.008};
+  proxy.color = {0.9f, 0.15f, 0.1f, 1.0f};
+  ros2::Serialize(rm, &expected);
+  char world[] = "world", abc[] = "abc", felt_cloth[] = "felt_cloth", felt_proxy[] = "felt_proxy",
+       empty[] = "";
+  geometry_msgs_msg_dds__Point_ points[6] = {{0, 0, 0},        {0.1, 0, 0}, {0, 0.1, 0},
+                                             {0.1, 0.1, 0.01}, {0.2, 0, 0}, {0, 0.2, 0}};
+  visualization_msgs_msg_dds__Marker_ cm[2] = {};
+  for (auto& m : cm) {
+    m.texture_resource = empty;
+    m.texture.header.frame_id = empty;
+    m.texture.format = empty;
+    m.text = empty;
+    m.mesh_resource = empty;
+    m.mesh_file.filename = empty;
+    m.pose.orientation.w = 1.0;
+  }
+  cm[0].header = {{1'764'000'004, 5}, world};
+  cm[0].ns = felt_cloth;
+  cm[0].type = 11;
+  cm[0].scale = {1, 1, 1};
+  cm[0].color = {0.9f, 0.55f, 0.2f, 1.0f};
+  cm[0].lifetime = {1, 0};
+  cm[0].points = {6, 6, points, false};
+  cm[1].header = {{1'764'000'004, 5}, abc};
+  cm[1].ns = felt_proxy;
+  cm[1].id = 3;
+  cm[1].type = 2;
+  cm[1].pose.position = {0.01, 0.2, -0.03};
+  cm[1].scale = {0.008, 0.008, 0.008};
+  cm[1].color = {0.9f, 0.15f, 0.1f, 1.0f};
+  visualization_msgs_msg_dds__MarkerArray_ ca2{};
+  ca2.markers = {2, 2, cm, false};
+  ExpectSameCdr(CycloneBytes(&visualization_msgs_msg_dds__MarkerArray__desc, &ca2), expected);
+}
+
+TEST(Ros2ProfileTest, TheFdPresetNamesTheForceDimensionDriversTopics) {
+  const Ros2DeviceTopics fd = Ros2PresetTopics(Ros2Preset::kFd, "left");
+  EXPECT_EQ(Ros2DdsTopic(fd.pose, "pose"), "rt/fd/ee_pose");
+  EXPECT_EQ(Ros2DdsTopic(fd.wrench, "wrench"), "rt/fd/fd_controller/commands");
+  EXPECT_EQ(fd.twist, "");
+  EXPECT_EQ(fd.length_scale, 1.0);
+  EXPECT_STREQ(Ros2PoseTypeName(fd.pose_type), "PoseStamped");
+  EXPECT_STREQ(Ros2WrenchTypeName(fd.wrench_type), "Float64MultiArray");
+  EXPECT_EQ(fd.wrench_array_length, 3u);
+}
+
+// The Force Dimension ros2_control driver as a participant that knows only the ROS 2 types: its
+// ee_pose_broadcaster's PoseStamped (SystemDefaultsQoS: Cyclone's default writer, reliable
+// keep-last 1) on <ns>/ee_pose, its forward command controller's Float64MultiArray subscription
+// (SystemDefaultsQoS: Cyclone's default reader, best-effort) on <ns>/fd_controller/commands,
+// with 3 joints (Omega.3) and 7 (Omega.7: roll, pitch, yaw and the gripper after the forces).
+TEST(Ros2ProfileTest, TheForceDimensionDriverReadsItsForcesAsAFloat64MultiArray) {
+  for (const uint32_t joints : {3u, 7u}) {
+    SCOPED_TRACE(joints);
+    const std::string ns = "/fd" + UniqueSuffix();
+    ServerTransportConfig config;
+    config.dds = TestDds();
+    config.topics = UniqueTopics();
+    config.devices = {TestDevice("omega")};
+    DeviceLimits& omega = config.devices[0];
+    omega.profile = TransportProfile::kRos2;
+    omega.ros2 = Ros2PresetTopics(Ros2Preset::kFd, "omega");
+    omega.ros2.pose = ns + "/ee_pose";
+    omega.ros2.wrench = ns + "/fd_controller/commands";
+    omega.ros2.wrench_array_length = joints;
+    ServerTransport server(config);
+
+    Participant driver(AcquireDomain(TestDds()));
+    const Entity pose_topic =
+        CreateTopic(driver, &geometry_msgs_msg_dds__PoseStamped__desc, "rt" + ns + "/ee_pose");
+    const Entity command_topic = CreateTopic(driver, &std_msgs_msg_dds__Float64MultiArray__desc,
+                                             "rt" + ns + "/fd_controller/commands");
+    const Entity pose_writer = CreateWriter(driver, pose_topic, nullptr, "ee_pose");
+    const Entity command_reader = CreateReader(driver, command_topic, nullptr, nullptr, "commands");
+    ASSERT_TRUE(WaitUntil(
+        [&] { return server.MatchedPointerWriters() >= 1 && server.MatchedForceReaders() >= 1; },
+        kWait));
+
+    // The broadcaster's message: frame "fd_base", position in m, stamp = its clock's now.
+    geometry_msgs_msg_dds__PoseStamped_ pose{};
+    char frame[] = "fd_base";
+    pose.header.frame_id = frame;
+    pose.header.stamp = {1'764'000'005, 1'000'000};
+    pose.pose.position = {0.02, -0.01, 0.03};
+    pose.pose.orientation.w = 1.0;
+    PointerSampleView view;
+    ASSERT_TRUE(WriteUntilHeard(pose_writer, pose, server, 0, &view));
+    EXPECT_EQ(view.position_m_D[0], 0.02);
+    EXPECT_EQ(view.position_m_D[2], 0.03);
+
+    ForceCommandView force;
+    force.device_index = 0;
+    force.answers_device_time_ns = view.device_time_ns;
+    force.force_N_D = {0.5, -1.0, 2.0};
+    void* ptrs[1] = {nullptr};
+    dds_sample_info_t info{};
+    const std_msgs_msg_dds__Float64MultiArray_* got = nullptr;
+    ASSERT_TRUE(WaitUntil(
+        [&] {
+          server.PushForce(force);
+          std::this_thread::sleep_for(std::chrono::milliseconds(2));
+          const dds_return_t n = dds_take(command_reader.get(), ptrs, &info, 1, 1);
+          if (n == 1 && info.valid_data) {
+            got = static_cast<const std_msgs_msg_dds__Float64MultiArray_*>(ptrs[0]);
+            return true;
+          }
+          if (n > 0) (void)dds_return_loan(command_reader.get(), ptrs, n);
+          return false;
+        },
+        kWait));
+    // The controller takes an array of exactly its joints' count: [fx, fy, fz, 0...] in N.
+    ASSERT_EQ(got->data._length, joints);
+    EXPECT_EQ(got->data._buffer[0], 0.5);
+    EXPECT_EQ(got->data._buffer[1], -1.0);
+    EXPECT_EQ(got->data._buffer[2], 2.0);
+    for (uint32_t k = 3; k < joints; ++k) EXPECT_EQ(got->data._buffer[k], 0.0) << k;
+    EXPECT_EQ(got->layout.dim._length, 0u);
+    EXPECT_EQ(got->layout.data_offset, 0u);
+    (void)dds_return_loan(command_reader.get(), ptrs, 1);
+    EXPECT_GE(server.Stats().forces_published, 1u);
+  }
+}
+
+// The markers' writer: absent with Felt's profile only (nothing built); with a ROS 2 device it
+// matches RViz's default marker subscription (reliable, volatile, keep-last 5), one set to
+// transient-local (which also gets the last array on joining late), and a best-effort one.
+TEST(Ros2ProfileTest, TheMarkerWriterMatchesRvizDefaultsAndExistsOnlyWhenOn) {
+  {
+    ServerTransportConfig config;
+    config.dds = TestDds();
+    config.topics = UniqueTopics();
+    config.devices = {TestDevice("left")};
+    config.ros2_markers.topic = "/felt" + UniqueSuffix() + "/markers";
+    ServerTransport server(config);
+    EXPECT_FALSE(server.markers_enabled());
+    EXPECT_FALSE(server.PublishMarkers(ros2::MarkerArray{}));
+    EXPECT_EQ(server.MatchedMarkerReaders(), 0u);
+  }
+  const std::string ns = "/felt" + UniqueSuffix();
+  ServerTransportConfig config;
+  config.dds = TestDds();
+  config.topics = UniqueTopics();
+  config.devices = {TestDevice("left")};
+  config.devices[0].profile = TransportProfile::kRos2;
+  config.devices[0].ros2.pose = ns + "/measured_cp";
+  config.devices[0].ros2.wrench = ns + "/servo_cf";
+  config.ros2_markers.topic = ns + "/markers";
+  ServerTransport server(config);
+  ASSERT_TRUE(server.markers_enabled());
+
+  Participant rviz(AcquireDomain(TestDds()));
+  const Entity topic =
+      CreateTopic(rviz, &visualization_msgs_msg_dds__MarkerArray__desc, "rt" + ns + "/markers");
+  Qos qos(dds_create_qos());
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 5);
+  dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
+  const Entity reader = CreateReader(rviz, topic, qos.get(), nullptr, "rviz markers");
+  Qos best_effort(dds_create_qos());
+  dds_qset_reliability(best_effort.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+  const Entity sensor_reader = CreateReader(rviz, topic, best_effort.get(), nullptr, "be");
+  ASSERT_TRUE(WaitUntil([&] { return server.MatchedMarkerReaders() >= 2; }, kWait));
+
+  ros2::MarkerStyle style;
+  ros2::MarkerArray a = ros2::MakeMarkerArray(2, 1, style);
+  const std::vector<float> xyz = {0, 0, 0, 0.1f, 0, 0, 0, 0.1f, 0, 0.1f, 0.1f, 0.01f};
+  const std::vector<std::array<int32_t, 3>> tris = {{0, 1, 3}, {0, 3, 2}};
+  ros2::FillClothMarker(xyz, tris, ros2::MarkerMap{}, &a.markers[0]);
+  ros2::FillProxyMarker({0.05, 0.05, 0.02}, 0.004, true, ros2::MarkerMap{}, style, &a.markers[1]);
+  ros2::StampMarkers(ros2::Time{1'764'000'006, 7}, &a);
+  ASSERT_TRUE(server.PublishMarkers(a));
+  void* ptrs[1] = {nullptr};
+  dds_sample_info_t info{};
+  ASSERT_TRUE(WaitUntil([&] { return dds_take(reader.get(), ptrs, &info, 1, 1) == 1; }, kWait));
+  const auto* got = static_cast<const visualization_msgs_msg_dds__MarkerArray_*>(ptrs[0]);
+  ASSERT_EQ(got->markers._length, 2u);
+  EXPECT_EQ(got->markers._buffer[0].type, 11);
+  EXPECT_EQ(got->markers._buffer[0].points._length, 6u);
+  EXPECT_DOUBLE_EQ(got->markers._buffer[0].points._buffer[4].y, static_cast<double>(0.1f));
+  EXPECT_STREQ(got->markers._buffer[1].ns, "felt_proxy");
+  EXPECT_EQ(got->markers._buffer[1].scale.x, 0.008);
+  EXPECT_EQ(got->markers._buffer[1].header.stamp.sec, 1'764'000'006);
+  EXPECT_STREQ(got->markers._buffer[1].header.frame_id, "world");
+  (void)dds_return_loan(reader.get(), ptrs, 1);
+  ASSERT_TRUE(
+      WaitUntil([&] { return dds_take(sensor_reader.get(), ptrs, &info, 1, 1) == 1; }, kWait));
+  (void)dds_return_loan(sensor_reader.get(), ptrs, 1);
+
+  // A transient-local subscriber joining now gets the last array.
+  Qos late(dds_create_qos());
+  dds_qset_reliability(late.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_durability(late.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
+  const Entity late_reader = CreateReader(rviz, topic, late.get(), nullptr, "late");
+  ASSERT_TRUE(
+      WaitUntil([&] { return dds_take(late_reader.get(), ptrs, &info, 1, 1) == 1; }, kWait));
+  (void)dds_return_loan(late_reader.get(), ptrs, 1);
+  EXPECT_EQ(server.Stats().markers_published, 1u);
+  EXPECT_EQ(server.Stats().incompatible_qos, 0u);
 }
 
 // The value of `key` in a DiagnosticStatus, or "<absent>".

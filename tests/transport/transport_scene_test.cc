@@ -189,6 +189,66 @@ pose_type = "OmniState"
   EXPECT_EQ(c.devices[0].ros2.length_scale, 0.001);
 }
 
+TEST(TransportSceneTest, TheFdPresetReadsTheForceDimensionRos2ControlDriver) {
+  // The preset: /fd/ee_pose (PoseStamped, m) in, no twist, the forward command controller's
+  // Float64MultiArray [fx, fy, fz] out; an Omega.7's seven joints by wrench_array_length.
+  ServerTransportConfig c = Parse(R"(
+[transport]
+[[transport.devices]]
+id = "left"
+ros2_preset = "fd"
+[[transport.devices]]
+id = "right"
+ros2_preset = "fd"
+pose_topic = "/fd2/ee_pose"
+wrench_topic = "/fd2/fd_controller/commands"
+wrench_array_length = 7
+)",
+                                  Devices({"left", "right"}));
+  const Ros2DeviceTopics& t = c.devices[0].ros2;
+  EXPECT_EQ(c.devices[0].profile, TransportProfile::kRos2);
+  EXPECT_EQ(t.pose, "/fd/ee_pose");
+  EXPECT_EQ(t.twist, "");
+  EXPECT_EQ(t.wrench, "/fd/fd_controller/commands");
+  EXPECT_EQ(t.pose_type, Ros2PoseType::kPoseStamped);
+  EXPECT_EQ(t.wrench_type, Ros2WrenchType::kFloat64MultiArray);
+  EXPECT_EQ(t.wrench_array_length, 3u);
+  EXPECT_EQ(t.length_scale, 1.0);
+  EXPECT_EQ(c.devices[1].ros2.pose, "/fd2/ee_pose");
+  EXPECT_EQ(c.devices[1].ros2.wrench_array_length, 7u);
+  // The markers: on by default with a ROS 2 device (the transport decides, Ros2MarkersOn).
+  EXPECT_FALSE(c.ros2_markers.enabled.has_value());
+  EXPECT_TRUE(Ros2MarkersOn(c));
+  EXPECT_EQ(c.ros2_markers.topic, "/felt/markers");
+  EXPECT_EQ(c.ros2_markers.frame_id, "world");
+  EXPECT_EQ(c.ros2_markers.rate_hz, 30.0);
+  EXPECT_EQ(c.ros2_markers.device, "");
+}
+
+TEST(TransportSceneTest, TheMarkerKeysAreRead) {
+  ServerTransportConfig c = Parse(R"(
+[transport]
+ros2_markers = true
+ros2_markers_topic = "/lab/felt_markers"
+ros2_markers_frame_id = "felt_world"
+ros2_markers_max_rate_hz = 100
+ros2_markers_rate_hz = 60
+ros2_markers_device = "right"
+)",
+                                  Devices({"left", "right"}));
+  ASSERT_TRUE(c.ros2_markers.enabled.has_value());
+  EXPECT_TRUE(Ros2MarkersOn(c));  // asked for, with Felt's profile only
+  EXPECT_EQ(c.ros2_markers.topic, "/lab/felt_markers");
+  EXPECT_EQ(c.ros2_markers.frame_id, "felt_world");
+  EXPECT_EQ(c.ros2_markers.rate_hz, 60.0);
+  EXPECT_EQ(c.ros2_markers.max_rate_hz, 100.0);
+  EXPECT_EQ(c.ros2_markers.device, "right");
+  // Off although a device speaks ROS 2; and off by default with Felt's profile only.
+  c = Parse("[transport]\nprofile = \"ros2\"\nros2_markers = false\n", Devices({"left"}));
+  EXPECT_FALSE(Ros2MarkersOn(c));
+  EXPECT_FALSE(Ros2MarkersOn(Parse("", Devices({"left"}))));
+}
+
 TEST(TransportSceneTest, ErrorsNameFileLineAndField) {
   const auto two = Devices({"left", "right"});
   struct Case {
@@ -239,6 +299,31 @@ TEST(TransportSceneTest, ErrorsNameFileLineAndField) {
        "frame_id = \"base\"\n",
        "t.toml:5:1: transport.devices[0].frame_id: an OmniFeedback has no header"},
       {"[transport]\nros2_preset = \"omni\"\n", "t.toml:2:1: transport.ros2_preset"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nros2_preset = \"fd\"\n"
+       "frame_id = \"fd_base\"\n",
+       "t.toml:5:1: transport.devices[0].frame_id: a Float64MultiArray has no header"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nros2_preset = \"fd\"\n"
+       "wrench_array_length = 2\n",
+       "t.toml:5:1: transport.devices[0].wrench_array_length"},
+      {"[transport]\n[[transport.devices]]\nid = \"left\"\nros2_preset = \"crtk\"\n"
+       "wrench_array_length = 7\n",
+       "t.toml:5:1: transport.devices[0].wrench_array_length: only a Float64MultiArray wrench "
+       "has a length"},
+      {"[transport]\nros2_markers = 1\n", "t.toml:2:1: transport.ros2_markers"},
+      {"[transport]\nros2_markers_rate_hz = 60\n",
+       "t.toml:2:1: transport.ros2_markers_rate_hz: must be at most ros2_markers_max_rate_hz"},
+      {"[transport]\nros2_markers_rate_hz = 0\n", "t.toml:2:1: transport.ros2_markers_rate_hz"},
+      {"[transport]\nros2_markers_max_rate_hz = 5000\nros2_markers_rate_hz = 60\n",
+       "t.toml:2:1: transport.ros2_markers_max_rate_hz"},
+      {"[transport]\nros2_markers_topic = \"felt/markers\"\n",
+       "t.toml:2:1: transport.ros2_markers_topic: ros2_markers_topic \"felt/markers\": not a "
+       "fully qualified ROS 2 topic name"},
+      {"[transport]\nros2_markers_frame_id = \"\"\n",
+       "t.toml:2:1: transport.ros2_markers_frame_id"},
+      {"[transport]\nros2_markers_device = \"middle\"\n",
+       "t.toml:2:1: transport.ros2_markers_device: 'middle' is not a device of this scene "
+       "(devices: left, right)"},
+      {"[transport]\nros2_marker_rate_hz = 10\n", "t.toml:2:1: transport.ros2_marker_rate_hz"},
   };
   for (const Case& c : cases) {
     const std::string error = ErrorOf(c.text, two);

@@ -41,7 +41,11 @@ TEST(TransportChildProcess, DISABLED_PublishUnknownIds) {
   Participant participant(AcquireDomain(TestDds()));
   const TopicNames topics = TopicNames::WithAffixes("", suffix);
   const Entity topic = CreateTopic(participant, &felt_msgs_PointerSample_desc, topics.pointer);
-  const Qos qos = StreamQos();
+  // The stream's QoS without its deadline: a writer offering a deadline keeps a timer per
+  // instance, and 100,000 instances written once each missed theirs over and over, so the
+  // child's own writes slowed as they went (2 s alone; 60 s and over 120 s in CI on a busy
+  // machine). The server's reader requests no deadline, so the writer need not offer one.
+  const Qos qos = StreamQos(std::chrono::nanoseconds::max());
   const Entity writer = CreateWriter(participant, topic, qos.get(), "intruder");
   // Wait for the server's reader before writing (best-effort: unmatched samples are lost).
   ASSERT_TRUE(WaitUntil(
