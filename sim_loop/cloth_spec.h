@@ -138,7 +138,7 @@ struct IntegrationSpec {
   int32_t substeps = 0;                ///< per frame; 0 = "auto" from the stability limit
   double frame_rate_hz = 60.0;         ///< nominal frame rate, > 0
   double max_frame_dt_s = 1.0 / 30.0;  ///< a late frame integrates at most this much time
-  double auto_safety = 0.5;         ///< auto substeps keep h <= auto_safety * h_stable, in (0, 1]
+  double auto_safety = 0.75;        ///< auto substeps keep h <= auto_safety * h_stable, in (0, 1]
   int32_t cg_max_iterations = 200;  ///< implicit Euler: conjugate-gradient iteration cap
   double cg_tolerance = 1e-8;       ///< implicit Euler: relative residual to stop at
 };

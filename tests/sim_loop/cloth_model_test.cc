@@ -239,6 +239,34 @@ TEST(ClothModelTest, AutoSubstepsFollowTheStabilityLimit) {
   EXPECT_EQ(BuildClothModel(spec).substeps, 3);
 }
 
+TEST(ClothModelTest, AutoSubstepsOfAConservativeClothResolveItsFastestMode) {
+  // No dashpot, no drag, no limiter: nothing removes leapfrog's energy errors at folded springs,
+  // so auto takes omega_max h <= 0.03 (cloth_build.cc, kConservativeOmegaH) instead of a fraction
+  // of the stable step; the 10 x 10 curtain gets 51 substeps instead of 2.
+  SimSpec spec = Curtain(10);
+  const int32_t damped = BuildClothModel(spec).substeps;
+  for (auto* s : {&spec.cloth.structural, &spec.cloth.shear, &spec.cloth.bend}) {
+    (*s)->damping_N_s_per_m = 0;
+  }
+  spec.cloth.drag_N_s_per_m = 0;
+  spec.provot.enabled = false;
+  const ClothModel model = BuildClothModel(spec);
+  const double h = 1.0 / (spec.integration.frame_rate_hz * model.substeps);
+  EXPECT_LE(model.omega_max_rad_per_s * h, 0.03);
+  EXPECT_GT(model.omega_max_rad_per_s * h, 0.03 * (model.substeps - 1) / model.substeps);
+  EXPECT_GT(model.substeps, 10 * damped);
+  // Any one of the three keeps the stability bound: Provot on, drag, or a dashpot.
+  SimSpec limited = spec;
+  limited.provot.enabled = true;
+  EXPECT_EQ(BuildClothModel(limited).substeps, damped);
+  SimSpec dragged = spec;
+  dragged.cloth.drag_N_s_per_m = 1e-6;
+  EXPECT_LT(BuildClothModel(dragged).substeps, model.substeps);
+  SimSpec dashpot = spec;
+  dashpot.cloth.bend->damping_N_s_per_m = 1e-6;
+  EXPECT_LT(BuildClothModel(dashpot).substeps, model.substeps);
+}
+
 TEST(ClothModelTest, StableStepsMatchKnownStabilityIntervals) {
   // Without damping the limits on the imaginary axis are known: leapfrog/Verlet/symplectic Euler
   // h omega < 2, RK4 h omega < 2 sqrt(2); explicit Euler and midpoint have none.

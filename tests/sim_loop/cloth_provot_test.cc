@@ -375,6 +375,11 @@ TEST(ProvotTest, MultiresolutionHoldsTheShearSpringsOfAHangingCurtain) {
     SimSpec spec = Curtain(32);
     spec.provot.multiresolution = m == 1;
     spec.provot.finish = false;  // the sweeps alone (with it both hold 1.10)
+    // The sweeps alone, at the substep count these figures were measured at (6; auto_safety 0.5).
+    // At the shipped 0.75 (4 substeps) the sweeps alone leave 1.1123 with the levels; the shipped
+    // limiter, finishing worklist included, holds 1.10 there
+    // (ClothStepTest.ShippedSettingsHoldTheStretchLimitAfterEveryFrame).
+    spec.integration.auto_safety = 0.5;
     const ClothModel model = BuildClothModel(spec);
     ClothState state = MakeClothState(model);
     for (int f = 0; f < 120; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
