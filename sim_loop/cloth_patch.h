@@ -73,8 +73,12 @@ enum class PatchRole : uint8_t {
 /// A window follows its centre once the centre is radius / kPatchRecentreFraction particles
 /// (Chebyshev; at least 2) from the window's own centre: hysteresis, so a contact hopping between
 /// nearby particles (a proxy in a crease, a fast swipe) does not move the window back and forth,
-/// each move turning particles from free to driven and back.
-inline constexpr int32_t kPatchRecentreFraction = 2;
+/// each move turning particles from free to driven and back. A quarter of the radius (2 particles
+/// at the default 8) by measurement against the truth (docs/proxy.md, "Where"): at half the radius
+/// the contact strayed to 3-4 particles from the driven rings, which follow a cloth up to a frame
+/// old, and scrub was 0.19 N RMS from the truth (0.13 N at a quarter; 0.13 N at every particle,
+/// but then peaks rose on pin_drag and handwriting).
+inline constexpr int32_t kPatchRecentreFraction = 4;
 
 /// Driven particles approach the drive with this time constant [s] (first order, on top of the
 /// drive's own motion): a particle that was free and turns driven, or a ring the drive's newest
