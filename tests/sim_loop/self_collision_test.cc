@@ -232,10 +232,10 @@ TEST(SelfCollisionScene, PassesPerFrameKeepTheFoldDropClean) {
 }
 
 // Issue 22's other hard cases (scenes/self_fall_10ms.toml, self_tablecloth_pull.toml,
-// self_rail_twist.toml): zero intersecting non-adjacent triangle pairs at the end of every frame by
-// the exact test, no collision left unresolved, none frozen; and each scene, without the section,
-// does intersect (so the first check can fail). Under a sanitizer fewer frames, each run still
-// past the scene's violent part.
+// self_rail_twist.toml, self_fold_press.toml): zero intersecting non-adjacent triangle pairs at the
+// end of every frame by the exact test, no collision left unresolved, none frozen; and each scene,
+// without the section, does intersect (so the first check can fail). Under a sanitizer fewer
+// frames, each run still past the scene's violent part.
 struct HardCase {
   const char* scene;
   int32_t frames;            // release
@@ -275,6 +275,12 @@ TEST(SelfCollisionHardCase, ClothFallingAt10MetresPerSecondOntoItself) {
 TEST(SelfCollisionHardCase, TableclothPulledOffTheTable) {
   constexpr double kUnbounded = std::numeric_limits<double>::infinity();
   ExpectHardCaseClean({"self_tablecloth_pull.toml", 180, 100, kUnbounded, kUnbounded});
+}
+
+// The haptic case's fold without the hand (its haptics: tests/compare/layered_cloth_test.cc): the
+// flap is carried over from t = 0.3 s to 0.8 s (frames 18-48).
+TEST(SelfCollisionHardCase, FoldForTheHand) {
+  ExpectHardCaseClean({"self_fold_press.toml", 120, 60, 5.0, 1.5});
 }
 
 // The right ring passes the middle one at t = 0.97 s (frame 58).
