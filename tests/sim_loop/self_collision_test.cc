@@ -102,7 +102,8 @@ TEST(SelfCollisionScene, TwistIntersectsWithoutTheResponse) {
 }
 
 TEST(SelfCollisionScene, BothCullingMethodsKeepTheFoldDropClean) {
-  for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh}) {
+  for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh,
+                                   SelfCullingMethod::kBvhCones}) {
     SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
     spec.self_collision->method = method;
     const SelfRun run = RunSelfScene(spec, 60);
@@ -177,7 +178,8 @@ TEST(SelfCollisionScene, CopiedStateStepsTheSame) {
 TEST(SelfCollisionScene, CulledDetectionEqualsTheAllPairsReferenceOnEveryFrame) {
   int64_t reference_hits = 0;
   for (const char* scene : {"self_fold_drop.toml", "self_twist.toml"}) {
-    for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh}) {
+    for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh,
+                                     SelfCullingMethod::kBvhCones}) {
       SimSpec spec = SelfCollisionSceneSpec(scene);
       spec.self_collision->method = method;
       const ClothModel model = BuildClothModel(spec);
