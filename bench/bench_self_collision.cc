@@ -47,7 +47,7 @@ struct Args {
   int32_t passes_per_frame = 8;              // SelfCollisionSettings::passes_per_frame
   double broad_inflation = 1.0;              // SelfCollisionSettings::broad_inflation
   std::string methods = "spatial_hash,bvh,bvh_cones";  // culling methods of the response rows
-  std::string detect_methods = "bvh_cones";  // culling methods of the detection row
+  std::string detect_methods = "bvh_cones";            // culling methods of the detection row
   bool reference = true;  // compare with AllPairsCcd (off: for profiling the response alone)
 };
 
@@ -455,8 +455,7 @@ app::CommandRun SelfSetup(CLI::App& cmd) {
       ->check(CLI::Range(0.0, 100.0));
   cmd.add_option("--methods", args->methods, "culling methods of the response rows")
       ->capture_default_str();
-  cmd.add_option("--detect-methods", args->detect_methods,
-                 "culling methods of the detection row")
+  cmd.add_option("--detect-methods", args->detect_methods, "culling methods of the detection row")
       ->capture_default_str();
   cmd.add_flag("!--no-reference", args->reference,
                "skip the all-pairs reference (profiling; missed_vs_reference is not measured)");

@@ -572,8 +572,9 @@ void SelfTriangleCone(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3
 // is star-shaped about the center point c at every t (each directed contour edge (p, q) has
 // V . ((p - c) x (q - c)) > 0, a quadratic in t checked by its three Bernstein coefficients) and
 // winds once around it (counted at t = 0; constant over the step since c never meets the
-// contour; c is the centroid of the center triangle, moving linearly with it), so the projection is one-to-one and no two non-incident primitives of the patch touch
-// (Volino & Magnenat-Thalmann 1994; Schvartzman, Perez & Otaduy 2010, star-contours).
+// contour; c is the centroid of the center triangle, moving linearly with it), so the projection is
+// one-to-one and no two non-incident primitives of the patch touch (Volino & Magnenat-Thalmann
+// 1994; Schvartzman, Perez & Otaduy 2010, star-contours).
 bool SelfBvh::SelfContactFree(int32_t a, int32_t b, const Cone& cone) const {
   const std::span<const Vec3> x0 = step_x0_, x1 = step_x1_;
   const Triangle& ct = triangles_[center_[a]];

@@ -207,13 +207,14 @@ class SelfBvh final : public SelfBroadPhase {
   // Normal cones (options.normal_cones; Volino & Magnenat-Thalmann 1994, Provot 1997, with the
   // continuous normal cones of Tang et al. 2009 and the star contours of Schvartzman et al.
   // 2010): per node its cone over the step, and, for nodes that may be skipped, a center
-  // triangle (its centroid is the star's center) and its directed contour edges contour_[contour_begin_[node] .. contour_begin_[node + 1]).
+  // triangle (its centroid is the star's center) and its directed contour edges
+  // contour_[contour_begin_[node] .. contour_begin_[node + 1]).
   bool normal_cones_ = false;
-  std::vector<Cone> cone_;                         ///< [nodes]
-  std::vector<int32_t> center_;                    ///< [nodes] center triangle, -1: never skipped
-  std::vector<int32_t> contour_begin_;             ///< [nodes + 1]
-  std::vector<std::array<int32_t, 2>> contour_;    ///< directed contour edges (region on the left)
-  std::span<const Vec3> step_x0_, step_x1_;        ///< the step being traversed
+  std::vector<Cone> cone_;                       ///< [nodes]
+  std::vector<int32_t> center_;                  ///< [nodes] center triangle, -1: never skipped
+  std::vector<int32_t> contour_begin_;           ///< [nodes + 1]
+  std::vector<std::array<int32_t, 2>> contour_;  ///< directed contour edges (region on the left)
+  std::span<const Vec3> step_x0_, step_x1_;      ///< the step being traversed
   int32_t cone_culled_ = 0;
   int32_t union_culled_ = 0;
 };

@@ -262,12 +262,11 @@ int64_t SelfCollisionResponse::DetectAll(std::span<const Vec3> x1, SelfCollision
     for (const SelfCandidate& c : cands) {
       CcdPairHit h;
       ++stats->narrow_tests;
-      const bool hit =
-          c.kind == CcdPairHit::Kind::kVertexTriangle
-              ? VertexTrianglePairHit(x_before_, x1, c.first, c.second, triangles_[c.second],
-                                      options, &h)
-              : EdgeEdgePairHit(x_before_, x1, c.first, edges[c.first], c.second,
-                                edges[c.second], options, &h);
+      const bool hit = c.kind == CcdPairHit::Kind::kVertexTriangle
+                           ? VertexTrianglePairHit(x_before_, x1, c.first, c.second,
+                                                   triangles_[c.second], options, &h)
+                           : EdgeEdgePairHit(x_before_, x1, c.first, edges[c.first], c.second,
+                                             edges[c.second], options, &h);
       if (!hit) continue;
       ++hits;
       if (hits_.size() < hits_.capacity()) hits_.push_back(h);
