@@ -182,9 +182,9 @@ struct ProvotSpec {
 /// scene declares [self_collision].
 struct SelfCollisionSpec {
   double thickness_m = 0.002;  ///< cloth thickness, m, > 0 and below half the grid spacing
-  /// Broad phase; the BVH by default: cheaper than the hash at every size of
-  /// bench/results/self_collision.md (31.7 vs 57.8 ms per frame at 32 x 32, 111 vs 141 at 64).
-  SelfCullingMethod method = SelfCullingMethod::kBvh;
+  /// Broad phase; the BVH with normal cones by default: the cheapest in
+  /// bench/results/self_collision.md at 32 x 32 and 64 x 64 (issue 22).
+  SelfCullingMethod method = SelfCullingMethod::kBvhCones;
   int32_t iterations = 4;  ///< CCD impulse rounds per substep, in [0, 100]
   double friction = 0.1;   ///< Coulomb coefficient between layers, >= 0
   bool fail_safe = true;   ///< rigid impact zones when the impulses leave collisions

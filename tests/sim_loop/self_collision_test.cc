@@ -103,7 +103,8 @@ TEST(SelfCollisionScene, TwistIntersectsWithoutTheResponse) {
 }
 
 TEST(SelfCollisionScene, BothCullingMethodsKeepTheFoldDropClean) {
-  for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh}) {
+  for (SelfCullingMethod method :
+       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
     SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
     spec.self_collision->method = method;
     const SelfRun run = RunSelfScene(spec, 60);
@@ -178,7 +179,8 @@ TEST(SelfCollisionScene, CopiedStateStepsTheSame) {
 TEST(SelfCollisionScene, CulledDetectionEqualsTheAllPairsReferenceOnEveryFrame) {
   int64_t reference_hits = 0;
   for (const char* scene : {"self_fold_drop.toml", "self_twist.toml"}) {
-    for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh}) {
+    for (SelfCullingMethod method :
+         {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
       SimSpec spec = SelfCollisionSceneSpec(scene);
       spec.self_collision->method = method;
       const ClothModel model = BuildClothModel(spec);
@@ -313,7 +315,7 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   const SimSpec defaults =
       ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n[self_collision]\n", "d.toml"));
   ASSERT_TRUE(defaults.self_collision.has_value());
-  EXPECT_EQ(defaults.self_collision->method, SelfCullingMethod::kBvh);  // measured cheaper
+  EXPECT_EQ(defaults.self_collision->method, SelfCullingMethod::kBvhCones);  // measured cheapest
   EXPECT_EQ(defaults.self_collision->thickness_m, 0.002);
   EXPECT_TRUE(defaults.self_collision->fail_safe);
 
