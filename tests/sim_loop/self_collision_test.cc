@@ -147,15 +147,22 @@ TEST(SelfCollisionScene, CountersAndOptInIntersectionCount) {
   EXPECT_EQ(plain_state.counters.self_impulses, 0u);
 }
 
-// StepFrame with [self_collision] allocates nothing, once the folds have formed.
+// StepFrame with [self_collision] allocates nothing, once the folds have formed, with every
+// culling method.
 TEST(SelfCollisionScene, StepFrameDoesNotAllocate) {
-  const ClothModel model = BuildClothModel(SelfCollisionSceneSpec("self_fold_drop.toml"));
-  ClothState state = MakeClothState(model);
-  for (int f = 0; f < 40; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
-  AllocationGuard guard;
-  for (int f = 0; f < 5; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
-  EXPECT_EQ(guard.allocations(), 0u);
-  EXPECT_GT(state.counters.self_proximity_pairs, 0u);
+  for (SelfCullingMethod method :
+       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
+    SCOPED_TRACE(SelfCullingMethodName(method));
+    SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
+    spec.self_collision->method = method;
+    const ClothModel model = BuildClothModel(spec);
+    ClothState state = MakeClothState(model);
+    for (int f = 0; f < 40; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
+    AllocationGuard guard;
+    for (int f = 0; f < 5; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
+    EXPECT_EQ(guard.allocations(), 0u);
+    EXPECT_GT(state.counters.self_proximity_pairs, 0u);
+  }
 }
 
 // A copied state owns its own response (ClothState's deep copy): stepping both gives the same.
