@@ -16,28 +16,13 @@
 
 #include "collision/ccd_all_pairs.h"
 #include "collision/self_broadphase.h"
+#include "tests/collision/collision_test_util.h"
 
 namespace felt {
 namespace {
 
-std::vector<Vec3> ConeFlatGrid(int32_t w, int32_t h, double step) {
-  std::vector<Vec3> x;
-  for (int32_t r = 0; r < h; ++r) {
-    for (int32_t c = 0; c < w; ++c) x.emplace_back(c * step, r * step, 0.0);
-  }
-  return x;
-}
-
-// The grid turned by `angle` [rad] about the line x = hinge * step beyond it (pi: flat on top).
-std::vector<Vec3> ConeFoldedGrid(int32_t w, int32_t hinge, double step, double angle) {
-  std::vector<Vec3> x = ConeFlatGrid(w, w, step);
-  const double x_hinge = hinge * step;
-  for (Vec3& p : x) {
-    const double d = p.x() - x_hinge;
-    if (d > 0.0) p = Vec3(x_hinge + d * std::cos(angle), p.y(), d * std::sin(angle));
-  }
-  return x;
-}
+using testing::HingedGrid;
+using testing::SpacedGrid;
 
 // Runs SelfCcd with normal cones on x0 -> x1 and compares with AllPairsCcd at thickness h;
 // returns the number of reference hits and the patches the cones skipped.
@@ -79,12 +64,12 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
     const int32_t w = 16;
     const double step = 0.05, h = 0.002;
     const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-    const std::vector<Vec3> rest = ConeFlatGrid(w, w, step);
-    ConeCheck(rest, ConeFoldedGrid(w, 7, step, pi - 10 * pi / 180),
-              ConeFoldedGrid(w, 7, step, pi + 10 * pi / 180), tris, h, "fold through",
+    const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+    ConeCheck(rest, HingedGrid(w, 7, step, pi - 10 * pi / 180),
+              HingedGrid(w, 7, step, pi + 10 * pi / 180), tris, h, "fold through",
               &reference_hits, &culled);
     // Folded flat at 1.5 h above the bottom layer, coming down to contact and through it.
-    std::vector<Vec3> x0 = ConeFoldedGrid(w, 7, step, pi), x1 = x0;
+    std::vector<Vec3> x0 = HingedGrid(w, 7, step, pi), x1 = x0;
     for (size_t i = 0; i < x0.size(); ++i) {
       if (rest[i].x() > 7 * step + 1e-9) {
         x0[i].z() += 1.5 * h + 0.3 * step;
@@ -100,7 +85,7 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
     const int32_t w = 20;
     const double step = 0.02, h = 0.001;
     const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-    const std::vector<Vec3> rest = ConeFlatGrid(w, w, step);
+    const std::vector<Vec3> rest = SpacedGrid(w, w, step);
     const double amp = 0.02 * (1 + c), phase = 0.3 * c;
     std::vector<Vec3> x0 = rest, x1 = rest;
     for (size_t i = 0; i < rest.size(); ++i) {
@@ -117,7 +102,7 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
     const int32_t w = 14, hinge = 7;
     const double step = 0.04, h = 0.001;
     const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-    const std::vector<Vec3> rest = ConeFlatGrid(w, w, step);
+    const std::vector<Vec3> rest = SpacedGrid(w, w, step);
     std::vector<Vec3> x0 = rest, x1 = rest;
     for (size_t i = 0; i < rest.size(); ++i) {
       const int32_t col = static_cast<int32_t>(i) % w;
@@ -134,7 +119,7 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
     const int32_t w = 6, len = 40;
     const double step = 0.01, h = 0.0005;
     const std::vector<Triangle> tris = MakeGridTriangles(w, len);
-    const std::vector<Vec3> rest = ConeFlatGrid(w, len, step);
+    const std::vector<Vec3> rest = SpacedGrid(w, len, step);
     std::vector<Vec3> x0 = rest, x1 = rest;
     for (size_t i = 0; i < rest.size(); ++i) {
       const double u = rest[i].x() - 0.5 * (w - 1) * step, v = rest[i].y();
@@ -151,7 +136,7 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
   {
     const int32_t w = 5, len = 80;
     const std::vector<Triangle> tris = MakeGridTriangles(w, len);
-    const std::vector<Vec3> rest = ConeFlatGrid(w, len, 0.01);
+    const std::vector<Vec3> rest = SpacedGrid(w, len, 0.01);
     std::vector<Vec3> x0 = rest, x1 = rest;
     for (size_t i = 0; i < rest.size(); ++i) {
       const double r = 0.1 + rest[i].x();
