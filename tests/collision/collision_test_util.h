@@ -49,6 +49,23 @@ inline std::vector<Vec3> HingedGrid(int32_t w, int32_t hinge, double step, doubl
   return x;
 }
 
+/// A U-fold falling through itself: on a w x w SpacedGrid, the columns past `hinge` lie mirrored
+/// over the others at height `gap` [m] (x0) and fall by `fall` [m] through them by x1, each end
+/// shifted in-plane by 0.1 step N(0, 1) draws from `rng` (slightly crumpled).
+inline void FallingUFold(int32_t w, int32_t hinge, double step, double gap, double fall,
+                         std::mt19937_64& rng, std::vector<Vec3>* x0, std::vector<Vec3>* x1) {
+  std::normal_distribution<double> n01(0.0, 1.0);
+  *x0 = SpacedGrid(w, w, step);
+  *x1 = *x0;
+  for (size_t i = 0; i < x0->size(); ++i) {
+    const int32_t col = static_cast<int32_t>(i) % w;
+    if (col <= hinge) continue;
+    (*x0)[i].x() = (2 * hinge - col) * step + 0.3 * step;
+    (*x0)[i].z() = gap;
+    (*x1)[i] = (*x0)[i] + Vec3(0.0, 0.0, -fall) + 0.1 * step * Vec3(n01(rng), n01(rng), 0.0);
+  }
+}
+
 /// The five test cloths on a w x w grid (w odd so the fold lies on a vertex row).
 inline std::vector<TestCloth> MakeTestCloths(int32_t w, uint32_t seed) {
   std::mt19937_64 rng(seed);

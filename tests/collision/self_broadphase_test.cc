@@ -201,18 +201,10 @@ TEST(SelfBroadPhaseTest, ClothFallingOntoItselfMatchesAllPairs) {
   const int32_t w = 12, hinge = 6;
   const double step = 0.04, h = 0.001, gap = 0.01, fall = 0.05;
   std::mt19937_64 rng(7);
-  std::normal_distribution<double> n01(0.0, 1.0);
   const std::vector<Triangle> tris = MakeGridTriangles(w, w);
   const std::vector<Vec3> rest = SpacedGrid(w, w, step);
-  std::vector<Vec3> x0 = rest, x1 = rest;
-  for (size_t i = 0; i < rest.size(); ++i) {
-    const int32_t col = static_cast<int32_t>(i) % w;
-    if (col > hinge) {
-      x0[i].x() = (2 * hinge - col) * step + 0.3 * step;
-      x0[i].z() = gap;
-      x1[i] = x0[i] + Vec3(0.0, 0.0, -fall) + 0.1 * step * Vec3(n01(rng), n01(rng), 0.0);
-    }
-  }
+  std::vector<Vec3> x0, x1;
+  testing::FallingUFold(w, hinge, step, gap, fall, rng, &x0, &x1);
   size_t n = 0;
   CheckAgainstReference(rest, x0, x1, tris, h, "falling", &n);
   EXPECT_GT(n, 20u);

@@ -103,15 +103,8 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
     const double step = 0.04, h = 0.001;
     const std::vector<Triangle> tris = MakeGridTriangles(w, w);
     const std::vector<Vec3> rest = SpacedGrid(w, w, step);
-    std::vector<Vec3> x0 = rest, x1 = rest;
-    for (size_t i = 0; i < rest.size(); ++i) {
-      const int32_t col = static_cast<int32_t>(i) % w;
-      if (col > hinge) {
-        x0[i].x() = (2 * hinge - col) * step + 0.3 * step;
-        x0[i].z() = 0.01;
-        x1[i] = x0[i] + Vec3(0.0, 0.0, -0.05) + 0.1 * step * Vec3(n01(rng), n01(rng), 0.0);
-      }
-    }
+    std::vector<Vec3> x0, x1;
+    testing::FallingUFold(w, hinge, step, 0.01, 0.05, rng, &x0, &x1);
     ConeCheck(rest, x0, x1, tris, h, "falling", &reference_hits, &culled);
   }
   // A strip twisted by a full turn along its length, twisting further in the step.
