@@ -432,8 +432,9 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
       if (centroid[a][axis] != centroid[b][axis]) return centroid[a][axis] < centroid[b][axis];
       return a < b;
     };
-    std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, less);
-    if (options.normal_cones) {
+    if (!options.normal_cones) {
+      std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, less);
+    } else {
       // Normal cones want patches with straight sides (star-shaped contours): split where the
       // centroid coordinate changes, not inside a run of equal ones (a grid's row or column,
       // which a split by index would notch), at the change nearest the median.

@@ -99,7 +99,6 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   } else if (settings.method == SelfCullingMethod::kBvhCones) {
     SelfBroadPhaseOptions options;
     options.normal_cones = true;
-    options.max_candidates = 64 * (static_cast<int64_t>(x.size()) + 3 * std::ssize(triangles));
     bvh_.emplace(triangles, x, options);
     cones_ = true;
   } else {
