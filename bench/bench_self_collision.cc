@@ -46,7 +46,8 @@ struct Args {
   int32_t detect_frames = 60;                // its frames
   int32_t passes_per_frame = 8;              // SelfCollisionSettings::passes_per_frame
   double broad_inflation = 1.0;              // SelfCollisionSettings::broad_inflation
-  std::string methods = "spatial_hash,bvh";  // culling methods of the response rows
+  std::string methods = "spatial_hash,bvh,bvh_cones";  // culling methods of the response rows
+  std::string detect_methods = "bvh_cones";            // culling methods of the detection row
   bool reference = true;  // compare with AllPairsCcd (off: for profiling the response alone)
 };
 
@@ -228,7 +229,8 @@ std::string SelfCommand(const Args& args) {
     cmd += " --passes-per-frame " + std::to_string(args.passes_per_frame);
   }
   if (args.broad_inflation != 1.0) cmd += " --broad-inflation " + Sig(args.broad_inflation, 3);
-  if (args.methods != "spatial_hash,bvh") cmd += " --methods " + args.methods;
+  if (args.methods != "spatial_hash,bvh,bvh_cones") cmd += " --methods " + args.methods;
+  if (args.detect_methods != "bvh_cones") cmd += " --detect-methods " + args.detect_methods;
   if (!args.reference) cmd += " --no-reference";
   if (!args.json.empty()) cmd += " --json " + args.json;
   return cmd;
@@ -275,9 +277,18 @@ int Run(Args args) {
     }
   }
   if (args.detect_grid > 0) {
-    // The ~45k-triangle cloth (002's sizes) for the detection target: BVH only (the cheaper
-    // method at every size), the exact count every 10th frame, the reference every 20th.
-    for (const std::string method : {"off", "bvh"}) {
+    // The ~45k-triangle cloth (002's sizes) for the detection target (--detect-methods), the
+    // exact count every 10th frame, the reference every 20th.
+    std::vector<std::string> detect_methods = {"off"};
+    std::stringstream in(args.detect_methods);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+      if (!SelfCullingMethodFromName(item)) {
+        throw std::invalid_argument("--detect-methods: unknown culling method '" + item + "'");
+      }
+      detect_methods.push_back(item);
+    }
+    for (const std::string& method : detect_methods) {
       run(args.detect_grid, method, args.detect_frames, 10, args.reference ? 20 : 0, "detection");
     }
   }
@@ -443,6 +454,8 @@ app::CommandRun SelfSetup(CLI::App& cmd) {
                  "extra broad-phase padding, in thicknesses (0: a broad phase every pass)")
       ->check(CLI::Range(0.0, 100.0));
   cmd.add_option("--methods", args->methods, "culling methods of the response rows")
+      ->capture_default_str();
+  cmd.add_option("--detect-methods", args->detect_methods, "culling methods of the detection row")
       ->capture_default_str();
   cmd.add_flag("!--no-reference", args->reference,
                "skip the all-pairs reference (profiling; missed_vs_reference is not measured)");

@@ -376,12 +376,46 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
     const Triangle& t = triangles_[ti];
     centroid[ti] = (x[t[0]] + x[t[1]] + x[t[2]]) / 3.0;
   }
+  if (options.normal_cones) {
+    // Normal cones want patches with straight sides (star-shaped contours): two triangles that
+    // share their longest edge (a quad's halves) are split on their common centroid, so that no
+    // split runs along a quad's diagonal and leaves a sawtooth contour.
+    std::vector<std::array<int32_t, 2>> longest(triangles_.size(), {-1, -1});
+    std::vector<std::array<int32_t, 3>> keyed;  // (edge lo, edge hi, triangle)
+    for (int32_t ti = 0; ti < nt; ++ti) {
+      const Triangle& t = triangles_[ti];
+      int32_t best = 0;
+      for (int32_t k = 1; k < 3; ++k) {
+        if ((x[t[(k + 1) % 3]] - x[t[k]]).squaredNorm() >
+            (x[t[(best + 1) % 3]] - x[t[best]]).squaredNorm()) {
+          best = k;
+        }
+      }
+      const int32_t a = t[best], b = t[(best + 1) % 3];
+      keyed.push_back({std::min(a, b), std::max(a, b), ti});
+    }
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<Vec3> paired = centroid;
+    for (size_t i = 0; i + 1 < keyed.size(); ++i) {
+      if (keyed[i][0] == keyed[i + 1][0] && keyed[i][1] == keyed[i + 1][1] &&
+          (i + 2 == keyed.size() || keyed[i + 2][0] != keyed[i][0] ||
+           keyed[i + 2][1] != keyed[i][1])) {
+        const Vec3 mid_point = 0.5 * (centroid[keyed[i][2]] + centroid[keyed[i + 1][2]]);
+        paired[keyed[i][2]] = mid_point;
+        paired[keyed[i + 1][2]] = mid_point;
+        ++i;
+      }
+    }
+    centroid = paired;
+  }
   std::vector<int32_t> order(triangles_.size());
   std::iota(order.begin(), order.end(), 0);
+  std::vector<std::array<int32_t, 2>> range;  // [nodes] the node's triangles: order[begin, end)
   const auto build = [&](auto&& self, int32_t begin, int32_t end) -> int32_t {
     const int32_t node = static_cast<int32_t>(left_.size());
     left_.push_back(-1);
     right_.push_back(-1);
+    range.push_back({begin, end});
     if (end - begin == 1) {
       right_[node] = order[begin];
       return node;
@@ -393,14 +427,28 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
     }
     int32_t axis = 0;
     (hi - lo).maxCoeff(&axis);
-    const int32_t mid = begin + (end - begin) / 2;
-    std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end,
-                     [&](int32_t a, int32_t b) {
-                       if (centroid[a][axis] != centroid[b][axis]) {
-                         return centroid[a][axis] < centroid[b][axis];
-                       }
-                       return a < b;
-                     });
+    int32_t mid = begin + (end - begin) / 2;
+    const auto less = [&](int32_t a, int32_t b) {
+      if (centroid[a][axis] != centroid[b][axis]) return centroid[a][axis] < centroid[b][axis];
+      return a < b;
+    };
+    if (!options.normal_cones) {
+      std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, less);
+    } else {
+      // Normal cones want patches with straight sides (star-shaped contours): split where the
+      // centroid coordinate changes, not inside a run of equal ones (a grid's row or column,
+      // which a split by index would notch), at the change nearest the median.
+      std::sort(order.begin() + begin, order.begin() + end, less);
+      int32_t run_lo = mid, run_hi = mid;
+      const double m = centroid[order[mid]][axis];
+      while (run_lo > begin && centroid[order[run_lo - 1]][axis] == m) --run_lo;
+      while (run_hi < end && centroid[order[run_hi]][axis] == m) ++run_hi;
+      if (run_lo > begin && (run_hi == end || mid - run_lo <= run_hi - mid)) {
+        mid = run_lo;
+      } else if (run_hi < end) {
+        mid = run_hi;
+      }
+    }
     const int32_t l = self(self, begin, mid);
     const int32_t r = self(self, mid, end);
     left_[node] = l;
@@ -413,6 +461,191 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
   // Pre-order reversed: children before parents.
   refit_order_.resize(left_.size());
   std::iota(refit_order_.rbegin(), refit_order_.rend(), 0);
+  normal_cones_ = options.normal_cones;
+  if (normal_cones_) BuildContours(x, order, range);
+}
+
+// Set-up of the normal-cone test: for every node of at least kSelfConeMinTriangles triangles
+// whose triangles form a consistently oriented manifold patch (each edge used once, or twice in
+// opposite directions, never degenerate), its contour (the directed edges used once, the patch on
+// their left) and a center triangle (the one whose centroid is nearest the patch's mean at x).
+// Other nodes get center -1 and are never skipped.
+void SelfBvh::BuildContours(std::span<const Vec3> x, const std::vector<int32_t>& order,
+                            const std::vector<std::array<int32_t, 2>>& range) {
+  constexpr int32_t kSelfConeMinTriangles = 2;
+  const size_t nodes = left_.size();
+  cone_.assign(nodes, Cone{});
+  center_.assign(nodes, -1);
+  contour_begin_.assign(nodes + 1, 0);
+  contour_.clear();
+  struct DirectedEdge {
+    int32_t lo, hi, from, to;
+  };
+  std::vector<DirectedEdge> es;
+  for (size_t node = 0; node < nodes; ++node) {
+    contour_begin_[node] = static_cast<int32_t>(contour_.size());
+    const auto [begin, end] = range[node];
+    if (end - begin < kSelfConeMinTriangles) continue;
+    es.clear();
+    bool ok = true;
+    for (int32_t i = begin; i < end && ok; ++i) {
+      const Triangle& t = triangles_[order[i]];
+      for (int32_t k = 0; k < 3; ++k) {
+        const int32_t a = t[k], b = t[(k + 1) % 3];
+        if (a == b) ok = false;
+        es.push_back({std::min(a, b), std::max(a, b), a, b});
+      }
+    }
+    if (!ok) continue;
+    std::sort(es.begin(), es.end(), [](const DirectedEdge& p, const DirectedEdge& q) {
+      return p.lo != q.lo ? p.lo < q.lo : p.hi < q.hi;
+    });
+    const size_t first = contour_.size();
+    for (size_t i = 0; i < es.size() && ok;) {
+      size_t j = i + 1;
+      while (j < es.size() && es[j].lo == es[i].lo && es[j].hi == es[i].hi) ++j;
+      if (j - i == 1) {
+        contour_.push_back({es[i].from, es[i].to});
+      } else if (j - i != 2 || es[i].from == es[i + 1].from) {
+        ok = false;  // non-manifold or inconsistently oriented
+      }
+      i = j;
+    }
+    if (!ok || contour_.size() == first) {
+      contour_.resize(first);
+      continue;
+    }
+    // The center: the centroid of the patch's triangle whose centroid is nearest the patch's
+    // mean (strictly inside that triangle, so on no contour edge, and off the grid's lines).
+    Vec3 mean = Vec3::Zero();
+    for (int32_t i = begin; i < end; ++i) {
+      const Triangle& t = triangles_[order[i]];
+      mean += (x[t[0]] + x[t[1]] + x[t[2]]) / 3.0;
+    }
+    mean /= static_cast<double>(end - begin);
+    double best = std::numeric_limits<double>::infinity();
+    for (int32_t i = begin; i < end; ++i) {
+      const Triangle& t = triangles_[order[i]];
+      const double d = ((x[t[0]] + x[t[1]] + x[t[2]]) / 3.0 - mean).squaredNorm();
+      if (d < best) {
+        best = d;
+        center_[node] = order[i];
+      }
+    }
+    if (center_[node] < 0) contour_.resize(first);
+  }
+  contour_begin_[nodes] = static_cast<int32_t>(contour_.size());
+}
+
+namespace {
+
+// The cone of a triangle's normal over the step (Tang, Curtis, Yoon & Manocha 2009, continuous
+// normal cones): with A(t) = b(t) - a(t), B(t) = c(t) - a(t) linear in t, the normal
+// n(t) = A(t) x B(t) = (1-t)^2 N0 + 2 t (1-t) Nm + t^2 N1 (Bernstein form), N0 = A0 x B0,
+// N1 = A1 x B1, Nm = (A0 x B1 + A1 x B0) / 2, so n(t) is a non-negative combination of the three
+// and lies in any cone holding them. Axis: the sum of their directions; cos_half <= 0: no cone
+// (a degenerate triangle at an end of the step).
+void SelfTriangleCone(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3& a1,
+                      const Vec3& b1, const Vec3& c1, Vec3* axis, double* cos_half) {
+  const Vec3 A0 = b0 - a0, B0 = c0 - a0, A1 = b1 - a1, B1 = c1 - a1;
+  const Vec3 n0 = A0.cross(B0), n1 = A1.cross(B1), nm = 0.5 * (A0.cross(B1) + A1.cross(B0));
+  const double l0 = n0.norm(), l1 = n1.norm(), lm = nm.norm();
+  *cos_half = -1.0;
+  if (!(l0 > 0.0) || !(l1 > 0.0)) return;
+  const Vec3 u0 = n0 / l0, u1 = n1 / l1;
+  const Vec3 um = lm > 0.0 ? Vec3(nm / lm) : Vec3(Vec3::Zero());
+  const Vec3 s = u0 + u1 + um;
+  const double ls = s.norm();
+  if (!(ls > 1e-6)) return;
+  *axis = s / ls;
+  double c = std::min(axis->dot(u0), axis->dot(u1));
+  if (lm > 0.0) c = std::min(c, axis->dot(um));
+  *cos_half = c - 1e-12;  // rounding margin
+}
+
+}  // namespace
+
+// True when the patch of node a (with b >= 0: of nodes a and b together) is certified free of
+// contact between non-incident primitives over the step, `cone` (axis V, below pi/2) holding
+// every normal of the patch over the step:
+// projected along V every triangle keeps its orientation, so a generic point of the plane has as
+// many preimages in the patch as the projected contour's winding number around it; the contour
+// is star-shaped about the center point c at every t (each directed contour edge (p, q) has
+// V . ((p - c) x (q - c)) > 0, a quadratic in t checked by its three Bernstein coefficients) and
+// winds once around it (counted at t = 0; constant over the step since c never meets the
+// contour; c is the centroid of the center triangle, moving linearly with it), so the projection is
+// one-to-one and no two non-incident primitives of the patch touch (Volino & Magnenat-Thalmann
+// 1994; Schvartzman, Perez & Otaduy 2010, star-contours).
+bool SelfBvh::SelfContactFree(int32_t a, int32_t b, const Cone& cone) const {
+  const std::span<const Vec3> x0 = step_x0_, x1 = step_x1_;
+  const Triangle& ct = triangles_[center_[a]];
+  const Vec3 c0 = (x0[ct[0]] + x0[ct[1]] + x0[ct[2]]) / 3.0;
+  const Vec3 c1 = (x1[ct[0]] + x1[ct[1]] + x1[ct[2]]) / 3.0;
+  const Vec3& V = cone.axis;
+  // A unit u normal to V, and w = V x u: (u, w, V) is right-handed.
+  int32_t k = 0;
+  V.cwiseAbs().minCoeff(&k);
+  const Vec3 u = V.cross(Vec3::Unit(k)).normalized();
+  const Vec3 w = V.cross(u);
+  int32_t winding = 0;
+  // One contour edge p -> q: counter-clockwise about c over the whole step, and its crossing of
+  // the ray from c along u at t = 0 counted.
+  const auto edge_ok = [&](const std::array<int32_t, 2>& e) {
+    const Vec3 a0 = x0[e[0]] - c0, a1 = x1[e[0]] - c1;
+    const Vec3 b0 = x0[e[1]] - c0, b1 = x1[e[1]] - c1;
+    const double g0 = V.dot(a0.cross(b0));
+    const double g2 = V.dot(a1.cross(b1));
+    const double g1 = 0.5 * (V.dot(a0.cross(b1)) + V.dot(a1.cross(b0)));
+    const double tol =
+        1e-12 * (a0.squaredNorm() + a1.squaredNorm() + b0.squaredNorm() + b1.squaredNorm());
+    if (!(g0 > tol && g1 > tol && g2 > tol)) return false;
+    if (a0.dot(w) < 0.0 && b0.dot(w) >= 0.0) ++winding;
+    return true;
+  };
+  const auto key_less = [](const std::array<int32_t, 2>& e, const std::array<int32_t, 2>& f) {
+    const int32_t elo = std::min(e[0], e[1]), flo = std::min(f[0], f[1]);
+    if (elo != flo) return elo < flo;
+    return std::max(e[0], e[1]) < std::max(f[0], f[1]);
+  };
+  int32_t i = contour_begin_[a];
+  const int32_t i_end = contour_begin_[a + 1];
+  int32_t j = b >= 0 ? contour_begin_[b] : 0;
+  const int32_t j_end = b >= 0 ? contour_begin_[b + 1] : 0;
+  // The union's contour: both contours (each sorted by undirected edge) merged, an edge that one
+  // patch has in each direction being interior to the union.
+  while (i < i_end || j < j_end) {
+    if (j == j_end || (i < i_end && key_less(contour_[i], contour_[j]))) {
+      if (!edge_ok(contour_[i++])) return false;
+    } else if (i == i_end || key_less(contour_[j], contour_[i])) {
+      if (!edge_ok(contour_[j++])) return false;
+    } else {
+      if (contour_[i][0] == contour_[j][0]) return false;  // same direction: not a surface
+      ++i;
+      ++j;
+    }
+  }
+  return winding == 1;
+}
+
+SelfBvh::Cone SelfBvh::MergeCones(const Cone& l, const Cone& r) {
+  Cone cone;
+  if (l.cos_half > 1e-9 && r.cos_half > 1e-9) {
+    const Vec3 s = l.axis + r.axis;
+    const double ls = s.norm();
+    if (ls > 1e-6) {
+      cone.axis = s / ls;
+      double c = 2.0;
+      for (const Cone* child : {&l, &r}) {
+        const double ca = std::clamp(cone.axis.dot(child->axis), -1.0, 1.0);
+        const double sa = std::sqrt(std::max(0.0, 1.0 - ca * ca));
+        c = std::min(c, ca * child->cos_half - sa * child->sin_half);
+      }
+      cone.cos_half = c - 1e-12;
+    }
+  }
+  cone.sin_half =
+      cone.cos_half > 1e-9 ? std::sqrt(std::max(0.0, 1.0 - cone.cos_half * cone.cos_half)) : 1.0;
+  return cone;
 }
 
 bool SelfBvh::Overlap(int32_t a, int32_t b) const {
@@ -448,20 +681,66 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
       node_hi_[node] = node_hi_[left_[node]].cwiseMax(node_hi_[right_[node]]);
     }
   }
+  cone_culled_ = 0;
+  union_culled_ = 0;
+  if (normal_cones_) {
+    // Normal cones over the step, bottom-up: a leaf's from its triangle (SelfTriangleCone), a
+    // parent's around the bisector of its children's axes, wide enough for both (half-angle
+    // max(angle(axis, child axis) + child half-angle), by cos(x + y) = cos x cos y - sin x sin y;
+    // 1e-12 kept back per level for rounding). cos_half <= 1e-9: no cone below pi/2.
+    for (int32_t node : refit_order_) {
+      Cone& cone = cone_[node];
+      if (left_[node] < 0) {
+        const Triangle& t = triangles_[right_[node]];
+        SelfTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], x1[t[0]], x1[t[1]], x1[t[2]], &cone.axis,
+                         &cone.cos_half);
+      } else {
+        cone = MergeCones(cone_[left_[node]], cone_[right_[node]]);
+        continue;
+      }
+      cone.sin_half =
+          cone.cos_half > 1e-9 ? std::sqrt(std::max(0.0, 1.0 - cone.cos_half * cone.cos_half)) : 1;
+    }
+    step_x0_ = x0;
+    step_x1_ = x1;
+  }
   Traverse(0, 0, &stats);
   return stats;
 }
+
+namespace {
+// The union test of two patches is tried only when their contours have this many edges together
+// (for smaller patches, descending to the leaf pairs is as cheap as the test).
+constexpr int32_t kSelfUnionMinContour = 16;
+}  // namespace
 
 void SelfBvh::Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats) {
   // A node against itself: its children against themselves and each other.
   if (a == b) {
     if (left_[a] < 0) return;  // one triangle: its own features are all incident
+    // A patch certified free of self-contact over the step is not traversed against itself.
+    if (normal_cones_ && center_[a] >= 0 && cone_[a].cos_half > 1e-9 &&
+        SelfContactFree(a, -1, cone_[a])) {
+      ++cone_culled_;
+      return;
+    }
     Traverse(left_[a], left_[a], stats);
     Traverse(right_[a], right_[a], stats);
     Traverse(left_[a], right_[a], stats);
     return;
   }
   if (!Overlap(a, b)) return;
+  // Two patches certified together (their union's cone below pi/2, its contour star-shaped):
+  // no pair between them (Tang et al. 2009's adjacent-patch test).
+  if (normal_cones_ && center_[a] >= 0 && center_[b] >= 0 &&
+      contour_begin_[a + 1] - contour_begin_[a] + contour_begin_[b + 1] - contour_begin_[b] >=
+          kSelfUnionMinContour) {
+    const Cone both = MergeCones(cone_[a], cone_[b]);
+    if (both.cos_half > 1e-9 && SelfContactFree(a, b, both)) {
+      ++union_culled_;
+      return;
+    }
+  }
   const bool leaf_a = left_[a] < 0, leaf_b = left_[b] < 0;
   if (leaf_a && leaf_b) {
     LeafPair(a, b, stats);

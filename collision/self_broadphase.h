@@ -63,6 +63,11 @@ struct SelfBroadPhaseOptions {
   /// SelfSpatialHash: (primitive, cell) entries per step; 0 = 16 x (vertices + edges). A
   /// primitive whose cells no longer fit is tested against every other instead.
   int64_t max_entries = 0;
+  /// SelfBvh: skip a node against itself when its triangles' normals over the step lie in a cone
+  /// of half-angle < pi/2 and its contour is star-shaped about one of its vertices in the plane
+  /// normal to the cone's axis, over the whole step (see SelfBvh). Pairs in contact are never
+  /// lost; pairs within the thickness without contact inside such a node are not reported.
+  bool normal_cones = false;
 };
 
 /// The interface of a self-collision broad phase. Not thread-safe (one step at a time).
@@ -71,7 +76,8 @@ class SelfBroadPhase {
   virtual ~SelfBroadPhase() = default;
   /// Candidates of the step x0 -> x1 [m] with thickness h = thickness_m [m, > 0]: every
   /// vertex-triangle and edge-edge pair sharing no vertex whose swept boxes padded by
-  /// h (1 + 1e-5) / 2 overlap, each once, in no particular order; stored in candidates() up to
+  /// h (1 + 1e-5) / 2 overlap (with SelfBvh's normal cones: except pairs inside a node certified
+  /// free of self-contact), each once, in no particular order; stored in candidates() up to
   /// its capacity. x0, x1 must have as many entries as the positions given at construction.
   /// Real-time safe (no allocation, no exceptions; aborts on a size mismatch).
   virtual SelfBroadPhaseStats FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
@@ -167,8 +173,23 @@ class SelfBvh final : public SelfBroadPhase {
   SelfBroadPhaseStats FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
                                      double thickness_m) override;
   int32_t num_nodes() const { return static_cast<int32_t>(node_lo_.size()); }  ///< tree nodes
+  /// Nodes skipped against themselves by the normal-cone test in the last FindCandidates.
+  int32_t cone_culled() const { return cone_culled_; }
+  /// Pairs of nodes skipped by the normal-cone test of their union in the last FindCandidates.
+  int32_t union_culled() const { return union_culled_; }
 
  private:
+  /// A cone of directions: unit axis and cosine / sine of its half-angle; cos_half <= 0 means
+  /// "no cone below pi/2" (the node is never skipped).
+  struct Cone {
+    Vec3 axis = Vec3::UnitZ();
+    double cos_half = -1.0;
+    double sin_half = 0.0;
+  };
+  void BuildContours(std::span<const Vec3> x, const std::vector<int32_t>& order,
+                     const std::vector<std::array<int32_t, 2>>& range);
+  bool SelfContactFree(int32_t a, int32_t b, const Cone& cone) const;
+  static Cone MergeCones(const Cone& l, const Cone& r);
   void Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats);
   void LeafPair(int32_t ta, int32_t tb, SelfBroadPhaseStats* stats);
   bool Overlap(int32_t a, int32_t b) const;
@@ -183,6 +204,19 @@ class SelfBvh final : public SelfBroadPhase {
   std::vector<Vec3> edge_hi_;
   std::vector<std::array<int32_t, 3>> owned_vertices_;  ///< [triangles] owned vertices, -1 pad
   std::vector<std::array<int32_t, 3>> owned_edges_;     ///< [triangles] owned edges, -1 pad
+  // Normal cones (options.normal_cones; Volino & Magnenat-Thalmann 1994, Provot 1997, with the
+  // continuous normal cones of Tang et al. 2009 and the star contours of Schvartzman et al.
+  // 2010): per node its cone over the step, and, for nodes that may be skipped, a center
+  // triangle (its centroid is the star's center) and its directed contour edges
+  // contour_[contour_begin_[node] .. contour_begin_[node + 1]).
+  bool normal_cones_ = false;
+  std::vector<Cone> cone_;                       ///< [nodes]
+  std::vector<int32_t> center_;                  ///< [nodes] center triangle, -1: never skipped
+  std::vector<int32_t> contour_begin_;           ///< [nodes + 1]
+  std::vector<std::array<int32_t, 2>> contour_;  ///< directed contour edges (region on the left)
+  std::span<const Vec3> step_x0_, step_x1_;      ///< the step being traversed
+  int32_t cone_culled_ = 0;
+  int32_t union_culled_ = 0;
 };
 
 /// Outcome of SelfCcd.

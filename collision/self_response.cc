@@ -50,11 +50,20 @@ bool SelfResponseBoxesApart(const Vec3* const* a, int na, const Vec3* const* b, 
 std::optional<SelfCullingMethod> SelfCullingMethodFromName(std::string_view name) {
   if (name == "spatial_hash") return SelfCullingMethod::kSpatialHash;
   if (name == "bvh") return SelfCullingMethod::kBvh;
+  if (name == "bvh_cones") return SelfCullingMethod::kBvhCones;
   return std::nullopt;
 }
 
 std::string_view SelfCullingMethodName(SelfCullingMethod method) {
-  return method == SelfCullingMethod::kBvh ? "bvh" : "spatial_hash";
+  switch (method) {
+    case SelfCullingMethod::kBvh:
+      return "bvh";
+    case SelfCullingMethod::kBvhCones:
+      return "bvh_cones";
+    case SelfCullingMethod::kSpatialHash:
+      break;
+  }
+  return "spatial_hash";
 }
 
 SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles,
@@ -87,6 +96,11 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   const int32_t n = static_cast<int32_t>(x.size());
   if (settings.method == SelfCullingMethod::kBvh) {
     bvh_.emplace(triangles, x);
+  } else if (settings.method == SelfCullingMethod::kBvhCones) {
+    SelfBroadPhaseOptions options;
+    options.normal_cones = true;
+    bvh_.emplace(triangles, x, options);
+    cones_ = true;
   } else {
     hash_.emplace(triangles, x);
   }
@@ -229,6 +243,36 @@ int64_t SelfCollisionResponse::DetectAll(std::span<const Vec3> x1, SelfCollision
   for (int32_t p : moved_list_) moved_[p] = 0;
   moved_list_.clear();
   const int32_t n = static_cast<int32_t>(x_before_.size());
+  const AllPairsCcdOptions options = CcdPassOptions();
+  if (cones_) {
+    // A cone-culled broad phase on exactly this motion, padded for the CCD's thickness: its
+    // candidates need no further box filter.
+    narrow_valid_ = false;
+    const SelfBroadPhaseStats bs = broad->FindCandidates(x_before_, x1, options.ccd.thickness_m);
+    ++stats->broad_phases;
+    broad_valid_ = false;
+    if (bs.overflow) {
+      ++stats->overflows;
+      return std::max<int64_t>(static_cast<int64_t>(broad->candidates().size()), 1);
+    }
+    const std::span<const SelfCandidate> cands = broad->candidates();
+    const std::span<const MeshEdge> edges = broad->edges();
+    int64_t hits = 0;
+    for (const SelfCandidate& c : cands) {
+      CcdPairHit h;
+      ++stats->narrow_tests;
+      const bool hit = c.kind == CcdPairHit::Kind::kVertexTriangle
+                           ? VertexTrianglePairHit(x_before_, x1, c.first, c.second,
+                                                   triangles_[c.second], options, &h)
+                           : EdgeEdgePairHit(x_before_, x1, c.first, edges[c.first], c.second,
+                                             edges[c.second], options, &h);
+      if (!hit) continue;
+      ++hits;
+      if (hits_.size() < hits_.capacity()) hits_.push_back(h);
+    }
+    if (static_cast<size_t>(hits) > hits_.size()) ++stats->overflows;
+    return hits;
+  }
   bool reuse = broad_valid_;
   for (int32_t p = 0; reuse && p < n; ++p) {
     reuse = WithinBroadBoxes(p, x_before_[p], ccd_margin_m_) &&
@@ -245,7 +289,6 @@ int64_t SelfCollisionResponse::DetectAll(std::span<const Vec3> x1, SelfCollision
     return std::max<int64_t>(static_cast<int64_t>(broad->candidates().size()), 1);
   }
   for (int32_t p = 0; p < n; ++p) SetCcdBox(p, x1);
-  const AllPairsCcdOptions options = CcdPassOptions();
   const int32_t count = static_cast<int32_t>(broad->candidates().size());
   int64_t hits = 0;
   for (int32_t i = 0; i < count; ++i) TestCandidate(i, x1, options, stats, &hits);
@@ -272,7 +315,7 @@ void SelfCollisionResponse::TestCandidate(int32_t i, std::span<const Vec3> x1,
 // vertex moved since then ends within the CCD's margin of its boxes (x_before_ is unchanged
 // within a pass, and was within it at that detection).
 bool SelfCollisionResponse::CanDetectIncrementally() const {
-  if (!narrow_valid_ || !broad_valid_) return false;
+  if (cones_ || !narrow_valid_ || !broad_valid_) return false;
   for (int32_t p : moved_list_) {
     if (!WithinBroadBoxes(p, x_trial_[p], ccd_margin_m_)) return false;
   }
@@ -384,7 +427,16 @@ void SelfCollisionResponse::Proximity(double h_s, SelfCollisionStats* stats) {
   for (int32_t p = 0; reuse && p < num; ++p) {
     reuse = WithinBroadBoxes(p, x_before_[p], prox_margin_m_);
   }
-  if (!reuse) {
+  if (cones_) {
+    // Cone-culled candidates hold for their own motion only: one on the static x_before.
+    const auto start = std::chrono::steady_clock::now();
+    const SelfBroadPhaseStats bs = broad->FindCandidates(x_before_, x_before_, thick);
+    ++stats->broad_phases;
+    if (bs.overflow) ++stats->overflows;
+    broad_valid_ = false;
+    stats->detect_s +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  } else if (!reuse) {
     const auto start = std::chrono::steady_clock::now();
     RunBroadPhase(x_before_, stats);
     stats->detect_s +=

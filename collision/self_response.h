@@ -46,12 +46,17 @@ namespace felt {
 enum class SelfCullingMethod : uint8_t {
   kSpatialHash,  ///< SelfSpatialHash (Teschner et al. 2003)
   kBvh,          ///< SelfBvh (AABB tree self-traversal)
+  /// SelfBvh with normal cones (SelfBroadPhaseOptions::normal_cones): patches certified free of
+  /// self-contact over the motion are not traversed against themselves. Each detection then runs
+  /// its own broad phase on its motion (no reuse of candidates, no incremental rounds).
+  kBvhCones,
 };
 
 /// Settings of the response (SelfCollisionSpec in sim_loop/cloth_spec.h, validated).
 struct SelfCollisionSettings {
   double thickness_m = 0.002;  ///< cloth thickness h: primitives are kept this far apart, m (> 0)
-  SelfCullingMethod method = SelfCullingMethod::kBvh;  ///< broad phase (measured cheaper)
+  /// Broad phase (the cone-culled BVH measured cheapest, bench/results/self_collision.md).
+  SelfCullingMethod method = SelfCullingMethod::kBvhCones;
   int32_t iterations = 4;  ///< CCD impulse rounds per substep before the fail-safe (>= 0)
   double friction = 0.1;   ///< Coulomb coefficient mu between layers (>= 0)
   bool fail_safe = true;   ///< rigid impact zones after the impulse rounds
@@ -167,6 +172,7 @@ class SelfCollisionResponse {
   std::vector<double> inv_mass_;
   std::optional<SelfSpatialHash> hash_;
   std::optional<SelfBvh> bvh_;
+  bool cones_ = false;            ///< kBvhCones: a fresh, cone-culled broad phase per detection
   std::vector<CcdPairHit> hits_;  ///< capacity fixed at construction
   std::vector<Vec3> x_before_;    ///< [n] substep start
   // The last broad phase (on x_before_ -> x1, boxes padded by broad_pad_m_ per side): each

@@ -450,6 +450,7 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
       const int64_t begin = ThreadCpuNs();
       server.SimFrame(1.0 / frame_rate_hz, next_frame_ns);
       run.frame_cpu_ms.push_back(static_cast<double>(ThreadCpuNs() - begin) * 1e-6);
+      if (options.on_frame) options.on_frame(server, frame);
       ++frame;
       next_frame_ns = t0 + std::llround(static_cast<double>(frame) * 1e9 / frame_rate_hz);
     }
@@ -465,6 +466,7 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
       run.reach_m[i] = probe.reach_m;
       run.popped[i] = probe.popped ? 1 : 0;
     }
+    if (options.on_tick) options.on_tick(server, k);
   }
   run.ticks = ticks;
   run.frames = frame - 1;

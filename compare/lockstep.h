@@ -25,6 +25,7 @@
 // exact cloth of its own time, coupled both ways at the haptic rate. It is the reference the
 // snapshot modes are judged against (`felt compare --truth`, `felt bench haptic`).
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -37,6 +38,8 @@
 #include "server/server_spec.h"
 
 namespace felt {
+
+class Server;
 
 /// The virtual clock's origin, ns: any value > 0 (0 means "now" to Server::SimFrame).
 inline constexpr int64_t kLockstepEpochNs = 1'000'000'000'000;
@@ -91,6 +94,12 @@ struct LockstepOptions {
   /// CompareVariants only: run TruthVariant() first, as variant 0 and the reference, before the
   /// variants given (which keep their numbers 1, 2, ... in messages).
   bool prepend_truth = false;
+  /// RunLockstep only, for tests that check the run as it goes (optional): called after every
+  /// SimFrame with the server and the frame's number (1, 2, ...), and after every HapticTick (and
+  /// its probes) with the server and the tick's number (1, 2, ...). The server's cloth, model and
+  /// haptic loop may be read there (Server::cloth, Server::haptic); not timed.
+  std::function<void(const Server&, int64_t frame)> on_frame;
+  std::function<void(const Server&, int64_t tick)> on_tick;  ///< see on_frame
 };
 
 /// Everything one lock-step run recorded. Arrays are indexed [tick * devices + device].

@@ -49,7 +49,7 @@ HapticLoop::HapticLoop(const ProxySpec& proxy, const std::vector<DeviceSpec>& de
       throw std::invalid_argument("HapticLoop: the cloth model and the snapshot differ in size");
     }
     const auto n_devices = static_cast<int32_t>(devices.size());
-    patch_ = std::make_unique<ClothPatch>(cloth, proxy.patch_radius, n_devices);
+    patch_ = std::make_unique<ClothPatch>(cloth, proxy.patch_radius, n_devices, proxy.patch_follow);
     overlay_.patch = patch_.get();
     patch_centres_.assign(devices.size(), -1);
     patch_springs_.resize(devices.size());

@@ -92,6 +92,10 @@ struct ProxySpec {
   /// (sim_loop/cloth_patch.h), in [kMinPatchRadius, kMaxPatchRadius] (sim_loop/cloth_spec.h);
   /// unused by the other modes.
   int32_t patch_radius = 8;
+  /// Mode patch: a window moves to its contact once the contact is this many particles
+  /// (Chebyshev) from the window's centre, in [1, patch_radius] (kPatchDefaultFollow: 2, by
+  /// measurement, docs/proxy.md "Where"); unused by the other modes.
+  int32_t patch_follow = kPatchDefaultFollow;
   int32_t max_iterations = 10;  ///< sweep/solve rounds per pass within one tick, >= 1
   /// Triangles near the proxy gathered per tick (sized once in the proxy state), >= 16. A tick
   /// that finds more is counted (ProxyCounters::overflow_ticks) and uses the first ones found.

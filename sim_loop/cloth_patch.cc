@@ -469,16 +469,20 @@ struct WindowPasses {
   int32_t num_provot = 0;
 };
 
-ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows)
+ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows, int32_t follow)
     : model_(model),
       radius_(radius),
-      recentre_(std::max(2, radius / kPatchRecentreFraction)),
+      recentre_(follow),
       springs_(std::make_unique<CouplingSprings>()) {
   if (radius < kMinPatchRadius || radius > kMaxPatchRadius) {
     throw std::invalid_argument("proxy.patch_radius: must be in [" +
                                 std::to_string(kMinPatchRadius) + ", " +
                                 std::to_string(kMaxPatchRadius) + "], got " +
                                 std::to_string(radius));
+  }
+  if (follow < 1 || follow > radius) {
+    throw std::invalid_argument("proxy.patch_follow: must be in [1, " + std::to_string(radius) +
+                                "], got " + std::to_string(follow));
   }
   if (max_windows < 1) {
     throw std::invalid_argument("ClothPatch: max_windows must be >= 1, got " +

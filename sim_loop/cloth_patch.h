@@ -70,12 +70,6 @@ enum class PatchRole : uint8_t {
   kFree = 2,     ///< integrated by the patch
 };
 
-/// A window follows its centre once the centre is radius / kPatchRecentreFraction particles
-/// (Chebyshev; at least 2) from the window's own centre: hysteresis, so a contact hopping between
-/// nearby particles (a proxy in a crease, a fast swipe) does not move the window back and forth,
-/// each move turning particles from free to driven and back.
-inline constexpr int32_t kPatchRecentreFraction = 2;
-
 /// Driven particles approach the drive with this time constant [s] (first order, on top of the
 /// drive's own motion): a particle that was free and turns driven, or a ring the drive's newest
 /// snapshot jumps away from, eases onto the 60 Hz cloth instead of jumping there (a jump of the
@@ -110,17 +104,18 @@ class ClothPatch {
  public:
   /// A patch of `model` (kept by reference: it must outlive the patch) with windows of `radius`
   /// particles each way around their centres ([kMinPatchRadius, kMaxPatchRadius]), at most
-  /// `max_windows` >= 1 of them. Allocates (set-up time); throws std::invalid_argument naming the
-  /// bad value.
-  ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows);
+  /// `max_windows` >= 1 of them, each following its centre once it is `follow` particles away
+  /// ([1, radius]). Allocates (set-up time); throws std::invalid_argument naming the bad value.
+  ClothPatch(const ClothModel& model, int32_t radius, int32_t max_windows,
+             int32_t follow = kPatchDefaultFollow);
   ~ClothPatch();
   ClothPatch(const ClothPatch&) = delete;
   ClothPatch& operator=(const ClothPatch&) = delete;
 
   /// The windows of this tick: one around each particle index of `centres` (slot k: device k;
   /// negative entries: no centre), a window kept where it is while its centre stays within
-  /// radius / kPatchRecentreFraction of it, then merged where they meet (file comment). A slot
-  /// whose centre is gone keeps its window while it lingers (kPatchReleaseDistance_m,
+  /// `follow` particles of it (kPatchDefaultFollow), then merged where they meet (file comment). A
+  /// slot whose centre is gone keeps its window while it lingers (kPatchReleaseDistance_m,
   /// kPatchMaxLinger_s; dt_s [s] is the tick). Particles that enter take the drive's state at tau_s
   /// [s]: x = drive.x + tau_s drive.v, v = drive.v; particles that leave are forgotten. Real-time
   /// safe.

@@ -127,6 +127,14 @@ inline constexpr int32_t kMaxProvotIterations = 10000;      ///< provot.iteratio
 inline constexpr int32_t kMinPatchRadius = 3;
 /// The largest local patch radius, particles (proxy.patch_radius).
 inline constexpr int32_t kMaxPatchRadius = 32;
+/// A window follows its centre once the centre is this many particles (Chebyshev) from the
+/// window's own centre (proxy.patch_follow): hysteresis, so a contact hopping between nearby
+/// particles (a proxy in a crease, a fast swipe) does not move the window back and forth, each
+/// move turning particles from free to driven and back. 2 by measurement against the truth
+/// (docs/proxy.md, "Where"): at 4 (half the default radius) the contact strayed toward the driven
+/// rings, which follow a cloth up to a frame old, and scrub was 0.19 N RMS from the truth (0.13 N
+/// at 2; 0.13 N at 1, but then peaks rose on pin_drag and handwriting).
+inline constexpr int32_t kPatchDefaultFollow = 2;
 
 /// The most substeps one nominal frame may take, explicit or auto (one rule for the scene parser
 /// and BuildClothModel).
@@ -193,9 +201,9 @@ struct ProvotSpec {
 /// scene declares [self_collision].
 struct SelfCollisionSpec {
   double thickness_m = 0.002;  ///< cloth thickness, m, > 0 and below half the grid spacing
-  /// Broad phase; the BVH by default: cheaper than the hash at every size of
-  /// bench/results/self_collision.md (31.7 vs 57.8 ms per frame at 32 x 32, 111 vs 141 at 64).
-  SelfCullingMethod method = SelfCullingMethod::kBvh;
+  /// Broad phase; the BVH with normal cones by default: the cheapest in
+  /// bench/results/self_collision.md at 32 x 32 and 64 x 64 (issue 22).
+  SelfCullingMethod method = SelfCullingMethod::kBvhCones;
   int32_t iterations = 4;  ///< CCD impulse rounds per substep, in [0, 100]
   double friction = 0.1;   ///< Coulomb coefficient between layers, >= 0
   bool fail_safe = true;   ///< rigid impact zones when the impulses leave collisions

@@ -12,18 +12,12 @@
 #include <vector>
 
 #include "collision/self_intersection.h"
+#include "tests/collision/collision_test_util.h"
 
 namespace felt {
 namespace {
 
-// Vertices of a width x height grid with spacing `step` in the plane z = 0.
-std::vector<Vec3> PlanarGrid(int32_t w, int32_t h, double step) {
-  std::vector<Vec3> x;
-  for (int32_t r = 0; r < h; ++r) {
-    for (int32_t c = 0; c < w; ++c) x.emplace_back(c * step, r * step, 0.0);
-  }
-  return x;
-}
+using testing::SpacedGrid;
 
 bool SameHits(const std::vector<CcdPairHit>& a, const std::vector<CcdPairHit>& b) {
   if (a.size() != b.size()) return false;
@@ -49,7 +43,7 @@ TEST(CcdAllPairsTest, RigidlyMovingFlatGridHasNone) {
   const int32_t w = 7;
   const double step = 0.05, h = 0.1 * step;
   const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-  const std::vector<Vec3> x0 = PlanarGrid(w, w, step);
+  const std::vector<Vec3> x0 = SpacedGrid(w, w, step);
   std::vector<Vec3> x1 = x0;
   for (Vec3& p : x1) p += Vec3(0.3, -0.2, 0.5);
   for (bool separation : {false, true}) {

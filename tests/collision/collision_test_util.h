@@ -29,6 +29,43 @@ inline std::vector<Vec3> FlatGrid(int32_t w, int32_t h) {
   return x;
 }
 
+/// A width x height grid with spacing `step` [m] in the plane z = 0 (row-major, from the origin).
+inline std::vector<Vec3> SpacedGrid(int32_t w, int32_t h, double step) {
+  std::vector<Vec3> x;
+  for (int32_t r = 0; r < h; ++r)
+    for (int32_t c = 0; c < w; ++c) x.emplace_back(c * step, r * step, 0.0);
+  return x;
+}
+
+/// A w x w SpacedGrid whose columns beyond `hinge` are turned by `angle` [rad] about the line
+/// x = hinge * step (angle = pi lays them flat on top of the others).
+inline std::vector<Vec3> HingedGrid(int32_t w, int32_t hinge, double step, double angle) {
+  std::vector<Vec3> x = SpacedGrid(w, w, step);
+  const double x_hinge = hinge * step;
+  for (Vec3& p : x) {
+    const double d = p.x() - x_hinge;
+    if (d > 0.0) p = Vec3(x_hinge + d * std::cos(angle), p.y(), d * std::sin(angle));
+  }
+  return x;
+}
+
+/// A U-fold falling through itself: on a w x w SpacedGrid, the columns past `hinge` lie mirrored
+/// over the others at height `gap` [m] (x0) and fall by `fall` [m] through them by x1, each end
+/// shifted in-plane by 0.1 step N(0, 1) draws from `rng` (slightly crumpled).
+inline void FallingUFold(int32_t w, int32_t hinge, double step, double gap, double fall,
+                         std::mt19937_64& rng, std::vector<Vec3>* x0, std::vector<Vec3>* x1) {
+  std::normal_distribution<double> n01(0.0, 1.0);
+  *x0 = SpacedGrid(w, w, step);
+  *x1 = *x0;
+  for (size_t i = 0; i < x0->size(); ++i) {
+    const int32_t col = static_cast<int32_t>(i) % w;
+    if (col <= hinge) continue;
+    (*x0)[i].x() = (2 * hinge - col) * step + 0.3 * step;
+    (*x0)[i].z() = gap;
+    (*x1)[i] = (*x0)[i] + Vec3(0.0, 0.0, -fall) + 0.1 * step * Vec3(n01(rng), n01(rng), 0.0);
+  }
+}
+
 /// The five test cloths on a w x w grid (w odd so the fold lies on a vertex row).
 inline std::vector<TestCloth> MakeTestCloths(int32_t w, uint32_t seed) {
   std::mt19937_64 rng(seed);

@@ -19,32 +19,15 @@
 #include <vector>
 
 #include "tests/alloc_counter.h"
+#include "tests/collision/collision_test_util.h"
 
 namespace felt {
 namespace {
 
 using PairKey = std::tuple<int, int32_t, int32_t>;  // (kind, first, second)
 
-std::vector<Vec3> BroadFlatGrid(int32_t w, int32_t h, double step) {
-  std::vector<Vec3> x;
-  for (int32_t r = 0; r < h; ++r) {
-    for (int32_t c = 0; c < w; ++c) x.emplace_back(c * step, r * step, 0.0);
-  }
-  return x;
-}
-
-// A w x w grid whose columns beyond `hinge` are turned by `angle` [rad] about the line
-// x = hinge * step (angle = pi lays them flat on top of the others).
-std::vector<Vec3> BroadFoldedGrid(int32_t w, int32_t hinge, double step, double angle) {
-  std::vector<Vec3> x = BroadFlatGrid(w, w, step);
-  const double x_hinge = hinge * step;
-  for (Vec3& p : x) {
-    const double d = p.x() - x_hinge;
-    if (d <= 0.0) continue;
-    p = Vec3(x_hinge + d * std::cos(angle), p.y(), d * std::sin(angle));
-  }
-  return x;
-}
+using testing::HingedGrid;
+using testing::SpacedGrid;
 
 // The pairs whose padded swept boxes overlap, by brute force (the broad phases' specification).
 std::set<PairKey> BruteForceCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
@@ -186,7 +169,7 @@ TEST(SelfBroadPhaseTest, RandomDeformationsOfGridsMatchAllPairs) {
     const double motion = step * std::uniform_real_distribution<double>(0.1, 2.0)(rng);
     std::normal_distribution<double> n01(0.0, 1.0);
     const std::vector<Triangle> tris = MakeGridTriangles(w, hgt);
-    const std::vector<Vec3> rest = BroadFlatGrid(w, hgt, step);
+    const std::vector<Vec3> rest = SpacedGrid(w, hgt, step);
     std::vector<Vec3> x0 = rest, x1 = rest;
     for (size_t i = 0; i < x0.size(); ++i) {
       x0[i] += jitter * Vec3(n01(rng), n01(rng), n01(rng));
@@ -204,9 +187,9 @@ TEST(SelfBroadPhaseTest, GridFoldedThroughItselfMatchesAllPairs) {
   const double step = 0.05, h = 0.002;
   const double pi = std::numbers::pi;
   const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-  const std::vector<Vec3> rest = BroadFlatGrid(w, w, step);
-  const std::vector<Vec3> x0 = BroadFoldedGrid(w, 5, step, pi - 10 * pi / 180);
-  const std::vector<Vec3> x1 = BroadFoldedGrid(w, 5, step, pi + 10 * pi / 180);
+  const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+  const std::vector<Vec3> x0 = HingedGrid(w, 5, step, pi - 10 * pi / 180);
+  const std::vector<Vec3> x1 = HingedGrid(w, 5, step, pi + 10 * pi / 180);
   size_t n = 0;
   CheckAgainstReference(rest, x0, x1, tris, h, "fold", &n);
   EXPECT_GT(n, 20u);
@@ -218,18 +201,10 @@ TEST(SelfBroadPhaseTest, ClothFallingOntoItselfMatchesAllPairs) {
   const int32_t w = 12, hinge = 6;
   const double step = 0.04, h = 0.001, gap = 0.01, fall = 0.05;
   std::mt19937_64 rng(7);
-  std::normal_distribution<double> n01(0.0, 1.0);
   const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-  const std::vector<Vec3> rest = BroadFlatGrid(w, w, step);
-  std::vector<Vec3> x0 = rest, x1 = rest;
-  for (size_t i = 0; i < rest.size(); ++i) {
-    const int32_t col = static_cast<int32_t>(i) % w;
-    if (col > hinge) {
-      x0[i].x() = (2 * hinge - col) * step + 0.3 * step;
-      x0[i].z() = gap;
-      x1[i] = x0[i] + Vec3(0.0, 0.0, -fall) + 0.1 * step * Vec3(n01(rng), n01(rng), 0.0);
-    }
-  }
+  const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+  std::vector<Vec3> x0, x1;
+  testing::FallingUFold(w, hinge, step, gap, fall, rng, &x0, &x1);
   size_t n = 0;
   CheckAgainstReference(rest, x0, x1, tris, h, "falling", &n);
   EXPECT_GT(n, 20u);
@@ -239,11 +214,11 @@ TEST(SelfBroadPhaseTest, DegenerateInputsMatchAllPairs) {
   const int32_t w = 7;
   const double step = 0.05, h = 0.002;
   const std::vector<Triangle> grid = MakeGridTriangles(w, w);
-  const std::vector<Vec3> rest = BroadFlatGrid(w, w, step);
+  const std::vector<Vec3> rest = SpacedGrid(w, w, step);
   // Zero motion, flat and folded within h (static layers: only the separation test hits).
   CheckAgainstReference(rest, rest, rest, grid, h, "zero motion flat");
   const double pi = std::numbers::pi;
-  const std::vector<Vec3> flat_fold = BroadFoldedGrid(w, 3, step, pi);
+  const std::vector<Vec3> flat_fold = HingedGrid(w, 3, step, pi);
   CheckAgainstReference(rest, flat_fold, flat_fold, grid, h, "zero motion folded");
   // Coincident vertices: the grid collapsed onto a coarse lattice (many vertices at one point),
   // then moved.
@@ -278,9 +253,9 @@ TEST(SelfBroadPhaseTest, LargerGridsGiveTheBoxSetAndTheSameHitsByBothMethods) {
   const int32_t w = 40;
   const double step = 0.02, h = 0.001, pi = std::numbers::pi;
   const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-  const std::vector<Vec3> rest = BroadFlatGrid(w, w, step);
-  std::vector<Vec3> x0 = BroadFoldedGrid(w, 19, step, pi - 0.1);
-  std::vector<Vec3> x1 = BroadFoldedGrid(w, 19, step, pi + 0.1);
+  const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+  std::vector<Vec3> x0 = HingedGrid(w, 19, step, pi - 0.1);
+  std::vector<Vec3> x1 = HingedGrid(w, 19, step, pi + 0.1);
   for (size_t i = 0; i < x0.size(); ++i) {
     const double wave = 0.3 * step * std::sin(0.7 * static_cast<double>(i));
     x0[i].z() += wave;
@@ -317,9 +292,9 @@ TEST(SelfBroadPhaseTest, OverflowIsReportedNeverSilent) {
   const int32_t w = 8;
   const double step = 0.05, h = 0.002, pi = std::numbers::pi;
   const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-  const std::vector<Vec3> rest = BroadFlatGrid(w, w, step);
-  const std::vector<Vec3> x0 = BroadFoldedGrid(w, 4, step, pi - 0.2);
-  const std::vector<Vec3> x1 = BroadFoldedGrid(w, 4, step, pi + 0.2);
+  const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+  const std::vector<Vec3> x0 = HingedGrid(w, 4, step, pi - 0.2);
+  const std::vector<Vec3> x1 = HingedGrid(w, 4, step, pi + 0.2);
   AllPairsCcdOptions options;
   options.ccd.thickness_m = h;
   const std::vector<CcdPairHit> ref = AllPairsCcd(x0, x1, tris, options);
@@ -352,9 +327,9 @@ TEST(SelfBroadPhaseTest, SteppingDoesNotAllocate) {
   const int32_t w = 16;
   const double step = 0.05, h = 0.002, pi = std::numbers::pi;
   const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-  const std::vector<Vec3> rest = BroadFlatGrid(w, w, step);
-  const std::vector<Vec3> x0 = BroadFoldedGrid(w, 8, step, pi - 0.2);
-  const std::vector<Vec3> x1 = BroadFoldedGrid(w, 8, step, pi + 0.2);
+  const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+  const std::vector<Vec3> x0 = HingedGrid(w, 8, step, pi - 0.2);
+  const std::vector<Vec3> x1 = HingedGrid(w, 8, step, pi + 0.2);
   AllPairsCcdOptions options;
   options.ccd.thickness_m = h;
   for (const Method& m : kMethods) {
@@ -370,7 +345,7 @@ TEST(SelfBroadPhaseTest, SteppingDoesNotAllocate) {
 }
 
 TEST(SelfBroadPhaseTest, BadInputThrowsNamingTheProblem) {
-  const std::vector<Vec3> x = BroadFlatGrid(3, 3, 0.1);
+  const std::vector<Vec3> x = SpacedGrid(3, 3, 0.1);
   const std::vector<Triangle> bad = {{0, 1, 9}};
   for (const Method& m : kMethods) {
     try {

@@ -163,11 +163,12 @@ TEST(SelfResponse, ProximityRepelsLayersWithinTheThickness) {
 }
 
 // Resolve never allocates, through proximity, CCD rounds and the fail-safe (iterations 0 forces
-// impact zones), with either broad phase.
+// impact zones), with every broad phase.
 TEST(SelfResponse, ResolveDoesNotAllocate) {
   const TwoSheets sheets = MakeTwoSheets(6, 0.004);
   const std::vector<double> inv_mass(sheets.x.size(), 100.0);
-  for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh}) {
+  for (SelfCullingMethod method :
+       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
     SelfCollisionSettings settings;
     settings.thickness_m = 1e-3;
     settings.iterations = 0;

@@ -143,6 +143,10 @@ TEST(ProxySceneTest, EveryErrorNamesFileLineColumnFieldAndRule) {
             "newest, blend_forces, interpolate, extrapolate, patch");
   EXPECT_EQ(ProxyError("[proxy]\npatch_radius = 2\n"),
             "test.toml:2:1: proxy.patch_radius: must be in [3, 32], got 2");
+  EXPECT_EQ(ProxyError("[proxy]\npatch_radius = 5\npatch_follow = 6\n"),
+            "test.toml:3:1: proxy.patch_follow: must be in [1, 5], got 6");
+  EXPECT_EQ(ProxyError("[proxy]\npatch_follow = 0\n"),
+            "test.toml:2:1: proxy.patch_follow: must be in [1, 8], got 0");
   EXPECT_NE(ProxyError("[proxy]\ncollision_structure = \"bvh-sphere-3\"\n")
                 .find("test.toml:2:1: proxy.collision_structure: unknown value 'bvh-sphere-3' "
                       "(did you mean 'bvh-sphere-2'?)"),

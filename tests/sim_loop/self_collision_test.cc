@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -102,7 +103,8 @@ TEST(SelfCollisionScene, TwistIntersectsWithoutTheResponse) {
 }
 
 TEST(SelfCollisionScene, BothCullingMethodsKeepTheFoldDropClean) {
-  for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh}) {
+  for (SelfCullingMethod method :
+       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
     SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
     spec.self_collision->method = method;
     const SelfRun run = RunSelfScene(spec, 60);
@@ -145,15 +147,22 @@ TEST(SelfCollisionScene, CountersAndOptInIntersectionCount) {
   EXPECT_EQ(plain_state.counters.self_impulses, 0u);
 }
 
-// StepFrame with [self_collision] allocates nothing, once the folds have formed.
+// StepFrame with [self_collision] allocates nothing, once the folds have formed, with every
+// culling method.
 TEST(SelfCollisionScene, StepFrameDoesNotAllocate) {
-  const ClothModel model = BuildClothModel(SelfCollisionSceneSpec("self_fold_drop.toml"));
-  ClothState state = MakeClothState(model);
-  for (int f = 0; f < 40; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
-  AllocationGuard guard;
-  for (int f = 0; f < 5; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
-  EXPECT_EQ(guard.allocations(), 0u);
-  EXPECT_GT(state.counters.self_proximity_pairs, 0u);
+  for (SelfCullingMethod method :
+       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
+    SCOPED_TRACE(SelfCullingMethodName(method));
+    SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
+    spec.self_collision->method = method;
+    const ClothModel model = BuildClothModel(spec);
+    ClothState state = MakeClothState(model);
+    for (int f = 0; f < 40; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
+    AllocationGuard guard;
+    for (int f = 0; f < 5; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
+    EXPECT_EQ(guard.allocations(), 0u);
+    EXPECT_GT(state.counters.self_proximity_pairs, 0u);
+  }
 }
 
 // A copied state owns its own response (ClothState's deep copy): stepping both gives the same.
@@ -177,7 +186,8 @@ TEST(SelfCollisionScene, CopiedStateStepsTheSame) {
 TEST(SelfCollisionScene, CulledDetectionEqualsTheAllPairsReferenceOnEveryFrame) {
   int64_t reference_hits = 0;
   for (const char* scene : {"self_fold_drop.toml", "self_twist.toml"}) {
-    for (SelfCullingMethod method : {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh}) {
+    for (SelfCullingMethod method :
+         {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
       SimSpec spec = SelfCollisionSceneSpec(scene);
       spec.self_collision->method = method;
       const ClothModel model = BuildClothModel(spec);
@@ -230,6 +240,63 @@ TEST(SelfCollisionScene, PassesPerFrameKeepTheFoldDropClean) {
   }
 }
 
+// Issue 22's other hard cases (scenes/self_fall_10ms.toml, self_tablecloth_pull.toml,
+// self_rail_twist.toml, self_fold_press.toml): zero intersecting non-adjacent triangle pairs at the
+// end of every frame by the exact test, no collision left unresolved, none frozen; and each scene,
+// without the section, does intersect (so the first check can fail). Under a sanitizer fewer
+// frames, each run still past the scene's violent part.
+struct HardCase {
+  const char* scene;
+  int32_t frames;            // release
+  int32_t sanitized_frames;  // under a sanitizer: still past the violent part
+  double max_speed_m_per_s;  // fastest free particle at a frame's end allowed
+  double max_stretch;        // longest structural spring / rest allowed
+};
+
+void ExpectHardCaseClean(const HardCase& c) {
+  SCOPED_TRACE(c.scene);
+  const int32_t frames = testing::Sanitized() ? c.sanitized_frames : c.frames;
+  const SelfRun run = RunSelfScene(SelfCollisionSceneSpec(c.scene), frames);
+  EXPECT_EQ(run.max_intersections, 0) << "first at frame " << run.first_bad_frame;
+  EXPECT_EQ(run.unresolved, 0);
+  EXPECT_EQ(run.final_state.counters.self_frozen_substeps, 0u);
+  EXPECT_EQ(run.final_state.counters.self_overflows, 0u);
+  EXPECT_GT(run.impulses, 0);  // the cloth did meet itself
+  EXPECT_LT(run.max_speed_m_per_s, c.max_speed_m_per_s);
+  EXPECT_LT(run.max_stretch, c.max_stretch);
+  SimSpec off = SelfCollisionSceneSpec(c.scene);
+  off.self_collision.reset();
+  EXPECT_GT(RunSelfScene(off, frames).max_intersections, 0) << "the scene is not hard";
+}
+
+// Lands at 10 m/s at frame 61 and piles within about two frames; 0.5 s after. The top row falls
+// 5.45 m: 10.3 m/s.
+TEST(SelfCollisionHardCase, ClothFallingAt10MetresPerSecondOntoItself) {
+  ExpectHardCaseClean({"self_fall_10ms.toml", 90, 70, 11.0, 1.5});
+}
+
+// No bound on speed or stretch here: the particles hanging over the table's far edge are caught on
+// it while the corner pulls (the box projects them back onto its side face every substep, and its
+// friction takes the normal from that projection), one spring reaches 5.7 times its rest length
+// before they clear the edge and then snap free at up to 37 m/s; without [self_collision] 7.9
+// times and 32 m/s. The obstacle's doing (it happens with a rounded edge and no friction too, at
+// 3.4 times), not the response's.
+TEST(SelfCollisionHardCase, TableclothPulledOffTheTable) {
+  constexpr double kUnbounded = std::numeric_limits<double>::infinity();
+  ExpectHardCaseClean({"self_tablecloth_pull.toml", 180, 100, kUnbounded, kUnbounded});
+}
+
+// The haptic case's fold without the hand (its haptics: tests/compare/layered_cloth_test.cc): the
+// flap is carried over from t = 0.3 s to 0.8 s (frames 18-48).
+TEST(SelfCollisionHardCase, FoldForTheHand) {
+  ExpectHardCaseClean({"self_fold_press.toml", 120, 60, 5.0, 1.5});
+}
+
+// The right ring passes the middle one at t = 0.97 s (frame 58).
+TEST(SelfCollisionHardCase, RailCurtainTwisted) {
+  ExpectHardCaseClean({"self_rail_twist.toml", 180, 75, 5.0, 1.5});
+}
+
 std::string SelfSceneError(const std::string& section) {
   const std::string text = "[cloth]\nwidth = 4\nheight = 4\nspacing_m = 0.016\n" + section;
   try {
@@ -255,7 +322,7 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   const SimSpec defaults =
       ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n[self_collision]\n", "d.toml"));
   ASSERT_TRUE(defaults.self_collision.has_value());
-  EXPECT_EQ(defaults.self_collision->method, SelfCullingMethod::kBvh);  // measured cheaper
+  EXPECT_EQ(defaults.self_collision->method, SelfCullingMethod::kBvhCones);  // measured cheapest
   EXPECT_EQ(defaults.self_collision->thickness_m, 0.002);
   EXPECT_TRUE(defaults.self_collision->fail_safe);
 
