@@ -753,6 +753,9 @@ ClothState MakeClothState(const ClothModel& model) {
   s.provot_soa.assign(3 * ProvotSoaStride(n), 0.0f);
   s.limit_queued.assign(model.limit_families.size() * n, 0);
   s.limit_ring.assign(std::max<size_t>(1, model.limit_families.size() * n), 0);
+  s.limit_logged.assign(model.limit_families.empty() ? 0 : n, 0);
+  s.limit_log_index.assign(model.limit_families.empty() ? 0 : n, 0);
+  s.limit_log_xv.assign(model.limit_families.empty() ? 0 : 6 * n, 0.0);
   if (model.integrator == IntegratorKind::kImplicitEuler) {
     BuildImplicitPattern(model, &s);
   }

@@ -44,6 +44,11 @@ struct ClothState::Scratch {
   /// ring of pair ids f * n + p, each queued at most once).
   std::vector<uint8_t> limit_queued;
   std::vector<int32_t> limit_ring;
+  /// [n] 1 while a particle's pre-worklist state is in the undo log; the log: [n] particle
+  /// indices and [6 n] their x, v (so an unconverged worklist leaves the sweeps' result).
+  std::vector<uint8_t> limit_logged;
+  std::vector<int32_t> limit_log_index;
+  std::vector<double> limit_log_xv;
 
   // Integrator history (leapfrog, basic Verlet), [n] each.
   bool history_valid = false;  ///< false: restart from x, v at the next substep
@@ -102,8 +107,8 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state);
 /// by ApplyProvot after its sweeps (it reads their single-precision positions in
 /// scratch.provot_soa): every pair of model.limit_families longer than its limit is queued, then
 /// projected exactly (double precision) to just under its limit, re-queuing the pairs at its ends
-/// it pushed over, until none is over or the budget is spent; velocities follow, v += dx / h_s.
-/// Real-time safe.
+/// it pushed over, until none is over or the budget is spent; velocities follow, v += dx / h_s. A
+/// worklist that spends its budget is undone (the sweeps' result stays). Real-time safe.
 void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state);
 
 /// A Provot family's limit as ApplyProvot's single-precision sweeps use it: max2 = the squared
