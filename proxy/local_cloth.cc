@@ -108,6 +108,8 @@ void LocalCloth::Place(int32_t triangle, const ClothView& now, const ClothView* 
                 (t->c - t->center).squaredNorm(), (t->a0 - t->center).squaredNorm(),
                 (t->b0 - t->center).squaredNorm(), (t->c0 - t->center).squaredNorm()});
   t->radius_m = std::sqrt(r2);
+  t->lo = t->a.cwiseMin(t->b).cwiseMin(t->c);
+  t->hi = t->a.cwiseMax(t->b).cwiseMax(t->c);
 }
 
 bool LocalCloth::GatherPatch(const ClothView& now, const ClothView* before, const Vec3& center_W,
@@ -185,8 +187,13 @@ SweepHit LocalCloth::Sweep(const Vec3& p0, const Vec3& p1, double r) const {
   // Overflow: the structure's own exact query on the snapshot it was repaired for.
   if (fallback_) return SweepSphere(query_->structure, query_->x, p0, p1, r);
   SweepHit best;
+  // The sphere's path stays in the box of its ends grown by r: a triangle whose box (the tick's
+  // corners) is apart from it cannot be touched (with the relative slack of MayReach).
+  const double grow = r + CullSlack(p0, p1, r);
+  const Vec3 lo = p0.cwiseMin(p1).array() - grow, hi = p0.cwiseMax(p1).array() + grow;
   for (size_t k = 0; k < size_; ++k) {
     const LocalTriangle& t = tris_[k];
+    if ((t.lo.array() > hi.array()).any() || (t.hi.array() < lo.array()).any()) continue;
     if (!MayReach(t, p0, p1, r)) continue;
     Keep(t.triangle, SweepSphereTriangle(p0, p1, r, t.a, t.b, t.c), &best);
   }

@@ -56,6 +56,7 @@ struct LocalTriangle {
   Vec3 a0, b0, c0;        ///< corners at the previous tick's cloth (for the moving test), m
   Vec3 center;            ///< centre of a sphere bounding both a,b,c and a0,b0,c0, m
   double radius_m = 0.0;  ///< its radius, m
+  Vec3 lo, hi;            ///< the box of a, b, c (the tick's corners), m
 };
 
 /// The triangles near the proxy this tick. Sized once; Gather and the queries are real-time safe.
