@@ -83,8 +83,11 @@ struct SelfCollisionSettings {
   /// count alone a fine cloth got passes many thicknesses long: the 150 x 150 fold drop (0.5 mm
   /// thick, 15 substeps of about 0.3 mm each per pass) pushed its bottom layer into the floor,
   /// whose projection back was read as velocity pass after pass until it moved at tens of m/s,
-  /// overflowed and froze (docs/self_collision.md, "Pass length"). 0 = no cap (>= 0).
-  double max_pass_motion = 4.0;
+  /// overflowed and froze (docs/self_collision.md, "Pass length"). 0 = no cap (>= 0). Off by
+  /// default: on, it failed LayeredCloth.AFoldNeverClosesOnTheProxy (one particle under the
+  /// hand at up to 50 m/s cut that scene's passes to one substep); `felt bench self-collision`
+  /// sets 4.
+  double max_pass_motion = 0.0;
   /// APCCD's inflated bounding volumes (Tang et al., 004_aff31237b107e6f0.txt): the broad
   /// phase's boxes are padded by this fraction of thickness_m beyond the half thickness, so
   /// that later passes whose vertices all stay within the extra padding reuse its candidates
