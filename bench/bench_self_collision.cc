@@ -46,7 +46,7 @@ struct Args {
   int32_t detect_frames = 60;                // its frames
   int32_t passes_per_frame = 8;              // SelfCollisionSettings::passes_per_frame
   double broad_inflation = 1.0;              // SelfCollisionSettings::broad_inflation
-  double max_pass_motion = 4.0;              // SelfCollisionSettings::max_pass_motion
+  double max_pass_motion = 0.0;              // SelfCollisionSettings::max_pass_motion (shipped: 0)
   std::string methods = "spatial_hash,bvh,bvh_cones";  // culling methods of the response rows
   std::string detect_methods = "bvh_cones";            // culling methods of the detection row
   bool reference = true;  // compare with AllPairsCcd (off: for profiling the response alone)
@@ -230,7 +230,7 @@ std::string SelfCommand(const Args& args) {
     cmd += " --passes-per-frame " + std::to_string(args.passes_per_frame);
   }
   if (args.broad_inflation != 1.0) cmd += " --broad-inflation " + Sig(args.broad_inflation, 3);
-  if (args.max_pass_motion != 4.0) cmd += " --max-pass-motion " + Sig(args.max_pass_motion, 3);
+  if (args.max_pass_motion != 0.0) cmd += " --max-pass-motion " + Sig(args.max_pass_motion, 3);
   if (args.methods != "spatial_hash,bvh,bvh_cones") cmd += " --methods " + args.methods;
   if (args.detect_methods != "bvh_cones") cmd += " --detect-methods " + args.detect_methods;
   if (!args.reference) cmd += " --no-reference";
@@ -411,8 +411,8 @@ int Run(Args args) {
       " frames), thickness min(2 mm, spacing / 4). `off` is the same scene without "
       "[self_collision]. Self-collision passes per frame, each over the motion of "
       "ceil(substeps / passes) substeps or fewer (a pass moves the fastest particle at most "
-      "max_pass_motion thicknesses, 4 unless --max-pass-motion; the scenes' default is no "
-      "cap): `passes_per_frame`, the mean. `detect_ms`: wall "
+      "max_pass_motion thicknesses with --max-pass-motion; the scenes' default, and this "
+      "bench's, is no cap): `passes_per_frame`, the mean. `detect_ms`: wall "
       "time per frame in detection (broad phases, box filter, continuous pair tests of every "
       "CCD and impact-zone round; SelfCollisionStats::detect_s), median and p99 over frames; "
       "`first_detect_ms`: the first CCD detection alone (all candidates). "
