@@ -217,6 +217,20 @@ std::vector<int32_t> ParseSelfGrids(const std::string& text) {
   return grids;
 }
 
+// "off" then each culling method of the comma-separated `text` (option `option`, for the error).
+std::vector<std::string> ParseSelfMethods(const std::string& text, const std::string& option) {
+  std::vector<std::string> methods = {"off"};
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    if (!SelfCullingMethodFromName(item)) {
+      throw std::invalid_argument(option + ": unknown culling method '" + item + "'");
+    }
+    methods.push_back(item);
+  }
+  return methods;
+}
+
 std::string SelfCommand(const Args& args) {
   std::string cmd = "felt bench self-collision";
   if (args.quick) cmd += " --quick";
@@ -261,17 +275,7 @@ int Run(Args args) {
     std::fflush(stdout);
     rows.push_back(r);
   };
-  std::vector<std::string> methods = {"off"};
-  {
-    std::stringstream in(args.methods);
-    std::string item;
-    while (std::getline(in, item, ',')) {
-      if (!SelfCullingMethodFromName(item)) {
-        throw std::invalid_argument("--methods: unknown culling method '" + item + "'");
-      }
-      methods.push_back(item);
-    }
-  }
+  const std::vector<std::string> methods = ParseSelfMethods(args.methods, "--methods");
   for (const int32_t grid : ParseSelfGrids(args.grids)) {
     for (const std::string& method : methods) {
       const int32_t every = grid <= 64 ? 1 : 10;
@@ -281,16 +285,7 @@ int Run(Args args) {
   if (args.detect_grid > 0) {
     // The ~45k-triangle cloth (002's sizes) for the detection target (--detect-methods), the
     // exact count every 10th frame, the reference every 20th.
-    std::vector<std::string> detect_methods = {"off"};
-    std::stringstream in(args.detect_methods);
-    std::string item;
-    while (std::getline(in, item, ',')) {
-      if (!SelfCullingMethodFromName(item)) {
-        throw std::invalid_argument("--detect-methods: unknown culling method '" + item + "'");
-      }
-      detect_methods.push_back(item);
-    }
-    for (const std::string& method : detect_methods) {
+    for (const std::string& method : ParseSelfMethods(args.detect_methods, "--detect-methods")) {
       run(args.detect_grid, method, args.detect_frames, 10, args.reference ? 20 : 0, "detection");
     }
   }
