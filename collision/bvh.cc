@@ -853,8 +853,8 @@ RepairStats Bvh::RefitAll(std::span<const Vec3> x) {
 }
 
 WithinResult Bvh::TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
-                                  std::span<PointContact> out) const {
-  WithinAccumulator acc{p, r, out, {}};
+                                  std::span<PointContact> out, bool ids_only) const {
+  WithinAccumulator acc{p, r, out, {}, ids_only};
   if (options_.volume == BoundingVolume::kAabb) {
     BvhImpl<AabbOps>::Within(*this, x, &acc);
   } else {

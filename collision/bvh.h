@@ -143,7 +143,7 @@ class Bvh {
   /// Query 1: every triangle within distance r [m] of p; see WithinResult for capacity.
   /// Real-time safe.
   WithinResult TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
-                               std::span<PointContact> out) const;
+                               std::span<PointContact> out, bool ids_only = false) const;
   /// Query 2: first contact of a sphere of radius r [m] moving p0 -> p1 (SweepSphereTriangle's
   /// convention; children visited nearest-entry first, pruned by the best toi). Real-time safe.
   SweepHit SweepSphere(std::span<const Vec3> x, const Vec3& p0, const Vec3& p1, double r) const;

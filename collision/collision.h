@@ -76,6 +76,9 @@ struct WithinAccumulator {
   double r = 0.0;               ///< reach, m
   std::span<PointContact> out;  ///< caller's buffer
   WithinResult result;
+  /// Only which triangles: a triangle whose box lies wholly within r is written without its
+  /// closest point (point, barycentrics and distance left zero).
+  bool ids_only = false;
 
   /// Tests triangle `tri`, whose corners are x[t[0..2]] (x: positions, m).
   void Test(int32_t tri, const Triangle& t, std::span<const Vec3> x) {
@@ -83,6 +86,16 @@ struct WithinAccumulator {
   }
 
   void Test(int32_t tri, const Vec3& a, const Vec3& b, const Vec3& c) {
+    if (ids_only) {
+      // Every point of the triangle lies within r when its box's farthest corner does (per axis
+      // the larger of |p - lo| and |hi - p|; Arvo 1990's box-sphere test, turned around).
+      const Vec3 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
+      if ((p - lo).cwiseAbs().cwiseMax((hi - p).cwiseAbs()).squaredNorm() <= r * r) {
+        if (static_cast<size_t>(result.written) < out.size()) out[result.written++] = {tri};
+        ++result.found;
+        return;
+      }
+    }
     const TrianglePoint cp = ClosestPointOnTriangle(p, a, b, c);
     if (!(cp.distance_sq <= r * r)) return;
     if (static_cast<size_t>(result.written) < out.size()) {

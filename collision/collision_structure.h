@@ -68,10 +68,12 @@ inline RepairStats RepairSwept(CollisionStructure& s, std::span<const Vec3> x_ol
 
 /// Query 1: every triangle within distance r [m] of p [m], written to `out` (closest point,
 /// barycentrics, distance; order unspecified; see WithinResult for capacity and overflow).
-/// Real-time safe.
+/// `ids_only`: the same triangles, but those wholly within r without their closest point
+/// (WithinAccumulator::ids_only). Real-time safe.
 inline WithinResult TrianglesWithin(const CollisionStructure& s, std::span<const Vec3> x,
-                                    const Vec3& p, double r, std::span<PointContact> out) {
-  return std::visit([&](const auto& v) { return v.TrianglesWithin(x, p, r, out); }, s);
+                                    const Vec3& p, double r, std::span<PointContact> out,
+                                    bool ids_only = false) {
+  return std::visit([&](const auto& v) { return v.TrianglesWithin(x, p, r, out, ids_only); }, s);
 }
 
 /// Query 2: first contact of a sphere of radius r [m] whose centre moves p0 -> p1 [m] against the

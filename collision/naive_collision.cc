@@ -19,8 +19,8 @@ NaiveCollision::NaiveCollision(std::shared_ptr<const std::vector<Triangle>> tria
 }
 
 WithinResult NaiveCollision::TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
-                                             std::span<PointContact> out) const {
-  WithinAccumulator acc{p, r, out, {}};
+                                             std::span<PointContact> out, bool ids_only) const {
+  WithinAccumulator acc{p, r, out, {}, ids_only};
   const std::vector<Triangle>& tris = *triangles_;
   TestEveryTriangle(tris.size(), [&](int32_t tri) { acc.Test(tri, tris[tri], x); });
   return acc.result;

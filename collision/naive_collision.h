@@ -31,7 +31,7 @@ class NaiveCollision {
   /// Query 1: every triangle within distance r [m] of p (see WithinResult for capacity).
   /// x: [num vertices] positions, m. Real-time safe.
   WithinResult TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
-                               std::span<PointContact> out) const;
+                               std::span<PointContact> out, bool ids_only = false) const;
 
   /// Query 2: first contact of a sphere of radius r moving p0 -> p1 (SweepSphereTriangle's
   /// convention). Real-time safe.

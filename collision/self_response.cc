@@ -87,6 +87,9 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   if (settings.passes_per_frame < 1) {
     throw std::invalid_argument("self_collision.passes_per_frame: < 1");
   }
+  if (!(settings.max_pass_motion >= 0.0) || !std::isfinite(settings.max_pass_motion)) {
+    throw std::invalid_argument("self_collision.max_pass_motion: must be >= 0");
+  }
   if (settings.max_zone_iterations < 1) {
     throw std::invalid_argument("self_collision.max_zone_iterations: < 1");
   }
@@ -613,6 +616,7 @@ void SelfCollisionResponse::RigidZones(double h_s, SelfCollisionStats* stats) {
 SelfCollisionStats SelfCollisionResponse::Resolve(double h_s, std::span<Vec3> x,
                                                   std::span<Vec3> v) {
   SelfCollisionStats stats;
+  stats.passes = 1;
   const size_t n = x_before_.size();
   const double inv_h = 1.0 / h_s;
   for (size_t p = 0; p < n; ++p) {
@@ -718,6 +722,7 @@ SelfCollisionStats SelfCollisionResponse::Resolve(double h_s, std::span<Vec3> x,
   totals_.narrow_tests += stats.narrow_tests;
   totals_.detect_s += stats.detect_s;
   totals_.first_detect_s += stats.first_detect_s;
+  totals_.passes += stats.passes;
   // The corrected motion, as Provot's constraints apply theirs: x += dx, v += dx / h.
   for (size_t p = 0; p < n; ++p) {
     if (inv_mass_[p] == 0.0) continue;

@@ -77,6 +77,17 @@ struct SelfCollisionSettings {
   /// (docs/self_collision.md). A pass per substep for basic Verlet, whose velocity comes from
   /// the last substep's positions (sim_loop/cloth_self_collision.cc: SelfPassSubsteps). >= 1.
   int32_t passes_per_frame = 8;
+  /// A pass's length is also capped so that the fastest particle at the frame's start moves at
+  /// most this many thicknesses over it (substeps per pass <= max_pass_motion * thickness_m /
+  /// (max |v| h), at least 1; sim_loop/cloth_self_collision.cc: SelfPassSubsteps). With the
+  /// count alone a fine cloth got passes many thicknesses long: the 150 x 150 fold drop (0.5 mm
+  /// thick, 15 substeps of about 0.3 mm each per pass) pushed its bottom layer into the floor,
+  /// whose projection back was read as velocity pass after pass until it moved at tens of m/s,
+  /// overflowed and froze (docs/self_collision.md, "Pass length"). 0 = no cap (>= 0). Off by
+  /// default: on, it failed LayeredCloth.AFoldNeverClosesOnTheProxy (one particle under the
+  /// hand at up to 50 m/s cut that scene's passes to one substep); `felt bench self-collision`
+  /// sets 4.
+  double max_pass_motion = 0.0;
   /// APCCD's inflated bounding volumes (Tang et al., 004_aff31237b107e6f0.txt): the broad
   /// phase's boxes are padded by this fraction of thickness_m beyond the half thickness, so
   /// that later passes whose vertices all stay within the extra padding reuse its candidates
@@ -108,6 +119,7 @@ struct SelfCollisionStats {
   /// of every CCD and zone round (not the proximity pass's distance tests or any impulse).
   double detect_s = 0.0;
   double first_detect_s = 0.0;  ///< of which the first CCD detection (all candidates), s
+  int32_t passes = 0;           ///< Resolve calls (1 per call; their count in totals())
 };
 
 /// The response of one cloth mesh. Copyable (a copy owns its own buffers); not thread-safe.

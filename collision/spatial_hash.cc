@@ -186,8 +186,8 @@ void SpatialHash::VisitCells(const CellRange& q, Test&& test) const {
 }
 
 WithinResult SpatialHash::TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
-                                          std::span<PointContact> out) const {
-  WithinAccumulator acc{p, r, out, {}};
+                                          std::span<PointContact> out, bool ids_only) const {
+  WithinAccumulator acc{p, r, out, {}, ids_only};
   const std::vector<Triangle>& tris = *triangles_;
   const auto test = [&](int32_t tri) { acc.Test(tri, tris[tri], x); };
   const double reach = r + CullSlack(p, p, r);

@@ -58,7 +58,7 @@ class SpatialHash {
   /// cell it shares with the query box. Falls back to testing every triangle when the query box
   /// spans more cells than there are triangles. Real-time safe.
   WithinResult TrianglesWithin(std::span<const Vec3> x, const Vec3& p, double r,
-                               std::span<PointContact> out) const;
+                               std::span<PointContact> out, bool ids_only = false) const;
   /// Query 2: walks the segment (clipped to the hashed region) in pieces one cell long, testing
   /// the triangles of each piece's cells and stopping once a contact precedes the next piece.
   /// Real-time safe.

@@ -60,14 +60,17 @@ bool LocalCloth::Gather(const ClothSnapshot& query, double inflation_m, const Cl
   // Query 1 on the snapshot's own positions, enlarged by how far the tick's cloth may lie from it.
   size_ = 0;
   query_ = &query;
-  WithinResult within = TrianglesWithin(query.structure, query.x, center_W,
-                                        radius_m + std::max(inflation_m, patch_offset_m), found_);
+  // Only which triangles (the sweeps test them exactly): ids_only.
+  WithinResult within =
+      TrianglesWithin(query.structure, query.x, center_W,
+                      radius_m + std::max(inflation_m, patch_offset_m), found_, true);
   bool overflow = within.overflowed();
   if (now.patch != nullptr && overflow) {
     // Mode patch, and the patch lies so far from the snapshot that the enlarged query overflows:
     // the triangles with a corner in a window are taken from the windows at their own positions
     // (GatherPatch) and the query, enlarged by `inflation_m` alone, gives the rest.
-    within = TrianglesWithin(query.structure, query.x, center_W, radius_m + inflation_m, found_);
+    within =
+        TrianglesWithin(query.structure, query.x, center_W, radius_m + inflation_m, found_, true);
     overflow = within.overflowed();
     for (size_t k = 0; k < static_cast<size_t>(within.written); ++k) {
       const int32_t tri = found_[k].triangle;

@@ -883,7 +883,12 @@ TickCloth ChooseTickCloth(const ProxyModel& model, const ClothSnapshot& newest,
     if (!cloth.first) ++state->counters.new_snapshots;
     state->newest_frame = newest.frame;
     state->have_frame = true;
-    state->pair_displacement_m = prev != nullptr ? MaxDisplacement(*prev, newest) : 0.0;
+    // The publisher's own figure when prev is the snapshot just before (the same positions).
+    const bool known = prev != nullptr && newest.displacement_from_previous_m >= 0.0 &&
+                       prev->frame + 1 == newest.frame;
+    state->pair_displacement_m = known             ? newest.displacement_from_previous_m
+                                 : prev != nullptr ? MaxDisplacement(*prev, newest)
+                                                   : 0.0;
   }
   const double frame_dt = newest.frame_dt_s;
   cloth.alpha = frame_dt > 0.0 ? std::clamp(since_newest_s / frame_dt, 0.0, 1.0) : 1.0;

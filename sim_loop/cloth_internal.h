@@ -143,11 +143,12 @@ void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* sta
                         FrameResult* result);
 
 /// Substeps covered by one self-collision pass of a frame cut into `substeps`:
-/// ceil(substeps / SelfCollisionSettings::passes_per_frame); always 1 for basic Verlet, whose
-/// velocity comes from the last substep's positions, so a correction spread over a longer step
-/// would be amplified.
+/// ceil(substeps / SelfCollisionSettings::passes_per_frame), and with the particles' velocities
+/// v [m/s] and the substep h_s [s] at most max_pass_motion * thickness / (max |v| h_s) (at least
+/// 1); always 1 for basic Verlet, whose velocity comes from the last substep's positions, so a
+/// correction spread over a longer step would be amplified. Real-time safe.
 int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& self,
-                         int32_t substeps);
+                         int32_t substeps, std::span<const Vec3> v = {}, double h_s = 0.0);
 
 /// The exact count of intersecting non-adjacent triangle pairs at the frame's end into
 /// result->self_intersections and counters.self_intersections_max (O(T^2); opt-in diagnostic).

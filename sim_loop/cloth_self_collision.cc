@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "collision/self_intersection.h"
 #include "sim_loop/cloth.h"
@@ -34,10 +35,22 @@ void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* sta
 }
 
 int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& self,
-                         int32_t substeps) {
+                         int32_t substeps, std::span<const Vec3> v, double h_s) {
   if (model.integrator == IntegratorKind::kBasicVerlet) return 1;
-  const int32_t passes = std::max(1, self.settings().passes_per_frame);
-  return std::max(1, (substeps + passes - 1) / passes);
+  const SelfCollisionSettings& settings = self.settings();
+  const int32_t passes = std::max(1, settings.passes_per_frame);
+  int32_t every = std::max(1, (substeps + passes - 1) / passes);
+  if (settings.max_pass_motion > 0.0 && h_s > 0.0) {
+    // The pass's motion in thicknesses at the fastest particle's speed.
+    double v2 = 0.0;
+    for (const Vec3& vi : v) v2 = std::max(v2, vi.squaredNorm());
+    const double step_m = std::sqrt(v2) * h_s;
+    if (step_m > 0.0) {
+      const double cap = settings.max_pass_motion * settings.thickness_m / step_m;
+      if (cap < every) every = std::max(1, static_cast<int32_t>(cap));
+    }
+  }
+  return every;
 }
 
 void CountFrameIntersections(const ClothModel& model, ClothState* state, FrameResult* result) {

@@ -74,7 +74,7 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   SelfCollisionResponse* self = s.self_collision ? &*s.self_collision : nullptr;
   // Self-collision passes cover several substeps (a few per frame; Bridson et al. 2002's
   // collision step): self_h is the time since the pass's BeginStep.
-  const int32_t self_every = self ? SelfPassSubsteps(model, *self, substeps) : 1;
+  const int32_t self_every = self ? SelfPassSubsteps(model, *self, substeps, state->v, h) : 1;
   double self_h = 0.0;
   for (int32_t k = 0; k < substeps; ++k) {
     if (self && self_h == 0.0) self->BeginStep(state->x);  // the pass's start positions

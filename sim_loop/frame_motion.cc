@@ -2,6 +2,7 @@
 
 #include "sim_loop/frame_motion.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 
@@ -16,9 +17,19 @@ RepairStats FillSnapshotWithFrameMotion(const ClothState& state, std::span<const
     std::abort();
   }
   // Mean velocity over the frame: the published cloth's own motion.
+  // The largest displacement too (MaxDisplacement's arithmetic), so the haptic thread need not
+  // pass over the whole cloth when the snapshot arrives.
   const double inv_dt = frame_dt_s > 0.0 ? 1.0 / frame_dt_s : 0.0;
-  for (size_t i = 0; i < n; ++i) v_scratch[i] = (state.x[i] - x_start_m[i]) * inv_dt;
-  return FillSnapshot(state.x, v_scratch, state.normals, frame, state.time_s, frame_dt_s, snapshot);
+  double m2 = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3 d = state.x[i] - x_start_m[i];
+    m2 = std::max(m2, d.squaredNorm());
+    v_scratch[i] = d * inv_dt;
+  }
+  const RepairStats stats =
+      FillSnapshot(state.x, v_scratch, state.normals, frame, state.time_s, frame_dt_s, snapshot);
+  snapshot->displacement_from_previous_m = std::sqrt(m2);
+  return stats;
 }
 
 }  // namespace felt

@@ -24,7 +24,8 @@ namespace felt {
 /// Refills `snapshot` from `state` (positions, normals, time_s) with the frame's mean velocities
 /// v_i = (state.x_i - x_start_m_i) / frame_dt_s [m/s, world] (zero when frame_dt_s <= 0), written
 /// into `v_scratch` first. `x_start_m` [m, world]: the positions of the previous published
-/// snapshot; `frame_dt_s` [s]: the sim time between the two. Every span has
+/// snapshot (frame - 1: displacement_from_previous_m is set from them); `frame_dt_s` [s]: the sim
+/// time between the two. Every span has
 /// state.x.size() entries (aborts otherwise, like FillSnapshot). Returns the structure repair's
 /// counters. Real-time safe (no allocation, no exception).
 RepairStats FillSnapshotWithFrameMotion(const ClothState& state, std::span<const Vec3> x_start_m,

@@ -67,6 +67,7 @@ RepairStats FillSnapshot(std::span<const Vec3> x, std::span<const Vec3> v,
   double max_speed2 = 0.0;
   for (const Vec3& vi : v) max_speed2 = std::max(max_speed2, vi.squaredNorm());
   snapshot->max_speed_m_per_s = std::sqrt(max_speed2);
+  snapshot->displacement_from_previous_m = -1.0;
   snapshot->frame = frame;
   snapshot->time_s = time_s;
   snapshot->frame_dt_s = frame_dt_s;

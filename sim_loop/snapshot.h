@@ -30,6 +30,9 @@ struct ClothSnapshot {
   double time_s = 0.0;             ///< sim time of `x`, s
   double frame_dt_s = 0.0;         ///< sim time since the previous snapshot, s (> 0 once stepping)
   double max_speed_m_per_s = 0.0;  ///< max_i |v_i|, m/s (bounds extrapolated motion)
+  /// MaxDisplacement from the snapshot of frame `frame - 1` of the same publisher, m, when the
+  /// publisher knows it (FillSnapshotWithFrameMotion); negative: unknown.
+  double displacement_from_previous_m = -1.0;
 
   /// Number of particles.
   int32_t num_particles() const { return static_cast<int32_t>(x.size()); }

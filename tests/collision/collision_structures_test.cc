@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <random>
 
 #include "collision/collision_structure.h"
@@ -87,6 +88,34 @@ TEST(CollisionStructuresTest, TrianglesWithinMatchesNaiveExactly) {
   }
   // The generator must actually produce contacts (else the comparison proves little).
   EXPECT_GT(nonempty, 1000 / SanitizedScale());
+}
+
+// ids_only finds the same triangles as the exact query on every structure, with radii up to the
+// cloth's size so that whole triangles fall inside (the shortcut's case) as well as partly.
+TEST(CollisionStructuresTest, TrianglesWithinIdsOnlyFindsTheSameTriangles) {
+  std::mt19937_64 rng(13);
+  const std::vector<CollisionStructureSpec> specs = AllSpecs(kInflation);
+  std::vector<PointContact> ref_buf(4096), got_buf(4096);
+  int64_t found = 0;
+  for (const TestCloth& c : MakeTestCloths(kGrid, 5)) {
+    const std::vector<CollisionStructure> structures = BuildRepaired(c);
+    for (int q = 0; q < 100 / SanitizedScale(); ++q) {
+      const double r = std::array{0.0, 0.005, 0.02, 0.1, 0.4}[q % 5];
+      const Vec3 p = RandomQueryPoint(c, r, rng);
+      for (size_t s = 0; s < structures.size(); ++s) {
+        const WithinResult ref_r = TrianglesWithin(structures[s], c.x, p, r, ref_buf);
+        const WithinResult got_r = TrianglesWithin(structures[s], c.x, p, r, got_buf, true);
+        const std::string what =
+            c.name + " " + CollisionStructureName(specs[s]) + " query " + std::to_string(q);
+        ASSERT_EQ(ref_r.found, got_r.found) << what;
+        const std::vector<PointContact> ref = Sorted(ref_buf, ref_r);
+        const std::vector<PointContact> got = Sorted(got_buf, got_r);
+        for (size_t i = 0; i < ref.size(); ++i) EXPECT_EQ(ref[i].triangle, got[i].triangle) << what;
+        found += ref_r.found;
+      }
+    }
+  }
+  EXPECT_GT(found, 5000 / SanitizedScale());
 }
 
 TEST(CollisionStructuresTest, TrianglesWithinReportsOverflow) {

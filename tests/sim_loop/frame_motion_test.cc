@@ -57,6 +57,12 @@ TEST(FrameMotionTest, VelocitiesAreTheFramesDisplacementOverItsDurationWithoutAl
   }
   EXPECT_GT(max_speed, 0.0);
   EXPECT_EQ(s.max_speed_m_per_s, max_speed);
+  // The frame's largest displacement, as MaxDisplacement from the frame's start gives it.
+  ClothState start = state;
+  start.x = x_start;
+  const ClothSnapshot before = MakeClothSnapshot(model, start, CollisionStructureSpec{});
+  EXPECT_GT(s.displacement_from_previous_m, 0.0);
+  EXPECT_EQ(s.displacement_from_previous_m, MaxDisplacement(before, s));
   // No elapsed time: no motion.
   FillSnapshotWithFrameMotion(state, x_start, 0.0, 12, v, &s);
   EXPECT_EQ(MaxSpeed(s.v), 0.0);

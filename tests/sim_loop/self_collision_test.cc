@@ -240,6 +240,35 @@ TEST(SelfCollisionScene, PassesPerFrameKeepTheFoldDropClean) {
   }
 }
 
+// The pass length: ceil(substeps / passes_per_frame) substeps, shortened so that the fastest
+// particle moves at most max_pass_motion thicknesses per pass (at least one substep); no cap at
+// rest, with the cap off, or for basic Verlet.
+TEST(SelfCollisionScene, PassLengthIsCappedByTheFastestParticle) {
+  ClothModel model = BuildClothModel(SelfCollisionSceneSpec("self_fold_drop.toml"));
+  EXPECT_EQ(model.self_collision.max_pass_motion, 0.0);  // off unless set
+  model.self_collision.max_pass_motion = 4.0;
+  ClothState state = MakeClothState(model);
+  const SelfCollisionResponse& self = *state.scratch->self_collision;
+  const double thick = self.settings().thickness_m;
+  const double motion = self.settings().max_pass_motion;
+  const int32_t passes = self.settings().passes_per_frame;
+  const int32_t substeps = 10 * passes;  // 10 substeps per pass by the count
+  std::vector<Vec3> v(state.x.size(), Vec3::Zero());
+  const double h = 1e-4;
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h), 10);
+  // Fastest particle: 3.5 substeps' worth of the allowed motion per pass -> 3 substeps.
+  v[5] = Vec3(0.0, -motion * thick / (3.5 * h), 0.0);
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h), 3);
+  v[5] *= 100.0;  // faster than the cap allows in one substep: still one
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h), 1);
+  v[5] = Vec3(0.0, -motion * thick / (20.0 * h), 0.0);  // slow: the count decides
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h), 10);
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps), 10);  // no velocities given
+  model.integrator = IntegratorKind::kBasicVerlet;
+  v[5] *= 10.0;
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h), 1);
+}
+
 // Issue 22's other hard cases (scenes/self_fall_10ms.toml, self_tablecloth_pull.toml,
 // self_rail_twist.toml, self_fold_press.toml): zero intersecting non-adjacent triangle pairs at the
 // end of every frame by the exact test, no collision left unresolved, none frozen; and each scene,
