@@ -146,7 +146,7 @@ struct IntegrationSpec {
   int32_t substeps = 0;                ///< per frame; 0 = "auto" from the stability limit
   double frame_rate_hz = 60.0;         ///< nominal frame rate, > 0
   double max_frame_dt_s = 1.0 / 30.0;  ///< a late frame integrates at most this much time
-  double auto_safety = 0.75;        ///< auto substeps keep h <= auto_safety * h_stable, in (0, 1]
+  double auto_safety = 0.5;         ///< auto substeps keep h <= auto_safety * h_stable, in (0, 1]
   int32_t cg_max_iterations = 200;  ///< implicit Euler: conjugate-gradient iteration cap
   double cg_tolerance = 1e-8;       ///< implicit Euler: relative residual to stop at
 };
@@ -176,24 +176,24 @@ struct ProvotSpec {
   /// McCormick 2000) and of hierarchical position based dynamics (Mueller 2008), as stencils on
   /// the grid.
   bool multiresolution = true;
-  /// The multiresolution families join the first `coarse_sweeps` sweeps of a substep only, >= 1;
-  /// the later sweeps visit the spring families alone. With the finishing worklist the coarse
-  /// levels need to run once a substep (they carry a correction across the cloth; the fine sweeps
-  /// and the worklist settle the rest): the two-corner curtain, 3 sweeps, probe CPU ms per frame
-  /// at 64 / 128: 1.75 / 14.8 with the levels in every sweep, 1.37 / 10.8 in the first only, the
-  /// limit held either way (sim_loop/cloth_limiter.cc).
-  int32_t coarse_sweeps = 1;
+  /// The multiresolution families join the first `coarse_sweeps` sweeps of a substep only, >= 1
+  /// (default: every sweep); the later sweeps visit the spring families alone. With the finishing
+  /// worklist the coarse levels need to run once a substep (they carry a correction across the
+  /// cloth; the fine sweeps and the worklist settle the rest): the two-corner curtain, 3 sweeps,
+  /// probe CPU ms per frame at 64 / 128: 1.75 / 14.8 with the levels in every sweep, 1.37 / 10.8
+  /// in the first only, the limit held either way (sim_loop/cloth_limiter.cc).
+  int32_t coarse_sweeps = kMaxProvotIterations;
   /// The sweeps aim at (1 - sweep_headroom) times every limit (pairs and attachments' own limits
   /// stay as declared), in [0, 0.5): Gauss-Seidel sweeps stall in taut patches where every pair
   /// sits at its limit, and a little room below the limit is what lets the finishing pass
   /// (`finish`) converge in a few local projections instead of thousands. The cloth then settles
   /// about this much shorter than (1 + max_elongation) times its rest length.
-  double sweep_headroom = 0.01;
+  double sweep_headroom = 0.0;
   /// After the sweeps, project every structural (and, with `shear`, shear) spring still over its
   /// limit exactly, in double precision, re-visiting only the springs each projection pushed over
   /// (a worklist), until none is over: the limit then holds at the end of every substep, not just
   /// up to the sweeps' convergence (bench/results/cloth.md).
-  bool finish = true;
+  bool finish = false;
 };
 
 /// Self-collision of the cloth (issue 22; collision/self_response.h): Bridson, Fedkiw & Anderson
