@@ -708,8 +708,9 @@ ClothModel BuildClothModel(const SimSpec& spec) {
   } else {
     // Auto (docs/scenes.md, [integration]): h <= auto_safety x the stable step, the largest h at
     // which no mode of the linearised cloth grows (for leapfrog without damping, omega_max h < 2;
-    // the default safety 0.75 keeps omega_max h <= 1.5 there, and the grid-symbol omega_max is
-    // itself an upper bound). That keeps every damped or stretch-limited cloth bounded for as
+    // the default safety 0.5 keeps omega_max h <= 1, 0.75 (scenes/curtain_128.toml, with the
+    // finishing limiter) omega_max h <= 1.5, and the grid-symbol omega_max is itself an upper
+    // bound). That keeps every damped or stretch-limited cloth bounded for as
     // long as it runs: the dashpots, the drag or Provot's inelastic projections remove what
     // leapfrog's local errors add (felt bench stability: the damped hour, and the undamped 10 x 10
     // curtain with Provot on, 600 s at 2 substeps, never 1e-6 J above its start).

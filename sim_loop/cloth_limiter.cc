@@ -3,7 +3,8 @@
 // projection re-queuing only the springs it pushed over, until none is over.
 //
 // Why a worklist, and why the sweeps' headroom (measured on the two-corner curtain, 120 frames
-// from release, shipped settings otherwise; probe CPU ms per frame at 64 x 64 on the AMD host):
+// from release, curtain_128.toml's settings otherwise; probe CPU ms per frame at 64 x 64 on the
+// AMD host):
 // Gauss-Seidel sweeps stall in taut patches where every pair sits at its limit (the release peak
 // of bench/results/stability.md), and so does a worklist on its own: with the sweeps aiming at the
 // limit itself, it ran out of a budget of 64 projections per particle in nearly every substep and
@@ -28,7 +29,8 @@ namespace {
 // over 120 frames; 1e-3: 46k.
 constexpr double kWorklistSlack = 1e-3;
 // Projections per substep at most, per particle: the real-time bound. Unconverged substeps are
-// counted (ClothCounters::limiter_unconverged); none at the shipped settings, 10-128.
+// counted (ClothCounters::limiter_unconverged); none with scenes/curtain_128.toml's settings at
+// grids 10-128.
 constexpr size_t kWorklistBudgetPerParticle = 64;
 // The single-precision scan queues a pair longer than (1 - this) times its limit, and the exact
 // test in double decides. ApplyProvot's positions are relative to the first particle, rounded to
