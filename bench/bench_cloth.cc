@@ -246,6 +246,29 @@ std::vector<std::vector<std::string>> Rows(const std::vector<GridResult>& result
   return rows;
 }
 
+// The scene's integration and limiter settings in words, for the table's header.
+std::string SettingsText(const SimSpec& spec) {
+  const ProvotSpec& p = spec.provot;
+  std::string out =
+      "auto substeps at " + Fixed(spec.integration.auto_safety, 2) + " of the stable step";
+  if (!p.enabled) return out + ", Provot off";
+  out += ", Provot " + Fixed(100.0 * p.max_elongation, 0) + " %";
+  if (p.long_range_attachments) out += " with long range attachments";
+  if (p.multiresolution) {
+    out += " and multiresolution families along rows, columns and diagonals";
+    if (p.coarse_sweeps < p.iterations) {
+      out += " (in the first " + std::to_string(p.coarse_sweeps) + " sweep" +
+             (p.coarse_sweeps == 1 ? "" : "s") + ")";
+    }
+  }
+  out += ", " + std::to_string(p.iterations) + " sweeps";
+  if (p.sweep_headroom > 0.0) {
+    out += " aiming " + Fixed(100.0 * p.sweep_headroom, 1) + " % under the limit";
+  }
+  if (p.finish) out += ", then the finishing worklist";
+  return out;
+}
+
 int Run(const Args& args) {
   if (args.tradeoff) return RunTradeoff(args);
   if (args.quick) throw std::invalid_argument("--quick needs --tradeoff");
@@ -287,26 +310,23 @@ int Run(const Args& args) {
                                            "nan events",
                                            "target"};
   std::string md = ReportHeader("Cloth frame cost (`felt bench cloth`)", cmd, machine, load_end);
-  md +=
-      "The default curtain (scenes/curtain.toml: pinned at its two top corners, leapfrog "
-      "Verlet, auto substeps, Provot 10% with long range attachments and multiresolution "
-      "families along rows, columns and diagonals, 3 sweeps aiming 1 % under the limit with the "
-      "multiresolution families in the first, then the finishing worklist) resized to each grid "
-      "over the same 0.496 m square. " +
-      std::to_string(args.settle_frames) + " frames settle (not timed), then " +
-      std::to_string(args.timed_frames()) +
-      " frames of 1/60 s are timed one by one. `frame ms` is wall time of StepFrame, `cpu ms` "
-      "this thread's CPU time (it does not count time preempted by other processes). Max "
-      "stretch: the largest structural spring length / rest length after any frame, settling "
-      "included (the release transient peaks at frames 5-8); `timed max stretch` only over the "
-      "timed frames, the settled cloth; `max shear stretch` and `timed max shear stretch` the "
-      "same over the shear springs (constrained too; the target is on the structural ones). "
-      "`worklist / substep`: the finishing worklist's projections per substep over the timed "
-      "frames; `worklist unconverged`: substeps whose worklist ran out of its budget (every "
-      "frame). "
-      "Targets: 64 x 64 <= 1 ms median with max stretch <= 1.10 (issue 2); 128 x 128 <= 5.6 ms "
-      "median (issue 21: a third of the 60 Hz budget, on every host, AVX2-only CPUs included); "
-      "judged on the wall-clock median.\n\n";
+  md += "The curtain of " + args.scene + " (pinned at its two top corners, leapfrog Verlet, " +
+        SettingsText(ResizedCurtain(args.scene, grids.front())) +
+        ") resized to each grid over the same 0.496 m square. " +
+        std::to_string(args.settle_frames) + " frames settle (not timed), then " +
+        std::to_string(args.timed_frames()) +
+        " frames of 1/60 s are timed one by one. `frame ms` is wall time of StepFrame, `cpu ms` "
+        "this thread's CPU time (it does not count time preempted by other processes). Max "
+        "stretch: the largest structural spring length / rest length after any frame, settling "
+        "included (the release transient peaks at frames 5-8); `timed max stretch` only over the "
+        "timed frames, the settled cloth; `max shear stretch` and `timed max shear stretch` the "
+        "same over the shear springs (constrained too; the target is on the structural ones). "
+        "`worklist / substep`: the finishing worklist's projections per substep over the timed "
+        "frames; `worklist unconverged`: substeps whose worklist ran out of its budget (every "
+        "frame). "
+        "Targets: 64 x 64 <= 1 ms median with max stretch <= 1.10 (issue 2); 128 x 128 <= 5.6 ms "
+        "median (issue 21: a third of the 60 Hz budget, on every host, AVX2-only CPUs included); "
+        "judged on the wall-clock median.\n\n";
   md += MarkdownTable(header,
                       {true, true, true, true, true, true, true, true, true, true, true, true, true,
                        true, true, true, false},
