@@ -1,15 +1,18 @@
 #pragma once
-// SIMD behind one door: the vector instruction level the kernels of sim_loop/ and collision/ use (spring forces in
-// cloth_forces.cc, Provot's sweeps, attachments and structure-of-arrays conversion in
-// cloth_constraints.cc, the AABB repair in bvh.cc), chosen once at start from what the CPU runs,
-// and the one test switch that caps it. Every level gives the same bits; a level only changes
-// speed. Each kernel family keeps a table with one entry per level (SimdTable) and picks its entry
-// with PickSimd, one relaxed atomic load. Depends on the standard library only.
+// SIMD behind one door: the vector instruction level the kernels of sim_loop/ and collision/ use
+// (spring forces in cloth_forces.cc, Provot's sweeps, attachments and structure-of-arrays
+// conversion in cloth_constraints.cc, the AABB repair in bvh.cc), chosen once at start from what
+// the CPU runs, and the one test switch that caps it. Every level gives the same bits; a level only
+// changes speed. Each kernel family keeps a table with one entry per level (SimdTable) and picks
+// its entry with PickSimd, one relaxed atomic load. The environment variable
+// FELT_SIMD=portable|avx2|avx512, read once at start, caps the level for a whole process (to
+// measure a narrower CPU's speed on a wider one). Depends on the standard library only.
 
 #include <array>
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 
 namespace felt {
 
@@ -36,9 +39,21 @@ using SimdTable = std::array<Kernels, kNumSimdLevels>;
 /// kPortable off x86-64.
 SimdLevel CpuSimdLevel();
 
-/// Tests only: caps every kernel at `level` (the CPU's own level if that is narrower), so one
-/// machine checks every level it has; LimitSimdLevel(kWidestSimdLevel) lifts the cap. Not
-/// thread-safe against kernels running at the same time (they may use either level: same bits).
+/// The level the process started with: CpuSimdLevel() capped by the environment variable
+/// FELT_SIMD ("portable", "avx2" or "avx512"; unset or empty: no cap), read once. An unknown value
+/// stops the process at start with a message on stderr (exit status 2).
+SimdLevel StartedSimdLevel();
+
+/// "portable", "avx2" or "avx512": the name FELT_SIMD gives a level.
+const char* SimdLevelEnvName(SimdLevel level);
+
+/// The level FELT_SIMD's value `name` stands for ("portable", "avx2", "avx512"); nullopt if none.
+std::optional<SimdLevel> SimdLevelFromEnvName(const char* name);
+
+/// Tests only (FELT_SIMD caps a whole process): caps every kernel at `level` (the CPU's own level
+/// if that is narrower), so one machine checks every level it has; LimitSimdLevel(kWidestSimdLevel)
+/// lifts the cap. Not thread-safe against kernels running at the same time (they may use either
+/// level: same bits).
 void LimitSimdLevel(SimdLevel level);
 
 /// "portable", "avx2" or "avx512f+avx2": the name of a level as reports show it.

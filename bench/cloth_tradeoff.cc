@@ -92,10 +92,11 @@ bool BulletPointJudged(int32_t grid, double release_stretch, double settled_stre
 
 std::vector<FeltSetting> FeltSettings(const TradeoffOptions& options, int32_t scene_sweeps) {
   std::vector<FeltSetting> settings;
-  std::set<std::tuple<int32_t, int32_t, double>> seen;
-  const auto add = [&](const char* curve, int32_t substeps, int32_t sweeps, double limit) {
-    if (seen.insert({substeps, sweeps, limit}).second) {
-      settings.push_back({curve, substeps, sweeps, limit});
+  std::set<std::tuple<int32_t, int32_t, double, bool>> seen;
+  const auto add = [&](const char* curve, int32_t substeps, int32_t sweeps, double limit,
+                       bool alone = false) {
+    if (seen.insert({substeps, sweeps, limit, alone}).second) {
+      settings.push_back({curve, substeps, sweeps, limit, alone});
     }
   };
   for (const int32_t n : options.substeps) add("felt_substeps", n, scene_sweeps, 0.0);
@@ -107,6 +108,7 @@ std::vector<FeltSetting> FeltSettings(const TradeoffOptions& options, int32_t sc
   for (const int32_t k : sweeps) add("felt_sweeps", 0, k, 0.0);
   for (const int32_t n : options.small_steps) add("felt_small_steps", n, 1, 0.0);
   for (const double e : options.limits) add("felt_limit", 0, scene_sweeps, e);
+  for (const int32_t k : options.sweeps_alone) add("felt_sweeps_alone", 0, k, 0.0, true);
   return settings;
 }
 
@@ -129,6 +131,8 @@ constexpr CurveInfo kCurves[] = {
     {"felt_sweeps", "Felt: Provot sweeps swept, auto substeps"},
     {"felt_small_steps", "Felt: small steps (substeps swept, 1 sweep)"},
     {"felt_limit", "Felt: tighter Provot limit (auto substeps, the scene's sweeps)"},
+    {"felt_sweeps_alone",
+     "Felt: Provot sweeps alone, swept (no finishing worklist, no headroom; auto substeps)"},
     {"bullet_bending", "Bullet: piterations swept, bending links (kLST 1)"},
     {"bullet_links", "Bullet: piterations swept, no bending links"},
 };
@@ -227,6 +231,7 @@ std::string FeltKeys(const FeltSetting& s) {
   if (s.max_elongation > 0.0) {
     AppendPart("provot.max_elongation=" + Sig(s.max_elongation, 6), &keys);
   }
+  if (s.sweeps_alone) AppendPart("provot.finish=false; provot.sweep_headroom=0", &keys);
   return keys.empty() ? "(the scene's own)" : keys;
 }
 
@@ -236,6 +241,10 @@ Point RunFelt(const TradeoffOptions& o, int32_t grid, const FeltSetting& setting
   if (setting.substeps > 0) spec.integration.substeps = setting.substeps;
   if (setting.sweeps > 0) spec.provot.iterations = setting.sweeps;
   if (setting.max_elongation > 0.0) spec.provot.max_elongation = setting.max_elongation;
+  if (setting.sweeps_alone) {
+    spec.provot.finish = false;
+    spec.provot.sweep_headroom = 0.0;
+  }
   const ClothModel model = BuildClothModel(spec);
   ClothState state = MakeClothState(model);
   Point p;
@@ -245,7 +254,7 @@ Point RunFelt(const TradeoffOptions& o, int32_t grid, const FeltSetting& setting
   p.keys = FeltKeys(setting);
   p.substeps = model.substeps;
   p.iterations = model.provot_iterations;
-  p.shipped = setting.substeps == 0 && setting.max_elongation == 0.0 &&
+  p.shipped = setting.substeps == 0 && setting.max_elongation == 0.0 && !setting.sweeps_alone &&
               (setting.sweeps == 0 || setting.sweeps == scene_sweeps);
   if (p.shipped)
     p.keys =
@@ -674,8 +683,11 @@ int RunClothTradeoff(const TradeoffOptions& o) {
       "with auto substeps (the scene's own count is the shipped setting), and small steps "
       "(substeps swept with `provot.iterations=1`), and a tighter Provot limit "
       "(`provot.max_elongation` below the scene's 0.10, auto substeps, the scene's sweeps: "
-      "Felt's stretch sits near 1 + its limit, so only a tighter one reaches below 1.10); "
-      "everything else as the scene (leapfrog Verlet, Provot with long range attachments and "
+      "Felt's stretch sits near 1 + its limit), and Provot's sweeps alone, swept "
+      "(`provot.finish=false; provot.sweep_headroom=0`: no finishing worklist; the "
+      "multiresolution families in the first sweep only, as shipped; auto substeps); everything "
+      "else as the scene (leapfrog Verlet, Provot with long "
+      "range attachments and "
       "multiresolution families). Substep counts under the auto count give up part of the "
       "margin auto keeps below the integrator's stable step (`integration.auto_safety`); they "
       "are measured as they run. A Felt point with NaN events (a frame restored its last good "

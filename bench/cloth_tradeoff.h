@@ -75,6 +75,9 @@ struct FeltSetting {
   int32_t substeps = 0;         ///< integration.substeps; 0 = the scene's ("auto")
   int32_t sweeps = 0;           ///< provot.iterations; 0 = the scene's
   double max_elongation = 0.0;  ///< provot.max_elongation; 0 = the scene's
+  /// provot.finish = false and provot.sweep_headroom = 0: Provot's sweeps alone, without the
+  /// finishing worklist (the limiter before issue 21's worklist)
+  bool sweeps_alone = false;
 };
 
 /// What `felt bench cloth --tradeoff` runs and where it writes (bench/bench_cloth.cc parses it).
@@ -94,6 +97,8 @@ struct TradeoffOptions {
   /// Provot's limit, with auto substeps and the scene's sweeps (Felt's stretch sits near 1 + the
   /// limit, so only a tighter limit reaches below it).
   std::vector<double> limits = {0.05, 0.02, 0.01};
+  /// Provot's sweeps alone (no finishing worklist, no headroom), with auto substeps.
+  std::vector<int32_t> sweeps_alone = {1, 3, 10};
   std::vector<int32_t> bullet_iterations = {1, 2, 5, 10, 20, 50, 100, 300};
   bool bullet = true;  ///< false: --no-bullet
   std::string gnuplot_script = "bench/cloth_tradeoff.gp";
@@ -104,7 +109,8 @@ struct TradeoffOptions {
 /// The Felt settings of `options` on a scene whose own sweeps are `scene_sweeps`, in run order:
 /// the substep sweep (scene sweeps), the Provot sweep (auto substeps; the scene's own count
 /// always among them: the shipped setting), the small steps (1 sweep), the tighter limits (auto
-/// substeps, scene sweeps). Duplicates are dropped.
+/// substeps, scene sweeps), the sweeps alone (auto substeps, FeltSetting::sweeps_alone).
+/// Duplicates are dropped.
 std::vector<FeltSetting> FeltSettings(const TradeoffOptions& options, int32_t scene_sweeps);
 
 /// Runs the benchmark and writes its files (file comment). Returns 0; throws

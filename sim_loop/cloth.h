@@ -62,10 +62,25 @@ struct ProvotFamily {
   /// second one), else every particle in [lo, hi). The runs of the first colour come first; no two
   /// pairs of one colour share a particle.
   std::vector<Run> runs;
+  /// The length the sweeps project onto, m: (1 - ProvotSpec::sweep_headroom) * max_length_m (the
+  /// finishing worklist holds max_length_m itself).
+  double sweep_length_m = 0.0;
 
   /// True if the runs are strided (along a row, dc 1, 2, 4 or 8: a colour's pairs interleave
   /// within a row, every sixteen particles holding eight pairs).
   bool strided() const { return dr == 0 && (dc == 1 || dc == 2 || dc == 4 || dc == 8); }
+};
+
+/// One family of spring limits that the stretch limiter's finishing worklist holds
+/// (ProvotSpec::finish): particle (col, row) and particle (col + dc, row + dr) may be at most max_m
+/// apart, for every (col, row) where both are on the grid: the structural (and, with
+/// ProvotSpec::shear, shear) springs.
+struct LimitFamily {
+  int32_t dc = 0;        ///< column offset of end j from end i, in particles
+  int32_t dr = 0;        ///< row offset of end j from end i, >= 0
+  int32_t off = 0;       ///< index offset of end j from end i: dr * width + dc
+  double max_m = 0.0;    ///< (1 + max_elongation) * rest length, m
+  double max2_m2 = 0.0;  ///< max_m squared, m^2
 };
 
 /// A long range attachment (ProvotSpec::long_range_attachments): free particle `particle` may be
@@ -141,6 +156,7 @@ struct ClothModel {
   // Provot (ProvotSpec, validated).
   bool provot_enabled = false;    ///< Provot's constraints are applied after each substep
   int32_t provot_iterations = 0;  ///< Gauss-Seidel sweeps per substep
+  int32_t provot_coarse_sweeps = 0;  ///< the first sweeps that visit the multiresolution families
 
   // Self-collision (SelfCollisionSpec, validated; issue 22). Nothing is built without it.
   bool self_collision_enabled = false;              ///< the scene declared [self_collision]
@@ -164,6 +180,9 @@ struct ClothModel {
   std::vector<int32_t> attachment_pin;
   std::vector<float> attachment_max_m;        ///< see attachment_pin
   std::vector<SpringFamily> spring_families;  ///< `springs` grouped by type and direction
+  /// The spring limits the finishing worklist holds (ProvotSpec::finish; empty: no worklist),
+  /// the level-1 provot_families at their max_length_m.
+  std::vector<LimitFamily> limit_families;
   /// Bound on the highest natural frequency of the linearised spring system, rad/s, for every
   /// configuration: omega_max^2 = max over wave vectors of the grid Laplacian's symbol / m (see
   /// ComputeFrequencyBounds in cloth_build.cc; 000_25210a744b053ca5.txt slide 8: the critical
@@ -201,6 +220,10 @@ struct ClothCounters {
   uint64_t self_frozen_substeps = 0;      ///< substeps whose zones were frozen at x_before
   uint64_t self_unresolved_substeps = 0;  ///< substeps that ended with a collision left
   uint64_t self_overflows = 0;            ///< detections whose buffers overflowed
+  // The stretch limiter's finishing worklist (ProvotSpec::finish), summed over substeps.
+  uint64_t limiter_initial = 0;      ///< pairs over their limit when the worklist started
+  uint64_t limiter_projections = 0;  ///< projections the worklist made
+  uint64_t limiter_unconverged = 0;  ///< substeps whose worklist ran out of budget
   /// Most intersecting non-adjacent triangle pairs at the end of a frame, by the exact test
   /// (only with SelfCollisionSpec::count_intersections; -1 when not counted).
   int64_t self_intersections_max = -1;

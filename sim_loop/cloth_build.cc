@@ -204,6 +204,13 @@ void ValidateProvot(const ProvotSpec& s) {
     Fail("provot.iterations",
          "must be in [1, " + Show(kMaxProvotIterations) + "], got " + Show(s.iterations));
   }
+  if (s.coarse_sweeps < 1 || s.coarse_sweeps > kMaxProvotIterations) {
+    Fail("provot.coarse_sweeps",
+         "must be in [1, " + Show(kMaxProvotIterations) + "], got " + Show(s.coarse_sweeps));
+  }
+  if (!(s.sweep_headroom >= 0.0 && s.sweep_headroom < 0.5)) {
+    Fail("provot.sweep_headroom", "must be in [0, 0.5), got " + Show(s.sweep_headroom));
+  }
 }
 
 // Appends the springs of one type between (c, r) and (c + dc, r + dr) for every valid pair, and
@@ -323,6 +330,7 @@ std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const Pro
     if (kept) out.push_back({f.dc, f.dr, limit(f), 1, {}});
   }
   for (ProvotFamily& f : out) {
+    f.sweep_length_m = (1.0 - spec.sweep_headroom) * f.max_length_m;
     f.runs = ProvotRuns(f, model.width, model.height);
     // A run whose pairs are all free skips the pinned-end shares (most runs of most cloths).
     const auto pinned = [&](int32_t p) { return model.inv_mass_per_kg[p] == 0.0; };
@@ -493,6 +501,28 @@ void ComputeFrequencyBounds(const SimSpec& spec, ClothModel* model) {
   model->gamma_max_per_s = gamma + model->drag_rate_per_s;
 }
 
+// Auto's step bound for a conservative cloth, omega_max h at most this. The undamped 10 x 10
+// curtain with Provot off (felt bench stability's undamped hour; omega_max = 91.6 rad/s), energy
+// rise over its start in M g L: 600 s at omega_max h = 0.76 (2 substeps) 264, 0.38 (4) 7.8, 0.19
+// (8) 0.058, 0.095 (16) 0.011, 0.048 (32) 0.0007; the hour at 0.048 +0.0076, at 0.039 (39)
+// +0.0067, within the suite's 1 %; at 0.03 (51 substeps) +0.0041 / -0.0019, the margin taken.
+constexpr double kConservativeOmegaH = 0.03;
+
+// True if nothing removes energy from the cloth: no spring dashpot, no drag, no stretch limiter.
+bool IsConservative(const SimSpec& spec, const ClothModel& model) {
+  if (model.drag_N_s_per_m > 0.0) return false;
+  if (spec.provot.enabled && !model.provot_families.empty()) return false;
+  for (const SpringFamily& f : model.spring_families) {
+    if (f.damping_N_s_per_m > 0.0) return false;
+  }
+  return true;
+}
+
+// The longest substep auto gives a conservative cloth, s: omega_max h = kConservativeOmegaH.
+double ConservativeAutoStep(const ClothModel& model) {
+  return kConservativeOmegaH / model.omega_max_rad_per_s;
+}
+
 }  // namespace
 
 Vec3 PinOffset(const PinMotionSpec& m, double t_s) {
@@ -567,6 +597,7 @@ ClothModel BuildClothModel(const SimSpec& spec) {
   model.cg_tolerance = is.cg_tolerance;
   model.provot_enabled = spec.provot.enabled;
   model.provot_iterations = spec.provot.iterations;
+  model.provot_coarse_sweeps = spec.provot.coarse_sweeps;
   if (spec.self_collision) {
     const SelfCollisionSpec& sc = *spec.self_collision;
     if (!(sc.thickness_m > 0.0) || !(sc.thickness_m < 0.5 * cs.spacing_m)) {
@@ -648,6 +679,14 @@ ClothModel BuildClothModel(const SimSpec& spec) {
     for (size_t p = 0; p < model.inv_mass_per_kg.size(); ++p) {
       model.provot_movable[p] = model.inv_mass_per_kg[p] > 0.0 ? 1.0f : 0.0f;
     }
+    // The finishing worklist holds the spring families' own limits; the sweeps aim below them.
+    if (spec.provot.finish) {
+      for (const ProvotFamily& f : model.provot_families) {
+        if (f.level != 1) continue;
+        model.limit_families.push_back({f.dc, f.dr, f.dr * model.width + f.dc, f.max_length_m,
+                                        f.max_length_m * f.max_length_m});
+      }
+    }
     if (spec.provot.long_range_attachments) {
       model.attachments = BuildAttachments(model, spec.provot);
       DenseAttachments(&model);
@@ -667,7 +706,25 @@ ClothModel BuildClothModel(const SimSpec& spec) {
          "auto found no stable step for this integrator (it needs damping or drag on the stiffest "
          "mode); give a fixed count");
   } else {
-    const double count = std::ceil(frame_s / (is.auto_safety * model.stable_dt_s));
+    // Auto (docs/scenes.md, [integration]): h <= auto_safety x the stable step, the largest h at
+    // which no mode of the linearised cloth grows (for leapfrog without damping, omega_max h < 2;
+    // the default safety 0.5 keeps omega_max h <= 1, 0.75 (scenes/curtain_128.toml, with the
+    // finishing limiter) omega_max h <= 1.5, and the grid-symbol omega_max is itself an upper
+    // bound). That keeps every damped or stretch-limited cloth bounded for as
+    // long as it runs: the dashpots, the drag or Provot's inelastic projections remove what
+    // leapfrog's local errors add (felt bench stability: the damped hour, and the undamped 10 x 10
+    // curtain with Provot on, 600 s at 2 substeps, never 1e-6 J above its start).
+    // A conservative cloth (no dashpot, no drag, no limiter) is different: it stretches under its
+    // own weight (7 x for the 10 x 10 curtain) and folds springs to near zero length, where the
+    // spring's energy k (l - L)^2 / 2 has a cone (the force flips direction through l = 0). The
+    // symplectic bound on leapfrog's energy error needs a smooth energy (Hairer, Lubich & Wanner,
+    // Geometric Numerical Integration, ch. IX), so each passage adds an error that nothing removes
+    // and the energy climbs even far inside the stability bound (omega_max h = 0.76 at the 2
+    // substeps the stable step gives the 10 x 10 curtain). For it auto takes an accuracy bound
+    // instead, omega_max h <= kConservativeOmegaH (ConservativeAutoStep).
+    double h_auto = is.auto_safety * model.stable_dt_s;
+    if (IsConservative(spec, model)) h_auto = std::min(h_auto, ConservativeAutoStep(model));
+    const double count = std::ceil(frame_s / h_auto);
     if (count > kMaxSubstepsPerFrame) {
       Fail("integration.substeps",
            "auto needs " + Show(count) + " substeps per frame (stable step " +
@@ -695,6 +752,11 @@ ClothState MakeClothState(const ClothModel& model) {
   s.restart.assign(n, 0);
   s.soa.assign(12 * SoaStride(static_cast<size_t>(n)), 0.0);
   s.provot_soa.assign(3 * ProvotSoaStride(n), 0.0f);
+  s.limit_queued.assign(model.limit_families.size() * n, 0);
+  s.limit_ring.assign(std::max<size_t>(1, model.limit_families.size() * n), 0);
+  s.limit_logged.assign(model.limit_families.empty() ? 0 : n, 0);
+  s.limit_log_index.assign(model.limit_families.empty() ? 0 : n, 0);
+  s.limit_log_xv.assign(model.limit_families.empty() ? 0 : 6 * n, 0.0);
   if (model.integrator == IntegratorKind::kImplicitEuler) {
     BuildImplicitPattern(model, &s);
   }

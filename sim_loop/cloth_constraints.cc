@@ -687,7 +687,7 @@ double ObstacleDistance(const ObstacleSpec& o, const Vec3& p, Vec3* normal) {
 }
 
 ProvotLimits ProvotLimitsOf(const ProvotFamily& f) {
-  const float max_len = static_cast<float>(f.max_length_m);
+  const float max_len = static_cast<float>(f.sweep_length_m);
   const float max2 = max_len * max_len;
   return {max2, kLoose2 * max2};
 }
@@ -716,11 +716,13 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
     kernels.attachments(a, model.attachment_pin.data() + k * n,
                         model.attachment_max_m.data() + k * n, n);
   }
-  // Sweeps over every family, coarse to fine; converged once no pair of a sweep was more than
-  // kProvotConverged over its limit.
+  // Sweeps over the families, coarse to fine (the coarse ones in the first provot_coarse_sweeps
+  // only); converged once no pair of a sweep was more than kProvotConverged over its limit.
   for (int32_t sweep = 0; sweep < model.provot_iterations; ++sweep) {
     bool loose = false;
     for (const ProvotFamily& family : model.provot_families) {
+      // The multiresolution families in the first provot_coarse_sweeps sweeps only.
+      if (family.level > 1 && sweep >= model.provot_coarse_sweeps) continue;
       const auto sweep_family =
           family.dr > 0 ? kernels.sweep_across_rows : kernels.sweep_along_rows;
       loose = sweep_family(a, model.width, family) || loose;
@@ -745,6 +747,8 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
     vo[3 * p + 1] += inv_h * my;
     vo[3 * p + 2] += inv_h * mz;
   }
+  // The springs the sweeps left over their limits, exactly (ProvotSpec::finish).
+  ApplyLimitWorklist(model, h_s, state);
 }
 
 void ApplyObstacles(const ClothModel& model, double h_s, ClothState* state) {

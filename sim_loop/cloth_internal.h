@@ -40,6 +40,15 @@ struct ClothState::Scratch {
   /// [3 ProvotSoaStride(n)] ApplyProvot's positions x, y, z as it moves them: single precision,
   /// metres from the first particle.
   std::vector<float> provot_soa;
+  /// Stretch limiter's worklist: [limit_families * n] 1 while a pair is queued, and the queue (a
+  /// ring of pair ids f * n + p, each queued at most once).
+  std::vector<uint8_t> limit_queued;
+  std::vector<int32_t> limit_ring;
+  /// [n] 1 while a particle's pre-worklist state is in the undo log; the log: [n] particle
+  /// indices and [6 n] their x, v (so an unconverged worklist leaves the sweeps' result).
+  std::vector<uint8_t> limit_logged;
+  std::vector<int32_t> limit_log_index;
+  std::vector<double> limit_log_xv;
 
   // Integrator history (leapfrog, basic Verlet), [n] each.
   bool history_valid = false;  ///< false: restart from x, v at the next substep
@@ -89,13 +98,22 @@ void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std:
 bool IntegrateSubstep(const ClothModel& model, double h_s, ClothState* state);
 
 /// Provot 1995 (000_25210a744b053ca5.txt slides 9-10): the long range attachments, then sweeps over
-/// model.provot_families, shortening every pair longer than its limit; velocities are corrected by
-/// the move / h_s. Single precision, with the kernels of base/simd.h's level in use.
+/// model.provot_families, shortening every pair longer than its sweep length (sweep_length_m),
+/// then the finishing worklist (ApplyLimitWorklist); velocities are corrected by the move / h_s.
+/// Single precision, with the kernels of base/simd.h's level in use.
 void ApplyProvot(const ClothModel& model, double h_s, ClothState* state);
 
+/// The stretch limiter's finishing pass (ProvotSpec::finish; sim_loop/cloth_limiter.cc), called
+/// by ApplyProvot after its sweeps (it reads their single-precision positions in
+/// scratch.provot_soa): every pair of model.limit_families longer than its limit is queued, then
+/// projected exactly (double precision) to just under its limit, re-queuing the pairs at its ends
+/// it pushed over, until none is over or the budget is spent; velocities follow, v += dx / h_s. A
+/// worklist that spends its budget is undone (the sweeps' result stays). Real-time safe.
+void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state);
+
 /// A Provot family's limit as ApplyProvot's single-precision sweeps use it: max2 = the squared
-/// limit (m^2), loose2 = (1 + 1e-3)^2 max2, the squared length above which a pair keeps the sweeps
-/// going.
+/// sweep length (ProvotFamily::sweep_length_m, m^2), loose2 = (1 + 1e-3)^2 max2, the squared length
+/// above which a pair keeps the sweeps going.
 struct ProvotLimits {
   float max2;
   float loose2;

@@ -231,7 +231,7 @@ IntegrationSpec ParseIntegration(const SceneTable& table) {
 
 ProvotSpec ParseProvot(const SceneTable& table) {
   table.ExpectKeys({"enabled", "max_elongation", "iterations", "shear", "long_range_attachments",
-                    "multiresolution"});
+                    "multiresolution", "coarse_sweeps", "sweep_headroom", "finish"});
   ProvotSpec spec;
   spec.enabled = table.Bool("enabled", spec.enabled);
   spec.max_elongation = table.Number("max_elongation", spec.max_elongation, Positive());
@@ -239,6 +239,13 @@ ProvotSpec ParseProvot(const SceneTable& table) {
   spec.shear = table.Bool("shear", spec.shear);
   spec.long_range_attachments = table.Bool("long_range_attachments", spec.long_range_attachments);
   spec.multiresolution = table.Bool("multiresolution", spec.multiresolution);
+  spec.coarse_sweeps =
+      table.Integer("coarse_sweeps", spec.coarse_sweeps, InRange(1, kMaxProvotIterations));
+  NumberLimits headroom = NonNegative();
+  headroom.max = 0.5;
+  headroom.max_exclusive = true;
+  spec.sweep_headroom = table.Number("sweep_headroom", spec.sweep_headroom, headroom);
+  spec.finish = table.Bool("finish", spec.finish);
   return spec;
 }
 

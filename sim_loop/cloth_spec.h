@@ -156,9 +156,10 @@ struct ProvotSpec {
   bool enabled = true;
   double max_elongation = 0.10;  ///< a spring never ends a substep longer than (1 + this) * rest
   /// Relaxation sweeps per substep at most, >= 1; sweeping stops early once no pair exceeds its
-  /// limit by more than 0.1 %. With the multiresolution families, 3 sweeps hold the release
-  /// transient of a 64 x 64 two-corner curtain to about 12 % and the hanging cloth to about 10.4 %
-  /// (bench/results/cloth.md); without them 10 sweeps let the transient reach 17 %.
+  /// sweep length by more than 0.1 %. On their own (without `finish`), with the multiresolution
+  /// families, 3 sweeps held the release transient of a 64 x 64 two-corner curtain to about 11.5 %
+  /// and the hanging cloth to about 10.4 %; without the families 10 sweeps let the transient reach
+  /// 17 %. The finishing worklist then takes what they leave over the limit.
   int32_t iterations = 3;
   bool shear = true;  ///< also constrain shear springs (structural always)
   /// Also keep every free particle within (1 + max_elongation) times its rest distance of the
@@ -175,6 +176,24 @@ struct ProvotSpec {
   /// McCormick 2000) and of hierarchical position based dynamics (Mueller 2008), as stencils on
   /// the grid.
   bool multiresolution = true;
+  /// The multiresolution families join the first `coarse_sweeps` sweeps of a substep only, >= 1
+  /// (default: every sweep); the later sweeps visit the spring families alone. With the finishing
+  /// worklist the coarse levels need to run once a substep (they carry a correction across the
+  /// cloth; the fine sweeps and the worklist settle the rest): the two-corner curtain, 3 sweeps,
+  /// probe CPU ms per frame at 64 / 128: 1.75 / 14.8 with the levels in every sweep, 1.37 / 10.8
+  /// in the first only, the limit held either way (sim_loop/cloth_limiter.cc).
+  int32_t coarse_sweeps = kMaxProvotIterations;
+  /// The sweeps aim at (1 - sweep_headroom) times every limit (pairs and attachments' own limits
+  /// stay as declared), in [0, 0.5): Gauss-Seidel sweeps stall in taut patches where every pair
+  /// sits at its limit, and a little room below the limit is what lets the finishing pass
+  /// (`finish`) converge in a few local projections instead of thousands. The cloth then settles
+  /// about this much shorter than (1 + max_elongation) times its rest length.
+  double sweep_headroom = 0.0;
+  /// After the sweeps, project every structural (and, with `shear`, shear) spring still over its
+  /// limit exactly, in double precision, re-visiting only the springs each projection pushed over
+  /// (a worklist), until none is over: the limit then holds at the end of every substep, not just
+  /// up to the sweeps' convergence (bench/results/cloth.md).
+  bool finish = false;
 };
 
 /// Self-collision of the cloth (issue 22; collision/self_response.h): Bridson, Fedkiw & Anderson

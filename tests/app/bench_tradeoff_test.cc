@@ -86,13 +86,15 @@ TEST(TradeoffSettings, TheShippedSettingOnceAndEveryCurve) {
   o.sweeps = {1, 10, 10};  // the scene's 3 is added; the duplicate dropped
   o.small_steps = {6, 12};
   o.limits = {0.05};
+  o.sweeps_alone = {3};  // the shipped sweep count without the worklist: not the shipped setting
   const std::vector<FeltSetting> settings = FeltSettings(o, 3);
   int shipped = 0;
   for (const FeltSetting& s : settings) {
-    shipped += s.substeps == 0 && s.sweeps == 3 && s.max_elongation == 0.0 ? 1 : 0;
+    shipped +=
+        s.substeps == 0 && s.sweeps == 3 && s.max_elongation == 0.0 && !s.sweeps_alone ? 1 : 0;
   }
   EXPECT_EQ(shipped, 1);
-  ASSERT_EQ(settings.size(), 2u + 3u + 2u + 1u);
+  ASSERT_EQ(settings.size(), 2u + 3u + 2u + 1u + 1u);
   EXPECT_EQ(settings[0].curve, "felt_substeps");
   EXPECT_EQ(settings[0].sweeps, 3);
   EXPECT_EQ(settings[2].curve, "felt_sweeps");
@@ -102,6 +104,8 @@ TEST(TradeoffSettings, TheShippedSettingOnceAndEveryCurve) {
   EXPECT_EQ(settings[5].sweeps, 1);
   EXPECT_EQ(settings[7].curve, "felt_limit");
   EXPECT_EQ(settings[7].max_elongation, 0.05);
+  EXPECT_EQ(settings[8].curve, "felt_sweeps_alone");
+  EXPECT_TRUE(settings[8].sweeps_alone);
 }
 
 TEST(BulletPeer, SpecFollowsTheCurtain) {
@@ -212,7 +216,8 @@ TEST(BenchSmoke, ClothTradeoffQuickWritesItsFiles) {
         "cpu_ms_median", "release_max_stretch", "settled_max_stretch", "below_met", "ratio_met"}) {
     EXPECT_NE(json.find(std::string("\"") + key + "\":"), std::string::npos) << key;
   }
-  for (const char* curve : {"felt_substeps", "felt_sweeps", "felt_small_steps", "felt_limit"}) {
+  for (const char* curve :
+       {"felt_substeps", "felt_sweeps", "felt_small_steps", "felt_limit", "felt_sweeps_alone"}) {
     EXPECT_NE(json.find(std::string("\"curve\": \"") + curve + "\""), std::string::npos) << curve;
   }
   const std::string md = test::ReadFile(out + "/cloth_tradeoff.md");

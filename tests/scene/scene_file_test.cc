@@ -342,6 +342,8 @@ TEST(SceneFileErrors, OutOfRange) {
   EXPECT_EQ(ErrorOf("[cloth]\n[[obstacles]]\ntype = \"sphere\"\ncenter_m = [0, 0, 0]\n"
                     "radius_m = 0\n"),
             "t.toml:5:1: obstacles[0].radius_m: must be > 0, got 0");
+  EXPECT_EQ(ErrorOf("[cloth]\n[provot]\nsweep_headroom = 0.5\n"),
+            "t.toml:3:1: provot.sweep_headroom: must be in [0, 0.5), got 0.5");
 }
 
 TEST(SceneFileErrors, UnknownKey) {
@@ -351,7 +353,8 @@ TEST(SceneFileErrors, UnknownKey) {
   // No close match: the known keys are listed. The first unknown key in file order is reported.
   EXPECT_EQ(ErrorOf("[cloth]\n[provot]\nzzz = 1\naaa = 2\n"),
             "t.toml:3:1: provot.zzz: unknown key 'zzz' in [provot]; known keys: enabled, "
-            "max_elongation, iterations, shear, long_range_attachments, multiresolution");
+            "max_elongation, iterations, shear, long_range_attachments, multiresolution, "
+            "coarse_sweeps, sweep_headroom, finish");
   EXPECT_EQ(ErrorOf("[cloth]\n[[cloth.pins]]\nkind = \"corner\"\nname = \"top_left\"\ncol = 3\n"),
             "t.toml:5:1: cloth.pins[0].col: unknown key 'col' in cloth.pins[0]; known keys: kind, "
             "name, motion");

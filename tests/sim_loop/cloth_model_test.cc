@@ -139,6 +139,12 @@ TEST(ClothModelTest, ValidationErrorsNameTheFieldAndRule) {
        "provot.iterations: must be in [1, 10000], got 0"},
       {[](SimSpec* s) { s->provot.iterations = 10001; },
        "provot.iterations: must be in [1, 10000], got 10001"},
+      {[](SimSpec* s) { s->provot.coarse_sweeps = 0; },
+       "provot.coarse_sweeps: must be in [1, 10000], got 0"},
+      {[](SimSpec* s) { s->provot.sweep_headroom = -0.1; },
+       "provot.sweep_headroom: must be in [0, 0.5), got -0.10000000000000001"},
+      {[](SimSpec* s) { s->provot.sweep_headroom = 0.5; },
+       "provot.sweep_headroom: must be in [0, 0.5), got 0.5"},
       {[](SimSpec* s) {
          s->integration.integrator = IntegratorKind::kExplicitEuler;
          s->cloth.structural->damping_N_s_per_m = 0;
@@ -231,6 +237,34 @@ TEST(ClothModelTest, AutoSubstepsFollowTheStabilityLimit) {
   spec.integration.integrator = IntegratorKind::kRk4;
   spec.integration.substeps = 3;
   EXPECT_EQ(BuildClothModel(spec).substeps, 3);
+}
+
+TEST(ClothModelTest, AutoSubstepsOfAConservativeClothResolveItsFastestMode) {
+  // No dashpot, no drag, no limiter: nothing removes leapfrog's energy errors at folded springs,
+  // so auto takes omega_max h <= 0.03 (cloth_build.cc, kConservativeOmegaH) instead of a fraction
+  // of the stable step; the 10 x 10 curtain gets 51 substeps instead of 2.
+  SimSpec spec = Curtain(10);
+  const int32_t damped = BuildClothModel(spec).substeps;
+  for (auto* s : {&spec.cloth.structural, &spec.cloth.shear, &spec.cloth.bend}) {
+    (*s)->damping_N_s_per_m = 0;
+  }
+  spec.cloth.drag_N_s_per_m = 0;
+  spec.provot.enabled = false;
+  const ClothModel model = BuildClothModel(spec);
+  const double h = 1.0 / (spec.integration.frame_rate_hz * model.substeps);
+  EXPECT_LE(model.omega_max_rad_per_s * h, 0.03);
+  EXPECT_GT(model.omega_max_rad_per_s * h, 0.03 * (model.substeps - 1) / model.substeps);
+  EXPECT_GT(model.substeps, 10 * damped);
+  // Any one of the three keeps the stability bound: Provot on, drag, or a dashpot.
+  SimSpec limited = spec;
+  limited.provot.enabled = true;
+  EXPECT_EQ(BuildClothModel(limited).substeps, damped);
+  SimSpec dragged = spec;
+  dragged.cloth.drag_N_s_per_m = 1e-6;
+  EXPECT_LT(BuildClothModel(dragged).substeps, model.substeps);
+  SimSpec dashpot = spec;
+  dashpot.cloth.bend->damping_N_s_per_m = 1e-6;
+  EXPECT_LT(BuildClothModel(dashpot).substeps, model.substeps);
 }
 
 TEST(ClothModelTest, StableStepsMatchKnownStabilityIntervals) {

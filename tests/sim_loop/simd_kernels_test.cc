@@ -194,7 +194,9 @@ TEST(SimdKernelsTest, BvhRepairsGiveThePortableBitsAtEveryLevel) {
 
 TEST(SimdKernelsTest, LimitCapsAtTheCpuLevelAndLifts) {
   const SimdLevel cpu = CpuSimdLevel();
-  EXPECT_EQ(ActiveSimdLevel(), cpu);
+  // At start: the CPU's level, capped by FELT_SIMD when the test runs with it set.
+  EXPECT_EQ(ActiveSimdLevel(), StartedSimdLevel());
+  EXPECT_LE(StartedSimdLevel(), cpu);
   LimitSimdLevel(SimdLevel::kPortable);
   EXPECT_EQ(ActiveSimdLevel(), SimdLevel::kPortable);
   LimitSimdLevel(SimdLevel::kAvx2);
@@ -202,6 +204,17 @@ TEST(SimdKernelsTest, LimitCapsAtTheCpuLevelAndLifts) {
   LimitSimdLevel(kWidestSimdLevel);
   EXPECT_EQ(ActiveSimdLevel(), cpu);
   EXPECT_STREQ(SimdLevelName(SimdLevel::kPortable), "portable");
+  LimitSimdLevel(StartedSimdLevel());  // back to the cap the process started with
+}
+
+TEST(SimdKernelsTest, EnvNamesRoundTripAndUnknownNamesAreRejected) {
+  for (SimdLevel level : {SimdLevel::kPortable, SimdLevel::kAvx2, SimdLevel::kAvx512}) {
+    EXPECT_EQ(SimdLevelFromEnvName(SimdLevelEnvName(level)), level) << SimdLevelEnvName(level);
+  }
+  EXPECT_STREQ(SimdLevelEnvName(SimdLevel::kAvx512), "avx512");
+  EXPECT_EQ(SimdLevelFromEnvName("AVX2"), std::nullopt);
+  EXPECT_EQ(SimdLevelFromEnvName("avx512f+avx2"), std::nullopt);
+  EXPECT_EQ(SimdLevelFromEnvName(""), std::nullopt);
 }
 
 }  // namespace

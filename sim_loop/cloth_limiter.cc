@@ -1,0 +1,201 @@
+// The stretch limiter's finishing pass (ProvotSpec::finish): after Provot's sweeps, a worklist of
+// the spring constraints still over their limits, projected exactly in double precision, each
+// projection re-queuing only the springs it pushed over, until none is over.
+//
+// Why a worklist, and why the sweeps' headroom (measured on the two-corner curtain, 120 frames
+// from release, curtain_128.toml's settings otherwise; probe CPU ms per frame at 64 x 64 on the
+// AMD host):
+// Gauss-Seidel sweeps stall in taut patches where every pair sits at its limit (the release peak
+// of bench/results/stability.md), and so does a worklist on its own: with the sweeps aiming at the
+// limit itself, it ran out of a budget of 64 projections per particle in nearly every substep and
+// still left 1.104 (64 x 64, 150 ms a frame). With the sweeps aiming 1 % below the limit
+// (ProvotSpec::sweep_headroom) the springs they leave over it sit in small patches with room
+// around them, and the worklist settles them in about 10 projections per substep at 64 x 64 (1.92
+// ms against 1.71 without it); the structural maximum is then 1.10 after every substep at 10-128.
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+
+#include "sim_loop/cloth.h"
+#include "sim_loop/cloth_internal.h"
+
+namespace felt {
+namespace {
+
+// A violated pair is projected to this fraction below its limit, not onto it: the slack keeps a
+// neighbour's later projection from pushing it back over by a rounding error, which would queue it
+// again and again. 1e-6 (with the sweeps' 1 % headroom): 64 x 64 released flat, 498k projections
+// over 120 frames; 1e-3: 46k.
+constexpr double kWorklistSlack = 1e-3;
+// Projections per substep at most, per particle: the real-time bound. Unconverged substeps are
+// counted (ClothCounters::limiter_unconverged); none with scenes/curtain_128.toml's settings at
+// grids 10-128.
+constexpr size_t kWorklistBudgetPerParticle = 64;
+// The single-precision scan queues a pair longer than (1 - this) times its limit, and the exact
+// test in double decides. ApplyProvot's positions are relative to the first particle, rounded to
+// 6e-8 of the cloth's extent: a length error of about 1.2e-7 (N - 1) of the spacing on an N-wide
+// grid, 5e-4 at the largest grid (4096), below this margin.
+constexpr float kCandidateMargin = 2e-3f;
+
+// Grid neighbours: particle e's index and its column and row.
+struct LimiterEnd {
+  int32_t index;
+  int32_t col;
+  int32_t row;
+};
+
+}  // namespace
+
+void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) {
+  ClothState::Scratch& s = *state->scratch;
+  const size_t num_fam = model.limit_families.size();
+  if (num_fam == 0) return;
+  const int32_t w = model.width, ht = model.height;
+  const size_t n = static_cast<size_t>(model.num_particles());
+  double* __restrict x = state->x.data()->data();
+  double* __restrict v = state->v.data()->data();
+  const double* inv_m = model.inv_mass_per_kg.data();
+  const double inv_h = 1.0 / h_s;
+  uint8_t* queued = s.limit_queued.data();
+  int32_t* ring = s.limit_ring.data();
+  const size_t cap = s.limit_ring.size();
+  size_t head = 0, count = 0;
+  uint8_t* logged = s.limit_logged.data();
+  int32_t* log_index = s.limit_log_index.data();
+  double* log_xv = s.limit_log_xv.data();
+  size_t logs = 0;
+  // A free particle's state before the worklist's first move of it, into the undo log.
+  const auto log = [&](int32_t p) {
+    if (logged[p]) return;
+    logged[p] = 1;
+    log_index[logs] = p;
+    for (int32_t a = 0; a < 3; ++a) {
+      log_xv[6 * logs + a] = x[3 * p + a];
+      log_xv[6 * logs + 3 + a] = v[3 * p + a];
+    }
+    ++logs;
+  };
+
+  // Over its limit in double: the squared length above the squared limit.
+  const auto over = [&](const LimitFamily& lf, int32_t p) {
+    const int32_t q = p + lf.off;
+    const double dx = x[3 * q] - x[3 * p], dy = x[3 * q + 1] - x[3 * p + 1],
+                 dz = x[3 * q + 2] - x[3 * p + 2];
+    return dx * dx + dy * dy + dz * dz > lf.max2_m2;
+  };
+  const auto push = [&](size_t f, int32_t p) {
+    const size_t id = f * n + static_cast<size_t>(p);
+    if (queued[id]) return;
+    queued[id] = 1;
+    ring[(head + count) % cap] = static_cast<int32_t>(id);
+    ++count;
+  };
+
+  // Every pair over its limit into the worklist: a row at a time, a vectorised test on the sweeps'
+  // single-precision positions (scratch.provot_soa, still those of the sweeps' end) whether any
+  // pair of the row is near or over its limit, then the exact test in double on that row's pairs.
+  const size_t stride = ProvotSoaStride(n);
+  const float* __restrict fx = s.provot_soa.data();
+  const float* __restrict fy = fx + stride;
+  const float* __restrict fz = fx + 2 * stride;
+  for (size_t f = 0; f < num_fam; ++f) {
+    const LimitFamily& lf = model.limit_families[f];
+    const float near = static_cast<float>(lf.max_m) * (1.0f - kCandidateMargin);
+    const float near2 = near * near;
+    const int32_t c_lo = std::max(0, -lf.dc), c_hi = w - std::max(0, lf.dc);
+    for (int32_t r = 0; r + lf.dr < ht; ++r) {
+      const int32_t lo = r * w + c_lo, hi = r * w + c_hi;
+      int any = 0;
+      for (int32_t p = lo; p < hi; ++p) {
+        const int32_t q = p + lf.off;
+        const float dx = fx[q] - fx[p], dy = fy[q] - fy[p], dz = fz[q] - fz[p];
+        any |= dx * dx + dy * dy + dz * dz > near2 ? 1 : 0;
+      }
+      if (!any) continue;
+      for (int32_t p = lo; p < hi; ++p) {
+        if (over(lf, p)) push(f, p);
+      }
+    }
+  }
+  state->counters.limiter_initial += count;
+
+  // Project until none is over (or the budget is spent); each projection re-queues the pairs at
+  // its two ends that it pushed over their limits.
+  size_t budget = kWorklistBudgetPerParticle * n;
+  while (count > 0 && budget > 0) {
+    const size_t id = static_cast<size_t>(ring[head]);
+    head = (head + 1) % cap;
+    --count;
+    queued[id] = 0;
+    const LimitFamily& lf = model.limit_families[id / n];
+    const int32_t p = static_cast<int32_t>(id % n);
+    const int32_t q = p + lf.off;
+    const double dx = x[3 * q] - x[3 * p], dy = x[3 * q + 1] - x[3 * p + 1],
+                 dz = x[3 * q + 2] - x[3 * p + 2];
+    const double len2 = dx * dx + dy * dy + dz * dz;
+    if (!(len2 > lf.max2_m2)) continue;
+    const double wp = inv_m[p] > 0.0 ? 1.0 : 0.0, wq = inv_m[q] > 0.0 ? 1.0 : 0.0;
+    if (wp + wq == 0.0) continue;
+    --budget;
+    // Provot 1995's projection, exact: shortened to just under the limit, the move split equally
+    // between the free ends (the free end alone if the other is pinned), as in ApplyProvot; the
+    // velocities take the move / h, so (x, v) stay consistent.
+    if (wp > 0.0) log(p);
+    if (wq > 0.0) log(q);
+    const double len = std::sqrt(len2);
+    const double k = (len - lf.max_m * (1.0 - kWorklistSlack)) / (len * (wp + wq));
+    const double mp = wp * k, mq = wq * k;
+    x[3 * p] += mp * dx;
+    x[3 * p + 1] += mp * dy;
+    x[3 * p + 2] += mp * dz;
+    x[3 * q] -= mq * dx;
+    x[3 * q + 1] -= mq * dy;
+    x[3 * q + 2] -= mq * dz;
+    v[3 * p] += inv_h * (mp * dx);
+    v[3 * p + 1] += inv_h * (mp * dy);
+    v[3 * p + 2] += inv_h * (mp * dz);
+    v[3 * q] -= inv_h * (mq * dx);
+    v[3 * q + 1] -= inv_h * (mq * dy);
+    v[3 * q + 2] -= inv_h * (mq * dz);
+    ++state->counters.limiter_projections;
+    // The pairs at both moved ends that are now over: each end as end i, then as end j.
+    for (const LimiterEnd e : {LimiterEnd{p, p % w, p / w}, LimiterEnd{q, q % w, q / w}}) {
+      if (inv_m[e.index] == 0.0) continue;
+      for (size_t g = 0; g < num_fam; ++g) {
+        const LimitFamily& lg = model.limit_families[g];
+        const int32_t ci = e.col + lg.dc, ri = e.row + lg.dr;
+        if (ci >= 0 && ci < w && ri < ht && over(lg, e.index)) push(g, e.index);
+        const int32_t cj = e.col - lg.dc, rj = e.row - lg.dr;
+        if (cj >= 0 && cj < w && rj >= 0 && over(lg, e.index - lg.off)) {
+          push(g, e.index - lg.off);
+        }
+      }
+    }
+  }
+  // A worklist that ran out of budget is undone: every particle it moved goes back to the sweeps'
+  // result, and the substep is counted. Measured on scenes/self_rail_twist.toml, whose rail
+  // carries a pin further from the others than the cloth reaches (1.22 times the rest length at
+  // the end even without self-collision): the worklist ran out in every substep from frame 88, and
+  // the half-finished projections it left, repeated each substep against the self-collision
+  // response, stretched a spring to 32 times its rest length at 58 m/s by frame 123. Undone, the
+  // scene's structural maximum is 1.44 (the sweeps alone, provot.finish = false: 1.46).
+  const bool undo = count > 0;
+  if (undo) ++state->counters.limiter_unconverged;
+  while (count > 0) {
+    queued[static_cast<size_t>(ring[head])] = 0;
+    head = (head + 1) % cap;
+    --count;
+  }
+  for (size_t k = 0; k < logs; ++k) {
+    const int32_t p = log_index[k];
+    logged[p] = 0;
+    if (!undo) continue;
+    for (int32_t a = 0; a < 3; ++a) {
+      x[3 * p + a] = log_xv[6 * k + a];
+      v[3 * p + a] = log_xv[6 * k + 3 + a];
+    }
+  }
+}
+
+}  // namespace felt
