@@ -246,6 +246,39 @@ TEST(ClothStepTest, StiffSpringsAtLargeDtWithAutoSubstepsStayBounded) {
   }
 }
 
+// Provot's limit on a cloth lying over a box's edges: scenes/tablecloth.toml draped over its table
+// (3 s), and scenes/self_tablecloth_pull.toml without its [self_collision] (its corner pulled off
+// the table at 1.5 m/s, 3 s), with the finishing limiter, which holds 1.10 exactly on a free cloth.
+// Missed today, so disabled rather than loosened: the draped tablecloth reaches 1.560, the pulled
+// one 5.76 (with the default limiter 1.566 and 7.85, the latter at t = 1.42 s). Measured: the
+// particles next to the table's rim hang on its side faces 2-3 mm under the top while the springs
+// to their neighbours on the top cut through the box; the limiter pulls them horizontally into the
+// box and the obstacle puts them back on the side face, so nothing lifts them over the rim (the
+// obstacles see particles, not the springs between them). Interleaving the two (Provot, then the
+// obstacles, twice or four times a substep; default limiter) only eased it: 1.379 / 1.253 draped,
+// 4.29 / 3.45 pulled. Projecting a particle at the rim onto the top's shell when it started within
+// a margin of the top's plane (default limiter): pulled 5.76. Run with
+// --gtest_also_run_disabled_tests.
+TEST(ClothStepTest, DISABLED_ProvotHoldsTheLimitOverATablesEdges) {
+  for (const char* scene : {"tablecloth.toml", "self_tablecloth_pull.toml"}) {
+    SimSpec spec =
+        ParseSimSpec(LoadSceneDocument(std::string(FELT_SOURCE_DIR) + "/scenes/" + scene));
+    spec.self_collision.reset();
+    // The finishing limiter (as scenes/curtain_128.toml), which holds 1.10 exactly on a free cloth.
+    spec.provot.finish = true;
+    spec.provot.sweep_headroom = 0.01;
+    spec.provot.coarse_sweeps = 1;
+    const ClothModel model = BuildClothModel(spec);
+    ClothState state = MakeClothState(model);
+    double worst = 0.0;
+    for (int f = 0; f < 180; ++f) {
+      StepFrame(model, {}, kFrame_s, &state);
+      worst = std::max(worst, MaxStretch(model, state));
+    }
+    EXPECT_LE(worst, 1.10 + 1e-9) << scene;
+  }
+}
+
 TEST(ClothStepTest, FastClothDoesNotPassThroughThinObstacles) {
   // A cloth thrown down at 20 m/s onto a 4 mm board and onto a small sphere: at 60 Hz a particle
   // travels 8 substep lengths of the board's thickness per frame.
