@@ -261,11 +261,17 @@ std::string SettingsText(const SimSpec& spec) {
              (p.coarse_sweeps == 1 ? "" : "s") + ")";
     }
   }
-  out += ", " + std::to_string(p.iterations) + " sweeps";
-  if (p.sweep_headroom > 0.0) {
-    out += " aiming " + Fixed(100.0 * p.sweep_headroom, 1) + " % under the limit";
-  }
+  const auto sweeps = [](int32_t n, double headroom) {
+    std::string text = std::to_string(n) + (n == 1 ? " sweep" : " sweeps");
+    if (headroom > 0.0) text += " aiming " + Fixed(100.0 * headroom, 1) + " % under the limit";
+    return text;
+  };
+  out += ", " + sweeps(p.iterations, p.sweep_headroom);
   if (p.finish) out += ", then the finishing worklist";
+  if (p.patch_iterations || p.patch_sweep_headroom) {
+    out += "; the haptic patch: " + sweeps(p.patch_iterations.value_or(p.iterations),
+                                           p.patch_sweep_headroom.value_or(p.sweep_headroom));
+  }
   return out;
 }
 

@@ -65,6 +65,9 @@ struct ProvotFamily {
   /// The length the sweeps project onto, m: (1 - ProvotSpec::sweep_headroom) * max_length_m (the
   /// finishing worklist holds max_length_m itself).
   double sweep_length_m = 0.0;
+  /// The length the haptic local patch's sweeps project onto, m: (1 -
+  /// ProvotSpec::patch_sweep_headroom) * max_length_m (sim_loop/cloth_patch.h).
+  double patch_sweep_length_m = 0.0;
 
   /// True if the runs are strided (along a row, dc 1, 2, 4 or 8: a colour's pairs interleave
   /// within a row, every sixteen particles holding eight pairs).
@@ -157,6 +160,7 @@ struct ClothModel {
   bool provot_enabled = false;    ///< Provot's constraints are applied after each substep
   int32_t provot_iterations = 0;  ///< Gauss-Seidel sweeps per substep
   int32_t provot_coarse_sweeps = 0;  ///< the first sweeps that visit the multiresolution families
+  int32_t patch_provot_iterations = 0;  ///< the haptic local patch's sweeps per 1 kHz step
 
   // Self-collision (SelfCollisionSpec, validated; issue 22). Nothing is built without it.
   bool self_collision_enabled = false;              ///< the scene declared [self_collision]

@@ -211,6 +211,16 @@ void ValidateProvot(const ProvotSpec& s) {
   if (!(s.sweep_headroom >= 0.0 && s.sweep_headroom < 0.5)) {
     Fail("provot.sweep_headroom", "must be in [0, 0.5), got " + Show(s.sweep_headroom));
   }
+  if (s.patch_iterations &&
+      (*s.patch_iterations < 1 || *s.patch_iterations > kMaxProvotIterations)) {
+    Fail("provot.patch_iterations",
+         "must be in [1, " + Show(kMaxProvotIterations) + "], got " + Show(*s.patch_iterations));
+  }
+  if (s.patch_sweep_headroom &&
+      !(*s.patch_sweep_headroom >= 0.0 && *s.patch_sweep_headroom < 0.5)) {
+    Fail("provot.patch_sweep_headroom",
+         "must be in [0, 0.5), got " + Show(*s.patch_sweep_headroom));
+  }
 }
 
 // Appends the springs of one type between (c, r) and (c + dc, r + dr) for every valid pair, and
@@ -331,6 +341,8 @@ std::vector<ProvotFamily> BuildProvotFamilies(const ClothModel& model, const Pro
   }
   for (ProvotFamily& f : out) {
     f.sweep_length_m = (1.0 - spec.sweep_headroom) * f.max_length_m;
+    f.patch_sweep_length_m =
+        (1.0 - spec.patch_sweep_headroom.value_or(spec.sweep_headroom)) * f.max_length_m;
     f.runs = ProvotRuns(f, model.width, model.height);
     // A run whose pairs are all free skips the pinned-end shares (most runs of most cloths).
     const auto pinned = [&](int32_t p) { return model.inv_mass_per_kg[p] == 0.0; };
@@ -598,6 +610,7 @@ ClothModel BuildClothModel(const SimSpec& spec) {
   model.provot_enabled = spec.provot.enabled;
   model.provot_iterations = spec.provot.iterations;
   model.provot_coarse_sweeps = spec.provot.coarse_sweeps;
+  model.patch_provot_iterations = spec.provot.patch_iterations.value_or(spec.provot.iterations);
   if (spec.self_collision) {
     const SelfCollisionSpec& sc = *spec.self_collision;
     if (!(sc.thickness_m > 0.0) || !(sc.thickness_m < 0.5 * cs.spacing_m)) {

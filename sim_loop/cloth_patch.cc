@@ -138,16 +138,17 @@ struct ProvotPass {
   float max_len, inv_max2;
 };
 
-// The length the patch's sweeps hold a Provot family's pairs to, m: the sim's sweep length
-// (ProvotFamily::sweep_length_m, (1 - provot.sweep_headroom) times the limit), not the limit
-// itself. The sim's sweeps aim there and its finishing worklist only takes what they leave over the
-// limit, so the 60 Hz cloth that drives a window's rings sits at the sweep length wherever it is
-// taut; free particles held to the limit instead could stretch 1 % further than the rings around
-// them, a softer cloth than the one the truth steps. Measured (felt compare, 64 x 64 curtain,
-// truth=on against snapshot=patch at 60 Hz, hard traces seeds 1-5): pin_drag 0.384 -> 0.134 N
-// RMS worst, handwriting 0.239 -> 0.107 N; the same sweeps aimed at 0.995 or 0.985 of the limit,
-// or six sweeps instead of three, were worse (docs/proxy.md).
-double PatchSweepLength(const ProvotFamily& family) { return family.sweep_length_m; }
+// The length the patch's sweeps hold a Provot family's pairs to, m: the patch's sweep length
+// (ProvotFamily::patch_sweep_length_m, (1 - provot.patch_sweep_headroom) times the limit; unset,
+// the sim's sweep length, (1 - provot.sweep_headroom) times it), not the limit itself. The sim's
+// sweeps aim there and its finishing worklist only takes what they leave over the limit, so the
+// 60 Hz cloth that drives a window's rings sits at the sweep length wherever it is taut; free
+// particles held to the limit instead could stretch 1 % further than the rings around them, a
+// softer cloth than the one the truth steps. Measured (felt compare, 64 x 64 curtain, truth=on
+// against snapshot=patch at 60 Hz, hard traces seeds 1-5): pin_drag 0.384 -> 0.134 N RMS worst,
+// handwriting 0.239 -> 0.107 N; the same sweeps aimed at 0.995 or 0.985 of the limit, or six sweeps
+// instead of three, were worse (docs/proxy.md).
+double PatchSweepLength(const ProvotFamily& family) { return family.patch_sweep_length_m; }
 
 // Pairs longer than their limit left more than 1e-3 over it by a sweep count as loose.
 constexpr float kLoose = (1.0f + 1e-3f) * (1.0f + 1e-3f);
@@ -878,7 +879,7 @@ void ClothPatch::ApplyProvotToWindows(double h) {
       for (int32_t l = 0; l < w.count; ++l) px[l] = static_cast<float>(x[l] - o);
     }
     const WindowPasses& passes = passes_[k];
-    for (int32_t it = 0; it < model_.provot_iterations; ++it) {
+    for (int32_t it = 0; it < model_.patch_provot_iterations; ++it) {
       if (kernels.provot(w, passes.provot.data(), passes.num_provot) == 0) break;
     }
     // Back as each particle's move (exact in double; zero for a particle not moved).

@@ -231,7 +231,8 @@ IntegrationSpec ParseIntegration(const SceneTable& table) {
 
 ProvotSpec ParseProvot(const SceneTable& table) {
   table.ExpectKeys({"enabled", "max_elongation", "iterations", "shear", "long_range_attachments",
-                    "multiresolution", "coarse_sweeps", "sweep_headroom", "finish"});
+                    "multiresolution", "coarse_sweeps", "sweep_headroom", "finish",
+                    "patch_iterations", "patch_sweep_headroom"});
   ProvotSpec spec;
   spec.enabled = table.Bool("enabled", spec.enabled);
   spec.max_elongation = table.Number("max_elongation", spec.max_elongation, Positive());
@@ -246,6 +247,13 @@ ProvotSpec ParseProvot(const SceneTable& table) {
   headroom.max_exclusive = true;
   spec.sweep_headroom = table.Number("sweep_headroom", spec.sweep_headroom, headroom);
   spec.finish = table.Bool("finish", spec.finish);
+  if (table.Has("patch_iterations")) {
+    spec.patch_iterations =
+        table.Integer("patch_iterations", std::nullopt, InRange(1, kMaxProvotIterations));
+  }
+  if (table.Has("patch_sweep_headroom")) {
+    spec.patch_sweep_headroom = table.Number("patch_sweep_headroom", std::nullopt, headroom);
+  }
   return spec;
 }
 

@@ -192,8 +192,16 @@ struct ProvotSpec {
   /// After the sweeps, project every structural (and, with `shear`, shear) spring still over its
   /// limit exactly, in double precision, re-visiting only the springs each projection pushed over
   /// (a worklist), until none is over: the limit then holds at the end of every substep, not just
-  /// up to the sweeps' convergence (bench/results/cloth.md).
+  /// up to the sweeps' convergence (bench/results/cloth_finishing.md).
   bool finish = false;
+  /// The haptic local patch's sweeps per 1 kHz step (sim_loop/cloth_patch.h), in [1,
+  /// kMaxProvotIterations]; unset: `iterations`. The patch has no worklist, so its sweeps alone
+  /// hold its free particles; a sim that leans on the worklist (one sweep, more headroom) can keep
+  /// the patch at the sweeps it needs (docs/scenes.md, [provot]).
+  std::optional<int32_t> patch_iterations;
+  /// The haptic local patch's sweeps aim at (1 - this) times every limit, in [0, 0.5); unset:
+  /// `sweep_headroom`.
+  std::optional<double> patch_sweep_headroom;
 };
 
 /// Self-collision of the cloth (issue 22; collision/self_response.h): Bridson, Fedkiw & Anderson

@@ -344,6 +344,10 @@ TEST(SceneFileErrors, OutOfRange) {
             "t.toml:5:1: obstacles[0].radius_m: must be > 0, got 0");
   EXPECT_EQ(ErrorOf("[cloth]\n[provot]\nsweep_headroom = 0.5\n"),
             "t.toml:3:1: provot.sweep_headroom: must be in [0, 0.5), got 0.5");
+  EXPECT_EQ(ErrorOf("[cloth]\n[provot]\npatch_iterations = 0\n"),
+            "t.toml:3:1: provot.patch_iterations: must be in [1, 10000], got 0");
+  EXPECT_EQ(ErrorOf("[cloth]\n[provot]\npatch_sweep_headroom = -0.01\n"),
+            "t.toml:3:1: provot.patch_sweep_headroom: must be in [0, 0.5), got -0.01");
 }
 
 TEST(SceneFileErrors, UnknownKey) {
@@ -354,7 +358,7 @@ TEST(SceneFileErrors, UnknownKey) {
   EXPECT_EQ(ErrorOf("[cloth]\n[provot]\nzzz = 1\naaa = 2\n"),
             "t.toml:3:1: provot.zzz: unknown key 'zzz' in [provot]; known keys: enabled, "
             "max_elongation, iterations, shear, long_range_attachments, multiresolution, "
-            "coarse_sweeps, sweep_headroom, finish");
+            "coarse_sweeps, sweep_headroom, finish, patch_iterations, patch_sweep_headroom");
   EXPECT_EQ(ErrorOf("[cloth]\n[[cloth.pins]]\nkind = \"corner\"\nname = \"top_left\"\ncol = 3\n"),
             "t.toml:5:1: cloth.pins[0].col: unknown key 'col' in cloth.pins[0]; known keys: kind, "
             "name, motion");

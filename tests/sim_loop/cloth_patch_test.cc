@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <optional>
 #include <vector>
 
 #include "base/simd.h"
@@ -246,6 +248,63 @@ TEST(ClothPatchTest, PlaceAndStepNeverAllocate) {
   }
   EXPECT_EQ(guard.allocations(), 0u);
   EXPECT_EQ(patch.counters().nan_events, 0u);
+}
+
+// The patch's own limiter settings (provot.patch_iterations, provot.patch_sweep_headroom): its
+// sweeps hold its free particles to the patch's sweep length, whatever the sim's, and the sim's
+// own steps never read them (the same bits with and without).
+TEST(ClothPatchTest, ThePatchSweepsToItsOwnLengthAndTheSimIgnoresIt) {
+  const auto model_with = [](std::optional<double> patch_headroom) {
+    SimSpec spec = Curtain(21);
+    spec.cloth.gravity_m_per_s2 = Vec3::Zero();
+    spec.provot.patch_iterations = 20;  // converged, so the length it holds is the setting's
+    spec.provot.patch_sweep_headroom = patch_headroom;
+    return BuildClothModel(spec);
+  };
+  // Largest free-pair length / spacing along the rows after a hard press (as above, 0.1 s).
+  const auto pressed_stretch = [](const ClothModel& model) {
+    const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
+    ClothPatch patch(model, 4, 1);
+    const int32_t centre = At(model, 10, 10);
+    const std::vector<int32_t> centres = {centre};
+    patch.Place(centres, s, 0.0, 1e-3);
+    int32_t tri = -1;
+    for (size_t t = 0; t < model.triangles.size(); ++t) {
+      if (model.triangles[t][0] == centre) tri = static_cast<int32_t>(t);
+    }
+    ExternalForce press = PressBehind(model, tri, centre);
+    press.max_force_N = 5.0;
+    const std::vector<ExternalForce> springs = {press};
+    for (int k = 0; k < 100; ++k) patch.Step(springs, 1e-3, s, 0.0);
+    double worst = 0.0;
+    for (int32_t p = 0; p + 1 < model.num_particles(); ++p) {
+      if (patch.roles()[p] != PatchRole::kFree || patch.roles()[p + 1] != PatchRole::kFree)
+        continue;
+      worst = std::max(worst, (patch.x()[p + 1] - patch.x()[p]).norm() / model.spacing_m);
+    }
+    return worst;
+  };
+  const ClothModel at_limit = model_with(0.0), below = model_with(0.05);
+  EXPECT_EQ(at_limit.patch_provot_iterations, 20);
+  const double stretch_at_limit = pressed_stretch(at_limit);
+  const double stretch_below = pressed_stretch(below);
+  // Pressed past 1.045 when the patch aims at the limit, held under it when it aims 5 % below.
+  EXPECT_GT(stretch_at_limit, 1.05);
+  EXPECT_LE(stretch_at_limit, 1.10 * (1.0 + 1e-3));
+  EXPECT_LE(stretch_below, 1.10 * 0.95 * (1.0 + 1e-3));
+  // The sim: the same bits whatever the patch's settings.
+  SimSpec plain = Curtain(21);
+  SimSpec patched = plain;
+  patched.provot.patch_iterations = 1;
+  patched.provot.patch_sweep_headroom = 0.2;
+  const ClothModel a = BuildClothModel(plain), b = BuildClothModel(patched);
+  ClothState sa = MakeClothState(a), sb = MakeClothState(b);
+  for (int f = 0; f < 30; ++f) {
+    StepFrame(a, {}, 1.0 / 60.0, &sa);
+    StepFrame(b, {}, 1.0 / 60.0, &sb);
+  }
+  EXPECT_EQ(sa.x, sb.x);
+  EXPECT_EQ(sa.v, sb.v);
 }
 
 }  // namespace
