@@ -33,6 +33,15 @@ ClothSnapshot SnapshotOf(const ClothModel& model, const ClothState& state) {
 
 int32_t At(const ClothModel& m, int32_t col, int32_t row) { return row * m.width + col; }
 
+// The last triangle whose first corner is particle p (-1 if none).
+int32_t TriangleFrom(const ClothModel& model, int32_t p) {
+  int32_t tri = -1;
+  for (size_t t = 0; t < model.triangles.size(); ++t) {
+    if (model.triangles[t][0] == p) tri = static_cast<int32_t>(t);
+  }
+  return tri;
+}
+
 // The hand's contact spring on `triangle`, pressing from the +z side with a 4 mm sphere whose
 // centre is 2 cm behind the rest place of particle `centre` (k and the clamp of the default
 // device in the world).
@@ -131,10 +140,7 @@ TEST(ClothPatchTest, AContactSpringPushesTheFreeParticlesAndTheRingsStayWithTheD
   const std::vector<int32_t> centres = {centre};
   patch.Place(centres, s, 0.0, 1e-3);
   // A hand 2 cm behind the centre particle pressing from the +z side (world), sphere radius 4 mm.
-  int32_t tri = -1;
-  for (size_t t = 0; t < model.triangles.size(); ++t) {
-    if (model.triangles[t][0] == centre) tri = static_cast<int32_t>(t);
-  }
+  const int32_t tri = TriangleFrom(model, centre);
   ASSERT_GE(tri, 0);
   const std::vector<ExternalForce> springs = {PressBehind(model, tri, centre)};
   for (int k = 0; k < 100; ++k) {
@@ -268,10 +274,7 @@ TEST(ClothPatchTest, ThePatchSweepsToItsOwnLengthAndTheSimIgnoresIt) {
     const int32_t centre = At(model, 10, 10);
     const std::vector<int32_t> centres = {centre};
     patch.Place(centres, s, 0.0, 1e-3);
-    int32_t tri = -1;
-    for (size_t t = 0; t < model.triangles.size(); ++t) {
-      if (model.triangles[t][0] == centre) tri = static_cast<int32_t>(t);
-    }
+    const int32_t tri = TriangleFrom(model, centre);
     ExternalForce press = PressBehind(model, tri, centre);
     press.max_force_N = 5.0;
     const std::vector<ExternalForce> springs = {press};
