@@ -162,6 +162,17 @@ void PrintStats(const SceneInfo& info, const std::string& file, const ClothModel
     std::printf("cg not converged   %llu\n",
                 static_cast<unsigned long long>(state.counters.cg_not_converged));
   }
+  if (!model.limit_families.empty()) {
+    // The finishing worklist (provot.finish): a substep that ran out of its budget was undone,
+    // which is when max stretch can exceed the limit.
+    const ClothCounters& c = state.counters;
+    std::printf(
+        "stretch limiter    worklist: %llu pairs found over the limit, %llu projections, %llu "
+        "substeps out of budget (undone)\n",
+        static_cast<unsigned long long>(c.limiter_initial),
+        static_cast<unsigned long long>(c.limiter_projections),
+        static_cast<unsigned long long>(c.limiter_unconverged));
+  }
   if (model.self_collision_enabled) {
     const ClothCounters& c = state.counters;
     std::printf(
@@ -219,6 +230,10 @@ void WriteJson(std::ofstream& out, const std::string& json_path, const SceneInfo
       {"nan_events", state.counters.nan_events},
       {"clamped_frames", state.counters.clamped_frames},
       {"cg_not_converged", state.counters.cg_not_converged},
+      {"limiter_finish", !model.limit_families.empty()},
+      {"limiter_initial", state.counters.limiter_initial},
+      {"limiter_projections", state.counters.limiter_projections},
+      {"limiter_unconverged", state.counters.limiter_unconverged},
       {"overruns", stats.overruns},
       {"skipped_periods", stats.skipped_periods},
       {"self_collision", model.self_collision_enabled},

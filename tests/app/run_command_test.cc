@@ -92,6 +92,36 @@ TEST(RunCommand, GoodScenePrintsStatisticsAndJson) {
   EXPECT_TRUE(felt::ParseJson(written, json)["frame_ms"]["p50"].is_number()) << written;
   EXPECT_NE(written.find("\"nan_events\": 0,"), std::string::npos) << written;
   EXPECT_NE(written.find("\"realtime\": false"), std::string::npos) << written;
+  // No finishing worklist declared: no limiter line, and its counters are zero.
+  EXPECT_EQ(outcome.output.find("stretch limiter"), std::string::npos) << outcome.output;
+  EXPECT_NE(written.find("\"limiter_finish\": false"), std::string::npos) << written;
+  EXPECT_NE(written.find("\"limiter_unconverged\": 0,"), std::string::npos) << written;
+  std::filesystem::remove(path);
+  std::filesystem::remove(json);
+}
+
+// With provot.finish the worklist's counters are printed and written: the 8 x 8 cloth hanging
+// from its top edge sags past the sweeps' aim, so the worklist has pairs to project, and none of
+// its substeps runs out of budget.
+TEST(RunCommand, TheFinishingLimitersCountersAreReported) {
+  const std::string path =
+      WriteTemp("felt_run_test_finish.toml", std::string(kSmallScene) +
+                                                 "[provot]\niterations = 1\nsweep_headroom = 0.02\n"
+                                                 "finish = true\n");
+  const std::string json =
+      (std::filesystem::path(testing::TempDir()) / "felt_run_test_finish.json").string();
+  const Outcome outcome = RunFelt("run --scene " + path + " --duration 0.5 --fast --json " + json);
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
+  EXPECT_NE(outcome.output.find("stretch limiter    worklist: "), std::string::npos)
+      << outcome.output;
+  EXPECT_NE(outcome.output.find(" 0 substeps out of budget (undone)\n"), std::string::npos)
+      << outcome.output;
+  const felt::Json written = felt::ParseJson(ReadFile(json), json);
+  EXPECT_TRUE(written["limiter_finish"].get<bool>());
+  EXPECT_GT(written["limiter_projections"].get<uint64_t>(), 0u);
+  EXPECT_GE(written["limiter_initial"].get<uint64_t>(), 1u);
+  EXPECT_EQ(written["limiter_unconverged"].get<uint64_t>(), 0u);
+  EXPECT_LE(written["max_stretch"].get<double>(), 1.10 + 1e-9);
   std::filesystem::remove(path);
   std::filesystem::remove(json);
 }
