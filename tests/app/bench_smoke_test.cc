@@ -107,7 +107,8 @@ TEST(BenchSmoke, ClothOneGridWritesItsFiles) {
   const std::string& dir = run.dir;
   const std::string& text = run.json;
   ExpectKeys(text, {"command", "machine", "grids", "grid", "frame_ms_median", "frame_ms_p99",
-                    "max_stretch", "substeps", "particles", "springs"});
+                    "max_stretch", "substeps", "particles", "springs", "release_frame_ms_max",
+                    "flat_release_max_stretch", "flat_release_frame_ms_max"});
   EXPECT_NE(text.find("\"grid\": 10,"), std::string::npos) << text;
   EXPECT_NE(text.find("\"particles\": 100,"), std::string::npos) << text;
   EXPECT_TRUE(std::filesystem::exists(dir + "/cloth.md"));
