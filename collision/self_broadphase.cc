@@ -566,6 +566,22 @@ void SelfTriangleCone(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3
   *cos_half = c - 1e-12;  // rounding margin
 }
 
+// SelfTriangleCone for a triangle at rest (x0 = x1): N0 = Nm = N1, so one cross product; the
+// same arithmetic on the three equal control vectors otherwise.
+void SelfStillTriangleCone(const Vec3& a, const Vec3& b, const Vec3& c, Vec3* axis,
+                           double* cos_half) {
+  const Vec3 n = (b - a).cross(c - a);
+  const double l = n.norm();
+  *cos_half = -1.0;
+  if (!(l > 0.0)) return;
+  const Vec3 u = n / l;
+  const Vec3 s = u + u + u;
+  const double ls = s.norm();
+  if (!(ls > 1e-6)) return;
+  *axis = s / ls;
+  *cos_half = axis->dot(u) - 1e-12;  // rounding margin
+}
+
 }  // namespace
 
 // True when the patch of node a (with b >= 0: of nodes a and b together) is certified free of
@@ -583,7 +599,7 @@ bool SelfBvh::SelfContactFree(int32_t a, int32_t b, const Cone& cone) const {
   const std::span<const Vec3> x0 = step_x0_, x1 = step_x1_;
   const Triangle& ct = triangles_[center_[a]];
   const Vec3 c0 = (x0[ct[0]] + x0[ct[1]] + x0[ct[2]]) / 3.0;
-  const Vec3 c1 = (x1[ct[0]] + x1[ct[1]] + x1[ct[2]]) / 3.0;
+  const Vec3 c1 = still_ ? c0 : Vec3((x1[ct[0]] + x1[ct[1]] + x1[ct[2]]) / 3.0);
   const Vec3& V = cone.axis;
   // A unit u normal to V, and w = V x u: (u, w, V) is right-handed.
   int32_t k = 0;
@@ -594,6 +610,15 @@ bool SelfBvh::SelfContactFree(int32_t a, int32_t b, const Cone& cone) const {
   // One contour edge p -> q: counter-clockwise about c over the whole step, and its crossing of
   // the ray from c along u at t = 0 counted.
   const auto edge_ok = [&](const std::array<int32_t, 2>& e) {
+    if (still_) {
+      // At rest the three Bernstein coefficients are one: V . ((p - c) x (q - c)).
+      const Vec3 a0 = x0[e[0]] - c0, b0 = x0[e[1]] - c0;
+      const double g0 = V.dot(a0.cross(b0));
+      const double sa = a0.squaredNorm(), sb = b0.squaredNorm();
+      if (!(g0 > 1e-12 * (sa + sa + sb + sb))) return false;
+      if (a0.dot(w) < 0.0 && b0.dot(w) >= 0.0) ++winding;
+      return true;
+    }
     const Vec3 a0 = x0[e[0]] - c0, a1 = x1[e[0]] - c1;
     const Vec3 b0 = x0[e[1]] - c0, b1 = x1[e[1]] - c1;
     const double g0 = V.dot(a0.cross(b0));
@@ -681,6 +706,8 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
   const double pad = SelfBroadPadding(thickness_m);
   const double start_pad = start_thickness_m > 0.0 ? SelfBroadPadding(start_thickness_m) : 0.0;
 
+  // A broad phase at rest (x1 is x0, the proximity pass's): cheaper cones and star tests.
+  still_ = x0.data() == x1.data();
   // Swept, padded boxes of the vertices and edges.
   for (int32_t v = 0; v < num_vertices_; ++v) VertexBox(v, x0, x1, pad, start_pad);
   for (size_t i = 0; i < edges_.size(); ++i) {
@@ -715,8 +742,12 @@ void SelfBvh::RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const 
   node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
   if (!normal_cones_) return;
   Cone& cone = cone_[node];
-  SelfTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], x1[t[0]], x1[t[1]], x1[t[2]], &cone.axis,
-                   &cone.cos_half);
+  if (still_) {
+    SelfStillTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], &cone.axis, &cone.cos_half);
+  } else {
+    SelfTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], x1[t[0]], x1[t[1]], x1[t[2]], &cone.axis,
+                     &cone.cos_half);
+  }
   cone.sin_half =
       cone.cos_half > 1e-9 ? std::sqrt(std::max(0.0, 1.0 - cone.cos_half * cone.cos_half)) : 1;
 }
@@ -736,6 +767,7 @@ SelfBroadPhaseStats SelfBvh::UpdateCandidates(std::span<const Vec3> x0, std::spa
                                               std::span<const uint8_t> moved) {
   BeginStep(x0, x1, thickness_m);
   FELT_CHECK(std::ssize(moved) == num_vertices_);
+  still_ = x0.data() == x1.data();
   SelfBroadPhaseStats stats;
   kept_from_.clear();
   if (left_.empty()) {

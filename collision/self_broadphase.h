@@ -250,6 +250,7 @@ class SelfBvh final : public SelfBroadPhase {
   // UpdateCandidates: triangles and nodes holding a moved vertex; while `incremental_`, the
   // traversal skips pairs of nodes neither of which is dirty.
   bool incremental_ = false;
+  bool still_ = false;                   ///< the step being traversed has x1 = x0 (the same array)
   std::vector<uint8_t> triangle_dirty_;  ///< [triangles]
   std::vector<uint8_t> node_dirty_;      ///< [nodes]
   std::vector<int32_t> kept_from_;       ///< [kept candidates] index before the update

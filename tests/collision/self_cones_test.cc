@@ -224,6 +224,17 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
       }
     }
     ConeCheck(rest, x0, x1, tris, h, "flat fold closing", &reference_hits, &culled);
+    // The same fold at rest (x1 is x0, the same array: SelfBvh's still path, as the proximity
+    // pass's broad phase), its top layer 0.5 h above the bottom: every pair across the layers
+    // within h is found.
+    std::vector<Vec3> still = HingedGrid(w, 7, step, pi);
+    for (size_t i = 0; i < still.size(); ++i) {
+      if (rest[i].x() > 7 * step + 1e-9) still[i].z() += 0.5 * h;
+    }
+    size_t still_hits = 0;
+    ConeCheck(rest, still, still, tris, h, "flat fold at rest", &still_hits, &culled);
+    EXPECT_GT(still_hits, 100u);
+    reference_hits += still_hits;
   }
   // Random smooth waves with a crumple, moving a little (mostly culled, some folds).
   std::mt19937_64 rng(2210);
