@@ -78,6 +78,7 @@ struct Row {
   double passes_per_frame = 0.0;
   double broad_phases_per_frame = 0.0;
   double broad_reuses_per_frame = 0.0;  // detections that skipped the broad phase (APCCD)
+  double broad_updates_per_frame = 0.0;  // bvh_cones: broad phases carried over (UpdateCandidates)
   double narrow_tests_per_frame = 0.0;
   // The first CCD detection of each checked frame against AllPairsCcd on the same motion.
   int32_t reference_frames = 0;
@@ -156,7 +157,7 @@ Row RunSelfBench(const Args& args, int32_t grid, const std::string& method, int3
   row.thickness_m = spec.self_collision ? spec.self_collision->thickness_m : 0.0;
   row.substeps = model.substeps;
   std::vector<double> per_substep_ms, frame_ms, detect_ms, first_detect_ms;
-  double pairs = 0, impulses = 0, zones = 0, broads = 0, reuses = 0, narrows = 0;
+  double pairs = 0, impulses = 0, zones = 0, broads = 0, reuses = 0, updates = 0, narrows = 0;
   for (int32_t f = 0; f < frames; ++f) {
     const SelfCollisionStats before = response ? response->totals() : SelfCollisionStats{};
     const double t0 = WallMs();
@@ -172,6 +173,7 @@ Row RunSelfBench(const Args& args, int32_t grid, const std::string& method, int3
       first_detect_ms.push_back(1e3 * (after.first_detect_s - before.first_detect_s));
       broads += after.broad_phases - before.broad_phases;
       reuses += after.broad_reuses - before.broad_reuses;
+      updates += after.broad_updates - before.broad_updates;
       narrows += static_cast<double>(after.narrow_tests - before.narrow_tests);
     }
     const bool last = f + 1 == frames;
@@ -190,6 +192,7 @@ Row RunSelfBench(const Args& args, int32_t grid, const std::string& method, int3
     row.first_detect_ms_median = Median(first_detect_ms);
     row.broad_phases_per_frame = broads / frames;
     row.broad_reuses_per_frame = reuses / frames;
+    row.broad_updates_per_frame = updates / frames;
     row.narrow_tests_per_frame = narrows / frames;
     row.passes_per_frame = static_cast<double>(response->totals().passes) / frames;
   }
@@ -310,6 +313,7 @@ int Run(Args args) {
                                            "reference_frames",
                                            "broad_phases_per_frame",
                                            "broad_reuses_per_frame",
+                                           "broad_updates_per_frame",
                                            "narrow_tests_per_frame",
                                            "proximity_pairs_per_frame",
                                            "impulses_per_frame",
@@ -346,6 +350,7 @@ int Run(Args args) {
                      on ? std::to_string(r.reference_frames) : "-",
                      on ? Sig(r.broad_phases_per_frame, 3) : "-",
                      on ? Sig(r.broad_reuses_per_frame, 3) : "-",
+                     on ? Sig(r.broad_updates_per_frame, 3) : "-",
                      on ? Sig(r.narrow_tests_per_frame, 4) : "-",
                      on ? Sig(r.pairs_per_frame, 4) : "-",
                      on ? Sig(r.impulses_per_frame, 4) : "-",
@@ -382,6 +387,7 @@ int Run(Args args) {
       item["reference_frames"] = r.reference_frames;
       item["broad_phases_per_frame"] = r.broad_phases_per_frame;
       item["broad_reuses_per_frame"] = r.broad_reuses_per_frame;
+      item["broad_updates_per_frame"] = r.broad_updates_per_frame;
       item["narrow_tests_per_frame"] = r.narrow_tests_per_frame;
     } else {
       // No detection without [self_collision]: the fields are there, null.

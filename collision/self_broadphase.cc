@@ -458,6 +458,9 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
   build(build, 0, nt);
   node_lo_.resize(left_.size());
   node_hi_.resize(left_.size());
+  node_dirty_.assign(left_.size(), 0);
+  triangle_dirty_.assign(triangles_.size(), 0);
+  kept_from_.reserve(static_cast<size_t>(max_candidates_));
   // Pre-order reversed: children before parents.
   refit_order_.resize(left_.size());
   std::iota(refit_order_.rbegin(), refit_order_.rend(), 0);
@@ -563,6 +566,22 @@ void SelfTriangleCone(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3
   *cos_half = c - 1e-12;  // rounding margin
 }
 
+// SelfTriangleCone for a triangle at rest (x0 = x1): N0 = Nm = N1, so one cross product; the
+// same arithmetic on the three equal control vectors otherwise.
+void SelfStillTriangleCone(const Vec3& a, const Vec3& b, const Vec3& c, Vec3* axis,
+                           double* cos_half) {
+  const Vec3 n = (b - a).cross(c - a);
+  const double l = n.norm();
+  *cos_half = -1.0;
+  if (!(l > 0.0)) return;
+  const Vec3 u = n / l;
+  const Vec3 s = u + u + u;
+  const double ls = s.norm();
+  if (!(ls > 1e-6)) return;
+  *axis = s / ls;
+  *cos_half = axis->dot(u) - 1e-12;  // rounding margin
+}
+
 }  // namespace
 
 // True when the patch of node a (with b >= 0: of nodes a and b together) is certified free of
@@ -580,7 +599,7 @@ bool SelfBvh::SelfContactFree(int32_t a, int32_t b, const Cone& cone) const {
   const std::span<const Vec3> x0 = step_x0_, x1 = step_x1_;
   const Triangle& ct = triangles_[center_[a]];
   const Vec3 c0 = (x0[ct[0]] + x0[ct[1]] + x0[ct[2]]) / 3.0;
-  const Vec3 c1 = (x1[ct[0]] + x1[ct[1]] + x1[ct[2]]) / 3.0;
+  const Vec3 c1 = still_ ? c0 : Vec3((x1[ct[0]] + x1[ct[1]] + x1[ct[2]]) / 3.0);
   const Vec3& V = cone.axis;
   // A unit u normal to V, and w = V x u: (u, w, V) is right-handed.
   int32_t k = 0;
@@ -591,6 +610,15 @@ bool SelfBvh::SelfContactFree(int32_t a, int32_t b, const Cone& cone) const {
   // One contour edge p -> q: counter-clockwise about c over the whole step, and its crossing of
   // the ray from c along u at t = 0 counted.
   const auto edge_ok = [&](const std::array<int32_t, 2>& e) {
+    if (still_) {
+      // At rest the three Bernstein coefficients are one: V . ((p - c) x (q - c)).
+      const Vec3 a0 = x0[e[0]] - c0, b0 = x0[e[1]] - c0;
+      const double g0 = V.dot(a0.cross(b0));
+      const double sa = a0.squaredNorm(), sb = b0.squaredNorm();
+      if (!(g0 > 1e-12 * (sa + sa + sb + sb))) return false;
+      if (a0.dot(w) < 0.0 && b0.dot(w) >= 0.0) ++winding;
+      return true;
+    }
     const Vec3 a0 = x0[e[0]] - c0, a1 = x1[e[0]] - c1;
     const Vec3 b0 = x0[e[1]] - c0, b1 = x1[e[1]] - c1;
     const double g0 = V.dot(a0.cross(b0));
@@ -654,57 +682,154 @@ bool SelfBvh::Overlap(int32_t a, int32_t b) const {
 
 SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
                                             double thickness_m) {
+  return FindCandidates(x0, x1, thickness_m, 0.0);
+}
+
+// Vertex v's box: its sweep x0 -> x1 padded by `pad`, and, when start_pad is larger, its start
+// position padded by start_pad [m].
+void SelfBvh::VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1, double pad,
+                        double start_pad) {
+  vertex_lo_[v] = x0[v].cwiseMin(x1[v]).array() - pad;
+  vertex_hi_[v] = x0[v].cwiseMax(x1[v]).array() + pad;
+  if (start_pad > pad) {
+    vertex_lo_[v] = vertex_lo_[v].cwiseMin(Vec3(x0[v].array() - start_pad));
+    vertex_hi_[v] = vertex_hi_[v].cwiseMax(Vec3(x0[v].array() + start_pad));
+  }
+}
+
+SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                            double thickness_m, double start_thickness_m) {
   BeginStep(x0, x1, thickness_m);
   candidates_.clear();
   SelfBroadPhaseStats stats;
   if (left_.empty()) return stats;
   const double pad = SelfBroadPadding(thickness_m);
+  const double start_pad = start_thickness_m > 0.0 ? SelfBroadPadding(start_thickness_m) : 0.0;
 
+  // A broad phase at rest (x1 is x0, the proximity pass's): cheaper cones and star tests.
+  still_ = x0.data() == x1.data();
   // Swept, padded boxes of the vertices and edges.
-  for (int32_t v = 0; v < num_vertices_; ++v) {
-    vertex_lo_[v] = x0[v].cwiseMin(x1[v]).array() - pad;
-    vertex_hi_[v] = x0[v].cwiseMax(x1[v]).array() + pad;
-  }
+  for (int32_t v = 0; v < num_vertices_; ++v) VertexBox(v, x0, x1, pad, start_pad);
   for (size_t i = 0; i < edges_.size(); ++i) {
     const MeshEdge& e = edges_[i];
     edge_lo_[i] = vertex_lo_[e[0]].cwiseMin(vertex_lo_[e[1]]);
     edge_hi_[i] = vertex_hi_[e[0]].cwiseMax(vertex_hi_[e[1]]);
   }
-  // Bottom-up refit: leaves from their triangle's vertex boxes, then parents from children.
+  // Bottom-up refit (children before parents): a leaf's box (and cone) from its triangle, a
+  // parent's from its children.
   for (int32_t node : refit_order_) {
     if (left_[node] < 0) {
-      const Triangle& t = triangles_[right_[node]];
-      node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);
-      node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
+      RefitLeaf(node, x0, x1);
     } else {
-      node_lo_[node] = node_lo_[left_[node]].cwiseMin(node_lo_[right_[node]]);
-      node_hi_[node] = node_hi_[left_[node]].cwiseMax(node_hi_[right_[node]]);
+      RefitParent(node);
     }
   }
   cone_culled_ = 0;
   union_culled_ = 0;
-  if (normal_cones_) {
-    // Normal cones over the step, bottom-up: a leaf's from its triangle (SelfTriangleCone), a
-    // parent's around the bisector of its children's axes, wide enough for both (half-angle
-    // max(angle(axis, child axis) + child half-angle), by cos(x + y) = cos x cos y - sin x sin y;
-    // 1e-12 kept back per level for rounding). cos_half <= 1e-9: no cone below pi/2.
-    for (int32_t node : refit_order_) {
-      Cone& cone = cone_[node];
-      if (left_[node] < 0) {
-        const Triangle& t = triangles_[right_[node]];
-        SelfTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], x1[t[0]], x1[t[1]], x1[t[2]], &cone.axis,
-                         &cone.cos_half);
-      } else {
-        cone = MergeCones(cone_[left_[node]], cone_[right_[node]]);
-        continue;
-      }
-      cone.sin_half =
-          cone.cos_half > 1e-9 ? std::sqrt(std::max(0.0, 1.0 - cone.cos_half * cone.cos_half)) : 1;
-    }
-    step_x0_ = x0;
-    step_x1_ = x1;
-  }
+  step_x0_ = x0;
+  step_x1_ = x1;
+  incremental_ = false;
+  kept_from_.clear();
   Traverse(0, 0, &stats);
+  return stats;
+}
+
+// A leaf's swept box from its triangle's vertex boxes and, with normal cones, its triangle's
+// cone over the step x0 -> x1 (SelfTriangleCone; cos_half <= 1e-9: no cone below pi/2).
+void SelfBvh::RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const Vec3> x1) {
+  const Triangle& t = triangles_[right_[node]];
+  node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);
+  node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
+  if (!normal_cones_) return;
+  Cone& cone = cone_[node];
+  if (still_) {
+    SelfStillTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], &cone.axis, &cone.cos_half);
+  } else {
+    SelfTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], x1[t[0]], x1[t[1]], x1[t[2]], &cone.axis,
+                     &cone.cos_half);
+  }
+  cone.sin_half =
+      cone.cos_half > 1e-9 ? std::sqrt(std::max(0.0, 1.0 - cone.cos_half * cone.cos_half)) : 1;
+}
+
+// A parent's box from its children's and, with normal cones, its cone around the bisector of
+// its children's axes, wide enough for both (half-angle max(angle(axis, child axis) + child
+// half-angle), by cos(x + y) = cos x cos y - sin x sin y; 1e-12 kept back per level for
+// rounding).
+void SelfBvh::RefitParent(int32_t node) {
+  node_lo_[node] = node_lo_[left_[node]].cwiseMin(node_lo_[right_[node]]);
+  node_hi_[node] = node_hi_[left_[node]].cwiseMax(node_hi_[right_[node]]);
+  if (normal_cones_) cone_[node] = MergeCones(cone_[left_[node]], cone_[right_[node]]);
+}
+
+SelfBroadPhaseStats SelfBvh::UpdateCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                              double thickness_m, double start_thickness_m,
+                                              std::span<const uint8_t> moved) {
+  BeginStep(x0, x1, thickness_m);
+  FELT_CHECK(std::ssize(moved) == num_vertices_);
+  still_ = x0.data() == x1.data();
+  SelfBroadPhaseStats stats;
+  kept_from_.clear();
+  if (left_.empty()) {
+    candidates_.clear();
+    return stats;
+  }
+  const double pad = SelfBroadPadding(thickness_m);
+  const double start_pad = start_thickness_m > 0.0 ? SelfBroadPadding(start_thickness_m) : 0.0;
+  // The moved vertices' boxes, and the edges and triangles holding one.
+  for (int32_t v = 0; v < num_vertices_; ++v) {
+    if (moved[v]) VertexBox(v, x0, x1, pad, start_pad);
+  }
+  for (size_t i = 0; i < edges_.size(); ++i) {
+    const MeshEdge& e = edges_[i];
+    if (!(moved[e[0]] | moved[e[1]])) continue;
+    edge_lo_[i] = vertex_lo_[e[0]].cwiseMin(vertex_lo_[e[1]]);
+    edge_hi_[i] = vertex_hi_[e[0]].cwiseMax(vertex_hi_[e[1]]);
+  }
+  for (size_t ti = 0; ti < triangles_.size(); ++ti) {
+    const Triangle& t = triangles_[ti];
+    triangle_dirty_[ti] = moved[t[0]] | moved[t[1]] | moved[t[2]];
+  }
+  // Dirty nodes refitted bottom-up; the others keep their boxes and cones (same vertices).
+  for (int32_t node : refit_order_) {
+    if (left_[node] < 0) {
+      node_dirty_[node] = triangle_dirty_[right_[node]];
+      if (node_dirty_[node]) RefitLeaf(node, x0, x1);
+    } else {
+      node_dirty_[node] = node_dirty_[left_[node]] | node_dirty_[right_[node]];
+      if (node_dirty_[node]) RefitParent(node);
+    }
+  }
+  // Keep the candidates found in a pair of clean leaves (a vertex's or an edge's leaf is its
+  // owner's; the other side's leaf is the triangle, or the other edge's owner), in order.
+  using Kind = CcdPairHit::Kind;
+  const int32_t count = static_cast<int32_t>(candidates_.size());
+  int32_t kept = 0;
+  for (int32_t i = 0; i < count; ++i) {
+    const SelfCandidate c = candidates_[i];
+    const bool dirty =
+        c.kind == Kind::kVertexTriangle
+            ? (triangle_dirty_[vertex_owner_[c.first]] | triangle_dirty_[c.second])
+            : (triangle_dirty_[edge_owner_[c.first]] | triangle_dirty_[edge_owner_[c.second]]);
+    if (dirty) continue;
+    if (c.kind == Kind::kVertexTriangle) {
+      ++stats.vertex_triangle;
+    } else {
+      ++stats.edge_edge;
+    }
+    candidates_[kept] = c;
+    kept_from_.push_back(i);  // reserved for max_candidates: never reallocates
+    ++kept;
+  }
+  candidates_.resize(static_cast<size_t>(kept));
+  // The pairs with a dirty leaf, found again on the new motion.
+  cone_culled_ = 0;
+  union_culled_ = 0;
+  step_x0_ = x0;
+  step_x1_ = x1;
+  incremental_ = true;
+  Traverse(0, 0, &stats);
+  incremental_ = false;
   return stats;
 }
 
@@ -715,6 +840,8 @@ constexpr int32_t kSelfUnionMinContour = 16;
 }  // namespace
 
 void SelfBvh::Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats) {
+  // UpdateCandidates: the pairs of two clean nodes are already in the kept candidates.
+  if (incremental_ && !(node_dirty_[a] | node_dirty_[b])) return;
   // A node against itself: its children against themselves and each other.
   if (a == b) {
     if (left_[a] < 0) return;  // one triangle: its own features are all incident

@@ -172,11 +172,37 @@ class SelfBvh final : public SelfBroadPhase {
   /// See SelfBroadPhase::FindCandidates. Real-time safe (recursion depth about 2 log2 T).
   SelfBroadPhaseStats FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
                                      double thickness_m) override;
+  /// FindCandidates, with every vertex's box also holding its start position x0 padded by
+  /// start_thickness_m (1 + 1e-5) / 2 [m]: the candidates then also hold every pair within
+  /// start_thickness_m at x0 (but those inside a patch certified over the step), so that one
+  /// broad phase serves a static proximity test at x0 and the continuous test at thickness_m.
+  SelfBroadPhaseStats FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                     double thickness_m, double start_thickness_m);
   int32_t num_nodes() const { return static_cast<int32_t>(node_lo_.size()); }  ///< tree nodes
   /// Nodes skipped against themselves by the normal-cone test in the last FindCandidates.
   int32_t cone_culled() const { return cone_culled_; }
   /// Pairs of nodes skipped by the normal-cone test of their union in the last FindCandidates.
   int32_t union_culled() const { return union_culled_; }
+  /// Carries the last FindCandidates (or UpdateCandidates) of the step x0 -> x1' over to the step
+  /// x0 -> x1, where x1 equals x1' except at the vertices p with moved[p] != 0 (x0 and
+  /// thickness_m [m] the same as there): the candidates of two triangles none of whose vertices
+  /// moved are kept (their trajectories did not change, so their boxes still overlap, and a pair
+  /// the last traversal culled, by boxes or by a patch certified free of contact, still cannot
+  /// touch: contact of two primitives depends on their own vertices only), and the tree is
+  /// refitted and traversed again only where a triangle has a moved vertex (its boxes, cones
+  /// and certificates recomputed on the new motion). The result holds every pair a fresh
+  /// FindCandidates(x0, x1, thickness_m) holds, in another order: candidates()[0, kept) are the
+  /// kept ones in their old order (kept_from() gives their old indices), the rest are new.
+  /// moved has one flag per vertex. Undefined if the precondition is broken; after an overflow
+  /// the caller must call FindCandidates again. Real-time safe.
+  /// start_thickness_m as in the 4-argument FindCandidates (the same as there; 0 if it was not
+  /// given).
+  SelfBroadPhaseStats UpdateCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                       double thickness_m, double start_thickness_m,
+                                       std::span<const uint8_t> moved);
+  /// After UpdateCandidates: the index before the update of each kept candidate (kept ones
+  /// come first in candidates()); empty after FindCandidates.
+  std::span<const int32_t> kept_from() const { return {kept_from_.data(), kept_from_.size()}; }
 
  private:
   /// A cone of directions: unit axis and cosine / sine of its half-angle; cos_half <= 0 means
@@ -193,6 +219,10 @@ class SelfBvh final : public SelfBroadPhase {
   void Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats);
   void LeafPair(int32_t ta, int32_t tb, SelfBroadPhaseStats* stats);
   bool Overlap(int32_t a, int32_t b) const;
+  void VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1, double pad,
+                 double start_pad);
+  void RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const Vec3> x1);
+  void RefitParent(int32_t node);
   std::vector<int32_t> left_;         ///< [nodes] left child, -1 for a leaf
   std::vector<int32_t> right_;        ///< [nodes] right child, or the triangle of a leaf
   std::vector<Vec3> node_lo_;         ///< [nodes] swept box low corner [m]
@@ -217,6 +247,13 @@ class SelfBvh final : public SelfBroadPhase {
   std::span<const Vec3> step_x0_, step_x1_;      ///< the step being traversed
   int32_t cone_culled_ = 0;
   int32_t union_culled_ = 0;
+  // UpdateCandidates: triangles and nodes holding a moved vertex; while `incremental_`, the
+  // traversal skips pairs of nodes neither of which is dirty.
+  bool incremental_ = false;
+  bool still_ = false;                   ///< the step being traversed has x1 = x0 (the same array)
+  std::vector<uint8_t> triangle_dirty_;  ///< [triangles]
+  std::vector<uint8_t> node_dirty_;      ///< [nodes]
+  std::vector<int32_t> kept_from_;       ///< [kept candidates] index before the update
 };
 
 /// Outcome of SelfCcd.

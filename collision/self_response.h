@@ -47,8 +47,12 @@ enum class SelfCullingMethod : uint8_t {
   kSpatialHash,  ///< SelfSpatialHash (Teschner et al. 2003)
   kBvh,          ///< SelfBvh (AABB tree self-traversal)
   /// SelfBvh with normal cones (SelfBroadPhaseOptions::normal_cones): patches certified free of
-  /// self-contact over the motion are not traversed against themselves. Each detection then runs
-  /// its own broad phase on its motion (no reuse of candidates, no incremental rounds).
+  /// self-contact over the motion are not traversed against themselves. A certificate holds for
+  /// its own motion only: a broad phase on the pass's motion (also serving the proximity pass
+  /// when the last pass's repulsion moved few vertices; else the proximity pass has its own on
+  /// the static positions), which every CCD and zone detection carries over to its own motion,
+  /// traversing again only where vertices moved (SelfBvh::UpdateCandidates) and re-testing only
+  /// those pairs.
   kBvhCones,
 };
 
@@ -112,6 +116,9 @@ struct SelfCollisionStats {
   int64_t overflows = 0;  ///< detections whose candidate or hit buffer overflowed (then fail-safe)
   int32_t broad_phases = 0;  ///< broad-phase runs (FindCandidates), proximity's included
   int32_t broad_reuses = 0;  ///< detections that reused an earlier broad phase's candidates
+  /// bvh_cones: detections that carried the last broad phase over to their motion by
+  /// SelfBvh::UpdateCandidates (traversing again only where vertices moved) instead of a new one.
+  int32_t broad_updates = 0;
   /// Detections that re-tested only the candidates with a vertex moved since the last one.
   int32_t incremental_detections = 0;
   int64_t narrow_tests = 0;  ///< continuous pair tests run (VertexTriangleCcd / EdgeEdgeCcd)
@@ -162,6 +169,8 @@ class SelfCollisionResponse {
   SelfBroadPhase* Broad();
   int64_t Detect(std::span<const Vec3> x1, SelfCollisionStats* stats);
   int64_t DetectAll(std::span<const Vec3> x1, SelfCollisionStats* stats);
+  int64_t DetectCones(std::span<const Vec3> x1, SelfCollisionStats* stats);
+  void ClearMoved();
   void TestCandidate(int32_t i, std::span<const Vec3> x1, const AllPairsCcdOptions& options,
                      SelfCollisionStats* stats, int64_t* hits);
   void RunBroadPhase(std::span<const Vec3> x1, SelfCollisionStats* stats);
@@ -184,7 +193,16 @@ class SelfCollisionResponse {
   std::vector<double> inv_mass_;
   std::optional<SelfSpatialHash> hash_;
   std::optional<SelfBvh> bvh_;
-  bool cones_ = false;            ///< kBvhCones: a fresh, cone-culled broad phase per detection
+  bool cones_ = false;  ///< kBvhCones: one cone-culled broad phase per pass, carried over
+  /// kBvhCones: the BVH's candidates hold for x_before_ -> x_trial_ up to the vertices in
+  /// moved_list_ (false after an overflow: the next detection runs a full broad phase).
+  bool cone_valid_ = false;
+  /// kBvhCones: cand_hit_ holds no narrow results yet (the pass's broad phase just ran).
+  bool cone_fresh_ = false;
+  /// kBvhCones: this pass's broad phase is on its motion and serves the proximity pass too
+  /// (its boxes also hold the start positions padded by the full thickness).
+  bool share_ = false;
+  int64_t prox_moved_ = 0;        ///< vertices the last pass's repulsion moved
   std::vector<CcdPairHit> hits_;  ///< capacity fixed at construction
   std::vector<Vec3> x_before_;    ///< [n] substep start
   // The last broad phase (on x_before_ -> x1, boxes padded by broad_pad_m_ per side): each

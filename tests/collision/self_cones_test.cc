@@ -7,6 +7,7 @@
 // cull (so that the comparison can fail).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -55,6 +56,152 @@ void ConeCheck(std::span<const Vec3> rest, std::span<const Vec3> x0, std::span<c
   *culled += cones.cone_culled() + cones.union_culled();
 }
 
+// The narrow phase (AllPairsCcd's pair tests) over the broad phase's candidates on x0 -> x1,
+// sorted as AllPairsCcd sorts; fails the test if a candidate comes twice.
+std::vector<CcdPairHit> NarrowOverCandidates(const SelfBroadPhase& broad, std::span<const Vec3> x0,
+                                             std::span<const Vec3> x1,
+                                             const AllPairsCcdOptions& options,
+                                             const std::string& label) {
+  std::vector<CcdPairHit> hits;
+  std::vector<std::array<int32_t, 3>> seen;
+  for (const SelfCandidate& c : broad.candidates()) {
+    seen.push_back({static_cast<int32_t>(c.kind), c.first, c.second});
+    CcdPairHit h;
+    const bool hit = c.kind == CcdPairHit::Kind::kVertexTriangle
+                         ? VertexTrianglePairHit(x0, x1, c.first, c.second,
+                                                 broad.triangles()[c.second], options, &h)
+                         : EdgeEdgePairHit(x0, x1, c.first, broad.edges()[c.first], c.second,
+                                           broad.edges()[c.second], options, &h);
+    if (hit) hits.push_back(h);
+  }
+  std::sort(seen.begin(), seen.end());
+  EXPECT_EQ(std::adjacent_find(seen.begin(), seen.end()), seen.end()) << label << ": duplicate";
+  std::sort(hits.begin(), hits.end(), [](const CcdPairHit& a, const CcdPairHit& b) {
+    if (a.kind != b.kind) return a.kind < b.kind;
+    if (a.first != b.first) return a.first < b.first;
+    return a.second < b.second;
+  });
+  return hits;
+}
+
+// One run of UpdateCheck (below) with start boxes of start_h [m] (0: none).
+void UpdateCheckOnce(std::span<const Vec3> rest, std::span<const Vec3> x0, std::span<const Vec3> x1,
+                     std::span<const Triangle> tris, double h, double start_h, double step,
+                     const std::string& label, std::mt19937_64* rng, size_t* reference_hits,
+                     size_t* kept) {
+  AllPairsCcdOptions options;
+  options.ccd.thickness_m = h;
+  SelfBroadPhaseOptions cone_options;
+  cone_options.normal_cones = true;
+  SelfBvh cones(tris, rest, cone_options);
+  ASSERT_FALSE(cones.FindCandidates(x0, x1, h, start_h).overflow) << label;
+  std::vector<Vec3> x1b(x1.begin(), x1.end());
+  std::vector<uint8_t> moved(x1.size(), 0);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (int32_t round = 0; round < 2; ++round) {
+    const std::string name = label + " update " + std::to_string(round);
+    const Vec3 center =
+        x0[static_cast<size_t>(u01(*rng) * static_cast<double>(x0.size())) % x0.size()];
+    std::fill(moved.begin(), moved.end(), 0);
+    for (size_t i = 0; i < x1b.size(); ++i) {
+      const bool pick = round == 0 ? u01(*rng) < 0.2 : (x0[i] - center).norm() < 3 * step;
+      if (!pick) continue;
+      moved[i] = 1;
+      const double along = u01(*rng) < 0.5 ? 0.3 : 1.5;
+      x1b[i] = x0[i] + along * (x1[i] - x0[i]) + 0.2 * step * Vec3(n01(*rng), n01(*rng), n01(*rng));
+    }
+    const SelfBroadPhaseStats st = cones.UpdateCandidates(x0, x1b, h, start_h, moved);
+    ASSERT_FALSE(st.overflow) << name;
+    EXPECT_EQ(st.vertex_triangle + st.edge_edge, std::ssize(cones.candidates())) << name;
+    *kept += cones.kept_from().size();
+    const std::vector<CcdPairHit> got = NarrowOverCandidates(cones, x0, x1b, options, name);
+    const std::vector<CcdPairHit> ref = AllPairsCcd(x0, x1b, tris, options);
+    ASSERT_EQ(got.size(), ref.size()) << name;
+    for (size_t i = 0; i < ref.size(); ++i) {
+      EXPECT_EQ(got[i].kind, ref[i].kind) << name;
+      EXPECT_EQ(got[i].first, ref[i].first) << name;
+      EXPECT_EQ(got[i].second, ref[i].second) << name;
+      EXPECT_EQ(got[i].toi, ref[i].toi) << name;
+    }
+    *reference_hits += ref.size();
+  }
+}
+
+// SelfBvh::UpdateCandidates carries a cone-culled broad phase over to a motion whose end
+// differs at some vertices: after a first FindCandidates on x0 -> x1, two updates in a row move
+// a random fifth of the vertices, then a cluster around one vertex (stopping them early or
+// pushing them further along their motion, plus noise), and each time the narrow phase over the
+// updated candidates equals AllPairsCcd on the new motion (pairs and toi), no candidate comes
+// twice, and the update kept candidates (so that the kept path is exercised); with and without
+// start boxes (the 4-argument FindCandidates).
+void UpdateCheck(std::span<const Vec3> rest, std::span<const Vec3> x0, std::span<const Vec3> x1,
+                 std::span<const Triangle> tris, double h, double step, const std::string& label,
+                 std::mt19937_64* rng, size_t* reference_hits, size_t* kept) {
+  // Without and with start boxes (the proximity pass's thickness around x0, 3 h here).
+  for (double start_h : {0.0, 3 * h}) {
+    UpdateCheckOnce(rest, x0, x1, tris, h, start_h, step,
+                    label + " start " + std::to_string(start_h), rng, reference_hits, kept);
+  }
+}
+
+TEST(SelfNormalCones, UpdatedCandidatesMissNothingAgainstAllPairs) {
+  const double pi = std::numbers::pi;
+  std::mt19937_64 rng(2222);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  size_t reference_hits = 0, kept = 0;
+  {
+    const int32_t w = 16;
+    const double step = 0.05, h = 0.002;
+    const std::vector<Triangle> tris = MakeGridTriangles(w, w);
+    const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+    UpdateCheck(rest, HingedGrid(w, 7, step, pi - 10 * pi / 180),
+                HingedGrid(w, 7, step, pi + 10 * pi / 180), tris, h, step, "fold through", &rng,
+                &reference_hits, &kept);
+  }
+  for (int32_t c = 0; c < 4; ++c) {
+    const int32_t w = 20;
+    const double step = 0.02, h = 0.001;
+    const std::vector<Triangle> tris = MakeGridTriangles(w, w);
+    const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+    const double amp = 0.02 * (1 + c), phase = 0.3 * c;
+    std::vector<Vec3> x0 = rest, x1 = rest;
+    for (size_t i = 0; i < rest.size(); ++i) {
+      const Vec3& p = rest[i];
+      x0[i].z() = amp * std::sin(9 * p.x() + phase) * std::sin(7 * p.y());
+      x0[i] += 0.05 * step * Vec3(n01(rng), n01(rng), n01(rng));
+      x1[i] = x0[i] + Vec3(0.0, 0.0, amp * 0.2 * std::sin(11 * p.y())) +
+              0.1 * step * Vec3(n01(rng), n01(rng), n01(rng));
+    }
+    UpdateCheck(rest, x0, x1, tris, h, step, "waves " + std::to_string(c), &rng, &reference_hits,
+                &kept);
+  }
+  {
+    const int32_t w = 14, hinge = 7;
+    const double step = 0.04, h = 0.001;
+    const std::vector<Triangle> tris = MakeGridTriangles(w, w);
+    const std::vector<Vec3> rest = SpacedGrid(w, w, step);
+    std::vector<Vec3> x0, x1;
+    testing::FallingUFold(w, hinge, step, 0.01, 0.05, rng, &x0, &x1);
+    UpdateCheck(rest, x0, x1, tris, h, step, "falling", &rng, &reference_hits, &kept);
+  }
+  {
+    const int32_t w = 5, len = 80;
+    const std::vector<Triangle> tris = MakeGridTriangles(w, len);
+    const std::vector<Vec3> rest = SpacedGrid(w, len, 0.01);
+    std::vector<Vec3> x0 = rest, x1 = rest;
+    for (size_t i = 0; i < rest.size(); ++i) {
+      const double r = 0.1 + rest[i].x();
+      const double theta = 2.3 * 2 * pi * rest[i].y() / ((len - 1) * 0.01);
+      x0[i] = Vec3(r * std::cos(theta), r * std::sin(theta), 0.002 * theta);
+      x1[i] = Vec3(r * std::cos(theta), r * std::sin(theta), -0.002 * theta);
+    }
+    UpdateCheck(rest, x0, x1, tris, 0.0005, 0.01, "spiral ramp", &rng, &reference_hits, &kept);
+  }
+  EXPECT_GT(reference_hits, 100u);  // the updated motions do collide
+  EXPECT_GT(kept, 100u);            // and the updates kept candidates
+}
+
 TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
   const double pi = std::numbers::pi;
   size_t reference_hits = 0;
@@ -77,6 +224,17 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
       }
     }
     ConeCheck(rest, x0, x1, tris, h, "flat fold closing", &reference_hits, &culled);
+    // The same fold at rest (x1 is x0, the same array: SelfBvh's still path, as the proximity
+    // pass's broad phase), its top layer 0.5 h above the bottom: every pair across the layers
+    // within h is found.
+    std::vector<Vec3> still = HingedGrid(w, 7, step, pi);
+    for (size_t i = 0; i < still.size(); ++i) {
+      if (rest[i].x() > 7 * step + 1e-9) still[i].z() += 0.5 * h;
+    }
+    size_t still_hits = 0;
+    ConeCheck(rest, still, still, tris, h, "flat fold at rest", &still_hits, &culled);
+    EXPECT_GT(still_hits, 100u);
+    reference_hits += still_hits;
   }
   // Random smooth waves with a crumple, moving a little (mostly culled, some folds).
   std::mt19937_64 rng(2210);
