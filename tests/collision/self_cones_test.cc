@@ -163,6 +163,22 @@ void WavyMotion(std::span<const Vec3> rest, double step, int32_t c, std::mt19937
   }
 }
 
+// A grid of `len` rows 0.01 m apart (rest) wound into a ramp of 2.3 turns (radius 0.1 m plus
+// the column's x) rising 0.002 m per radian at x0 and falling as much at x1: its last turn passes
+// through its first within the step.
+void SpiralRamp(std::span<const Vec3> rest, int32_t len, std::vector<Vec3>* x0,
+                std::vector<Vec3>* x1) {
+  const double pi = std::numbers::pi;
+  x0->resize(rest.size());
+  x1->resize(rest.size());
+  for (size_t i = 0; i < rest.size(); ++i) {
+    const double r = 0.1 + rest[i].x();
+    const double theta = 2.3 * 2 * pi * rest[i].y() / ((len - 1) * 0.01);
+    (*x0)[i] = Vec3(r * std::cos(theta), r * std::sin(theta), 0.002 * theta);
+    (*x1)[i] = Vec3(r * std::cos(theta), r * std::sin(theta), -0.002 * theta);
+  }
+}
+
 TEST(SelfNormalCones, UpdatedCandidatesMissNothingAgainstAllPairs) {
   const double pi = std::numbers::pi;
   std::mt19937_64 rng(2222);
@@ -199,13 +215,8 @@ TEST(SelfNormalCones, UpdatedCandidatesMissNothingAgainstAllPairs) {
     const int32_t w = 5, len = 80;
     const std::vector<Triangle> tris = MakeGridTriangles(w, len);
     const std::vector<Vec3> rest = SpacedGrid(w, len, 0.01);
-    std::vector<Vec3> x0 = rest, x1 = rest;
-    for (size_t i = 0; i < rest.size(); ++i) {
-      const double r = 0.1 + rest[i].x();
-      const double theta = 2.3 * 2 * pi * rest[i].y() / ((len - 1) * 0.01);
-      x0[i] = Vec3(r * std::cos(theta), r * std::sin(theta), 0.002 * theta);
-      x1[i] = Vec3(r * std::cos(theta), r * std::sin(theta), -0.002 * theta);
-    }
+    std::vector<Vec3> x0, x1;
+    SpiralRamp(rest, len, &x0, &x1);
     UpdateCheck(rest, x0, x1, tris, 0.0005, 0.01, "spiral ramp", &rng, &reference_hits, &kept);
   }
   EXPECT_GT(reference_hits, 100u);  // the updated motions do collide
@@ -290,13 +301,8 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
     const int32_t w = 5, len = 80;
     const std::vector<Triangle> tris = MakeGridTriangles(w, len);
     const std::vector<Vec3> rest = SpacedGrid(w, len, 0.01);
-    std::vector<Vec3> x0 = rest, x1 = rest;
-    for (size_t i = 0; i < rest.size(); ++i) {
-      const double r = 0.1 + rest[i].x();
-      const double theta = 2.3 * 2 * pi * rest[i].y() / ((len - 1) * 0.01);
-      x0[i] = Vec3(r * std::cos(theta), r * std::sin(theta), 0.002 * theta);
-      x1[i] = Vec3(r * std::cos(theta), r * std::sin(theta), -0.002 * theta);
-    }
+    std::vector<Vec3> x0, x1;
+    SpiralRamp(rest, len, &x0, &x1);
     size_t ramp_hits = 0;
     ConeCheck(rest, x0, x1, tris, 0.0005, "spiral ramp", &ramp_hits, &culled);
     EXPECT_GT(ramp_hits, 10u);
