@@ -764,6 +764,11 @@ ClothState MakeClothState(const ClothModel& model) {
   }
   s.restart.assign(n, 0);
   s.soa.assign(12 * SoaStride(static_cast<size_t>(n)), 0.0);
+  s.stream_rows.assign(StreamScratchSize(model), 0.0);
+  s.coupling_rows.unsorted.assign(kMaxCouplingTerms, CouplingTerm{});
+  s.coupling_rows.sorted.assign(kMaxCouplingTerms, CouplingTerm{});
+  s.coupling_rows.row_start.assign(static_cast<size_t>(model.height) + 1, 0);
+  s.coupling_rows.cursor.assign(static_cast<size_t>(model.height), 0);
   s.provot_soa.assign(3 * ProvotSoaStride(n), 0.0f);
   s.limit_queued.assign(model.limit_families.size() * n, 0);
   s.limit_ring.assign(std::max<size_t>(1, model.limit_families.size() * n), 0);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "base/check.h"
 #include "collision/geometry.h"
 #include "sim_loop/cloth_internal.h"
 
@@ -301,8 +302,13 @@ void AdvanceCouplingSprings(double t_s, CouplingSprings* springs) {
   }
 }
 
-void AddCouplingForces(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
-                       double* f) {
+namespace {
+
+// Calls emit(particle, addend) for every addend of scale * the springs' forces at `x`, in the
+// order AddCouplingForces adds them (AddCouplingForces' formula).
+template <typename Emit>
+void ForEachCouplingTerm(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
+                         Emit&& emit) {
   for (int32_t k = 0; k < springs.count; ++k) {
     const CouplingSpring& s = springs.springs[k];
     if (s.num_candidates <= 0) continue;
@@ -318,13 +324,43 @@ void AddCouplingForces(const CouplingSprings& springs, std::span<const Vec3> x, 
       for (int j = 0; j < 3; ++j) {
         const double w = s.free[i][j] * c.barycentric[i][j];
         if (w == 0.0) continue;
-        double* fc = f + 3 * static_cast<size_t>(t[j]);
-        fc[0] += w * force.x();
-        fc[1] += w * force.y();
-        fc[2] += w * force.z();
+        emit(t[j], Vec3(w * force.x(), w * force.y(), w * force.z()));
       }
     }
   }
+}
+
+}  // namespace
+
+void AddCouplingForces(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
+                       double* f) {
+  ForEachCouplingTerm(springs, x, scale, [f](int32_t particle, const Vec3& addend) {
+    double* fc = f + 3 * static_cast<size_t>(particle);
+    fc[0] += addend.x();
+    fc[1] += addend.y();
+    fc[2] += addend.z();
+  });
+}
+
+int32_t CouplingTermsByRow(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
+                           int32_t width, CouplingTermRows* out) {
+  FELT_CHECK(width > 0);
+  const int32_t rows = static_cast<int32_t>(out->row_start.size()) - 1;
+  FELT_CHECK(rows >= 0);
+  // Counting sort by row, stable: a particle's addends keep AddCouplingForces' order.
+  int32_t count = 0;
+  ForEachCouplingTerm(springs, x, scale, [&](int32_t particle, const Vec3& addend) {
+    out->unsorted[static_cast<size_t>(count++)] = {particle, addend};
+  });
+  std::fill(out->row_start.begin(), out->row_start.end(), 0);
+  for (int32_t k = 0; k < count; ++k) ++out->row_start[out->unsorted[k].particle / width + 1];
+  for (int32_t r = 0; r < rows; ++r) out->row_start[r + 1] += out->row_start[r];
+  std::copy(out->row_start.begin(), out->row_start.end() - 1, out->cursor.begin());
+  for (int32_t k = 0; k < count; ++k) {
+    const CouplingTerm& t = out->unsorted[static_cast<size_t>(k)];
+    out->sorted[static_cast<size_t>(out->cursor[t.particle / width]++)] = t;
+  }
+  return count;
 }
 
 double CouplingEnergy(const CouplingSprings& springs, std::span<const Vec3> x) {

@@ -122,6 +122,30 @@ void AdvanceCouplingSprings(double t_s, CouplingSprings* springs);
 void AddCouplingForces(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
                        double* f);
 
+/// One addend of the contact springs' force on a particle (AddCouplingForces adds them in order).
+struct CouplingTerm {
+  int32_t particle = 0;
+  Vec3 value = Vec3::Zero();  ///< scale * force share, same units as AddCouplingForces' f
+};
+
+/// The most addends one frame's springs produce: 3 corners of every candidate of every spring.
+inline constexpr int32_t kMaxCouplingTerms = kMaxCouplingSprings * kMaxCouplingCandidates * 3;
+
+/// AddCouplingForces' addends grouped by grid row (preallocated; see CouplingTermsByRow).
+struct CouplingTermRows {
+  std::vector<CouplingTerm> unsorted;  ///< [kMaxCouplingTerms] in AddCouplingForces' order
+  std::vector<CouplingTerm> sorted;    ///< [kMaxCouplingTerms] by row, that order within a row
+  std::vector<int32_t> row_start;      ///< [rows + 1] row r's addends: sorted[row_start[r], [r+1])
+  std::vector<int32_t> cursor;         ///< [rows] work space of the sort
+};
+
+/// The addends AddCouplingForces would add to f (scale * the springs' forces at `x`), sorted by
+/// the grid row (particle / width) of their particle, stably, so that adding each row's in order
+/// gives AddCouplingForces' bits. `out` must be sized for the grid's rows. Returns their count.
+/// Real-time safe.
+int32_t CouplingTermsByRow(const CouplingSprings& springs, std::span<const Vec3> x, double scale,
+                           int32_t width, CouplingTermRows* out);
+
 /// The springs' potential energy at `x` [J], pen as in AddCouplingForces: per spring 1/2 k pen^2
 /// while k pen <= max_force_N, then max_force_N (pen - max_force_N / (2 k)) (the clamp's linear
 /// continuation), 0 for pen <= 0.

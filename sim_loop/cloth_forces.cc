@@ -4,11 +4,13 @@
 // springs with a dashpot along each spring, external point forces; and the energy diagnostics.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "base/simd.h"
@@ -76,44 +78,135 @@ SoaViews Views(std::vector<double>* soa, size_t particles) {
           b + 6 * n, b + 7 * n, b + 8 * n, b + 9 * n, b + 10 * n, b + 11 * n};
 }
 
+// A spring family's constants as the portable kernels use them.
+struct FamilyConstants {
+  double k, c, rest;
+};
+
+// The force (sx, sy, sz) of the spring with end i at p of `a` and end j at q of `b`: Hooke plus
+// dashpot along it, 001 §2 (as AddSpringForces); 0 for a spring shorter than kMinSpringLength_m.
+// Branch-free, so that the loops calling it vectorise.
+inline void SpringAt(const SoaViews& a, const SoaViews& b, const FamilyConstants& f, ptrdiff_t p,
+                     ptrdiff_t q, double* sx, double* sy, double* sz) {
+  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
+  const double dx = b.x[q] - a.x[p], dy = b.y[q] - a.y[p], dz = b.z[q] - a.z[p];
+  const double len2 = dx * dx + dy * dy + dz * dz;
+  const double live = len2 > kMinLength2 ? 1.0 : 0.0;
+  const double len = std::sqrt(len2 > kMinLength2 ? len2 : kMinLength2);
+  const double inv_len = 1.0 / len;
+  const double rel_speed =
+      ((b.vx[q] - a.vx[p]) * dx + (b.vy[q] - a.vy[p]) * dy + (b.vz[q] - a.vz[p]) * dz) * inv_len;
+  const double scale = live * (f.k * (len - f.rest) + f.c * rel_speed) * inv_len;
+  *sx = scale * dx;
+  *sy = scale * dy;
+  *sz = scale * dz;
+}
+
+FamilyConstants ConstantsOf(const SpringFamily& family) {
+  return {family.stiffness_N_per_m, family.damping_N_s_per_m, family.rest_length_m};
+}
+
 // The force of every spring of `family` into s[p] (the spring whose end i is particle p), and
-// added to end i's force, f[p] += s[p], over the particle range [lo, hi): Hooke plus dashpot
-// along the spring, 001 §2 (as AddSpringForces). Branch-free, so the compiler vectorises it;
-// springs shorter than kMinSpringLength_m get 0.
+// added to end i's force, f[p] += s[p], over the particle range [lo, hi) (SpringAt).
 void FamilySpringForces(const SoaViews& a, const SpringFamily& family, ptrdiff_t off, ptrdiff_t lo,
                         ptrdiff_t hi) {
-  const double* __restrict x = a.x;
-  const double* __restrict y = a.y;
-  const double* __restrict z = a.z;
-  const double* __restrict vx = a.vx;
-  const double* __restrict vy = a.vy;
-  const double* __restrict vz = a.vz;
-  double* __restrict sx = a.sx;
-  double* __restrict sy = a.sy;
-  double* __restrict sz = a.sz;
+  const FamilyConstants f = ConstantsOf(family);
+  for (ptrdiff_t p = lo; p < hi; ++p) {
+    double sx, sy, sz;
+    SpringAt(a, a, f, p, p + off, &sx, &sy, &sz);
+    a.sx[p] = sx;
+    a.sy[p] = sy;
+    a.sz[p] = sz;
+    a.fx[p] += sx;
+    a.fy[p] += sy;
+    a.fz[p] += sz;
+  }
+}
+
+// The force of every spring of `family` with end i at column p in [lo, hi) of row view `a` and
+// end j at column p + dc of row view `b` into (sx, sy, sz)[p - lo] (SpringAt), nothing else
+// (StreamAccelerations' rows).
+void FamilySpringRow(const SoaViews& a, const SoaViews& b, const SpringFamily& family, ptrdiff_t dc,
+                     ptrdiff_t lo, ptrdiff_t hi, double* __restrict sx, double* __restrict sy,
+                     double* __restrict sz) {
+  const FamilyConstants f = ConstantsOf(family);
+  for (ptrdiff_t p = lo; p < hi; ++p) {
+    SpringAt(a, b, f, p, p + dc, &sx[p - lo], &sy[p - lo], &sz[p - lo]);
+  }
+}
+
+// Splits n packed (x, y, z) triples into three arrays, and sets f = e - drag v per coordinate.
+void SplitState(const double* __restrict x, const double* __restrict v, const double* __restrict e,
+                double drag, size_t n, const SoaViews& a) {
+  double* __restrict ox = a.x;
+  double* __restrict oy = a.y;
+  double* __restrict oz = a.z;
+  double* __restrict ovx = a.vx;
+  double* __restrict ovy = a.vy;
+  double* __restrict ovz = a.vz;
   double* __restrict fx = a.fx;
   double* __restrict fy = a.fy;
   double* __restrict fz = a.fz;
-  const double k = family.stiffness_N_per_m, c = family.damping_N_s_per_m;
-  const double rest = family.rest_length_m;
-  constexpr double kMinLength2 = kMinSpringLength_m * kMinSpringLength_m;
-  for (ptrdiff_t p = lo; p < hi; ++p) {
-    const ptrdiff_t q = p + off;
-    const double dx = x[q] - x[p], dy = y[q] - y[p], dz = z[q] - z[p];
-    const double len2 = dx * dx + dy * dy + dz * dz;
-    const double live = len2 > kMinLength2 ? 1.0 : 0.0;
-    const double len = std::sqrt(len2 > kMinLength2 ? len2 : kMinLength2);
-    const double inv_len = 1.0 / len;
-    const double rel_speed =
-        ((vx[q] - vx[p]) * dx + (vy[q] - vy[p]) * dy + (vz[q] - vz[p]) * dz) * inv_len;
-    const double scale = live * (k * (len - rest) + c * rel_speed) * inv_len;
-    sx[p] = scale * dx;
-    sy[p] = scale * dy;
-    sz[p] = scale * dz;
-    fx[p] += sx[p];
-    fy[p] += sy[p];
-    fz[p] += sz[p];
+  for (size_t p = 0; p < n; ++p) {
+    ox[p] = x[3 * p];
+    oy[p] = x[3 * p + 1];
+    oz[p] = x[3 * p + 2];
+    ovx[p] = v[3 * p];
+    ovy[p] = v[3 * p + 1];
+    ovz[p] = v[3 * p + 2];
+    fx[p] = e[3 * p] - drag * v[3 * p];
+    fy[p] = e[3 * p + 1] - drag * v[3 * p + 1];
+    fz[p] = e[3 * p + 2] - drag * v[3 * p + 2];
   }
+}
+
+// One term of a row's force sums (StreamAccelerations): a family's springs as end i (added) or
+// as end j (subtracted), for the row's columns [lo, hi); x[p], y[p], z[p] is column p's.
+struct RowTerm {
+  const double* x;
+  const double* y;
+  const double* z;
+  int32_t lo, hi;
+  bool subtract;
+};
+
+// Column p's force F (fx, fy, fz) plus its terms, in order.
+inline void SumTerms(const RowTerm* terms, size_t count, ptrdiff_t p, double* fx, double* fy,
+                     double* fz) {
+  for (size_t t = 0; t < count; ++t) {
+    const RowTerm& term = terms[t];
+    if (p < term.lo || p >= term.hi) continue;
+    if (term.subtract) {
+      *fx -= term.x[p];
+      *fy -= term.y[p];
+      *fz -= term.z[p];
+    } else {
+      *fx += term.x[p];
+      *fy += term.y[p];
+      *fz += term.z[p];
+    }
+  }
+}
+
+// A row's accelerations, a = g + F / m (0 for pinned particles, inv_mass 0), into accel (xyz per
+// particle), F being row.fx, fy, fz plus `terms` in order, for columns [lo, hi).
+void FinishRowColumns(const RowTerm* terms, size_t count, const SoaViews& row,
+                      const double* inv_mass, const Vec3& g, ptrdiff_t lo, ptrdiff_t hi,
+                      double* accel) {
+  for (ptrdiff_t p = lo; p < hi; ++p) {
+    double fx = row.fx[p], fy = row.fy[p], fz = row.fz[p];
+    SumTerms(terms, count, p, &fx, &fy, &fz);
+    const double w = inv_mass[p];
+    accel[3 * p] = w > 0.0 ? g.x() + w * fx : 0.0;
+    accel[3 * p + 1] = w > 0.0 ? g.y() + w * fy : 0.0;
+    accel[3 * p + 2] = w > 0.0 ? g.z() + w * fz : 0.0;
+  }
+}
+
+// FinishRowColumns over the whole row of `width` columns (the portable kernel).
+void FinishRow(const RowTerm* terms, size_t count, const SoaViews& row, const double* inv_mass,
+               const Vec3& g, int32_t width, double* accel) {
+  FinishRowColumns(terms, count, row, inv_mass, g, 0, width, accel);
 }
 
 // f[k] -= s[k] for k < count (restrict parameters: the compiler vectorises it).
@@ -136,23 +229,22 @@ __attribute__((target("avx2"), always_inline)) inline FamilyLanes LanesOf(
 
 // The forces s of the four springs with end i at p .. p + 3 and end j at q = p + off .. q + 3:
 // FamilySpringForces' operations in the same order, no fused multiply-add (the same bits).
-__attribute__((target("avx2"), always_inline)) inline void SpringLanes(const SoaViews& a,
-                                                                       const FamilyLanes& f,
-                                                                       ptrdiff_t p, ptrdiff_t q,
-                                                                       __m256d* sx, __m256d* sy,
-                                                                       __m256d* sz) {
-  const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(a.x + q), _mm256_loadu_pd(a.x + p));
-  const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(a.y + q), _mm256_loadu_pd(a.y + p));
-  const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(a.z + q), _mm256_loadu_pd(a.z + p));
+// End i's coordinates come from `a` at p, end j's from `b` at q.
+__attribute__((target("avx2"), always_inline)) inline void SpringLanes(
+    const SoaViews& a, const SoaViews& b, const FamilyLanes& f, ptrdiff_t p, ptrdiff_t q,
+    __m256d* sx, __m256d* sy, __m256d* sz) {
+  const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(b.x + q), _mm256_loadu_pd(a.x + p));
+  const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(b.y + q), _mm256_loadu_pd(a.y + p));
+  const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(b.z + q), _mm256_loadu_pd(a.z + p));
   const __m256d len2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
                                      _mm256_mul_pd(dz, dz));
   const __m256d live_mask = _mm256_cmp_pd(len2, f.min2, _CMP_GT_OQ);
   const __m256d live = _mm256_and_pd(live_mask, f.one);
   const __m256d len = _mm256_sqrt_pd(_mm256_blendv_pd(f.min2, len2, live_mask));
   const __m256d inv_len = _mm256_div_pd(f.one, len);
-  const __m256d dvx = _mm256_sub_pd(_mm256_loadu_pd(a.vx + q), _mm256_loadu_pd(a.vx + p));
-  const __m256d dvy = _mm256_sub_pd(_mm256_loadu_pd(a.vy + q), _mm256_loadu_pd(a.vy + p));
-  const __m256d dvz = _mm256_sub_pd(_mm256_loadu_pd(a.vz + q), _mm256_loadu_pd(a.vz + p));
+  const __m256d dvx = _mm256_sub_pd(_mm256_loadu_pd(b.vx + q), _mm256_loadu_pd(a.vx + p));
+  const __m256d dvy = _mm256_sub_pd(_mm256_loadu_pd(b.vy + q), _mm256_loadu_pd(a.vy + p));
+  const __m256d dvz = _mm256_sub_pd(_mm256_loadu_pd(b.vz + q), _mm256_loadu_pd(a.vz + p));
   const __m256d rel_speed =
       _mm256_mul_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dvx, dx), _mm256_mul_pd(dvy, dy)),
                                   _mm256_mul_pd(dvz, dz)),
@@ -176,7 +268,7 @@ __attribute__((target("avx2"))) void FamilySpringForcesAvx2(const SoaViews& a,
   ptrdiff_t p = lo;
   for (; p + 4 <= hi; p += 4) {
     __m256d sx, sy, sz;
-    SpringLanes(a, f, p, p + off, &sx, &sy, &sz);
+    SpringLanes(a, a, f, p, p + off, &sx, &sy, &sz);
     _mm256_storeu_pd(a.sx + p, sx);
     _mm256_storeu_pd(a.sy + p, sy);
     _mm256_storeu_pd(a.sz + p, sz);
@@ -208,7 +300,7 @@ __attribute__((target("avx2"))) void FamilySpringForcesBothEndsAvx2(const SoaVie
   for (ptrdiff_t p = vector_end - 4; p >= lo; p -= 4) {
     const ptrdiff_t q = p + off;
     __m256d sx, sy, sz;
-    SpringLanes(a, f, p, q, &sx, &sy, &sz);
+    SpringLanes(a, a, f, p, q, &sx, &sy, &sz);
     _mm256_storeu_pd(a.fx + p, _mm256_add_pd(_mm256_loadu_pd(a.fx + p), sx));
     _mm256_storeu_pd(a.fy + p, _mm256_add_pd(_mm256_loadu_pd(a.fy + p), sy));
     _mm256_storeu_pd(a.fz + p, _mm256_add_pd(_mm256_loadu_pd(a.fz + p), sz));
@@ -227,6 +319,136 @@ __attribute__((target("avx2"))) void SubtractFromAvx2(double* __restrict f,
   }
   for (; k < count; ++k) f[k] -= s[k];
 }
+
+// FamilySpringRow four springs at a time with AVX2 (the same bits).
+__attribute__((target("avx2"))) void FamilySpringRowAvx2(const SoaViews& a, const SoaViews& b,
+                                                         const SpringFamily& family, ptrdiff_t dc,
+                                                         ptrdiff_t lo, ptrdiff_t hi, double* sx,
+                                                         double* sy, double* sz) {
+  const FamilyLanes f = LanesOf(family);
+  ptrdiff_t p = lo;
+  for (; p + 4 <= hi; p += 4) {
+    __m256d lx, ly, lz;
+    SpringLanes(a, b, f, p, p + dc, &lx, &ly, &lz);
+    _mm256_storeu_pd(sx + (p - lo), lx);
+    _mm256_storeu_pd(sy + (p - lo), ly);
+    _mm256_storeu_pd(sz + (p - lo), lz);
+  }
+  if (p < hi) {
+    FamilySpringRow(a, b, family, dc, p, hi, sx + (p - lo), sy + (p - lo), sz + (p - lo));
+  }
+}
+
+// Four particles' packed (x, y, z) triples, t[0 .. 11], as lanes x, y, z.
+__attribute__((target("avx2"), always_inline)) inline void TriplesToLanesPd(const double* t,
+                                                                            __m256d* x, __m256d* y,
+                                                                            __m256d* z) {
+  const __m256d a = _mm256_loadu_pd(t), b = _mm256_loadu_pd(t + 4), c = _mm256_loadu_pd(t + 8);
+  const __m256d p = _mm256_permute2f128_pd(a, b, 0x30);  // x0 y0 | x2 y2
+  const __m256d q = _mm256_permute2f128_pd(a, c, 0x21);  // z0 x1 | z2 x3
+  const __m256d r = _mm256_permute2f128_pd(b, c, 0x30);  // y1 z1 | y3 z3
+  *x = _mm256_shuffle_pd(p, q, 0b1010);
+  *y = _mm256_shuffle_pd(p, r, 0b0101);
+  *z = _mm256_shuffle_pd(q, r, 0b1010);
+}
+
+// Lanes x, y, z as four particles' packed (x, y, z) triples into t[0 .. 11].
+__attribute__((target("avx2"), always_inline)) inline void LanesToTriplesPd(__m256d x, __m256d y,
+                                                                            __m256d z, double* t) {
+  const __m256d p = _mm256_shuffle_pd(x, y, 0b0000);  // x0 y0 | x2 y2
+  const __m256d q = _mm256_shuffle_pd(z, x, 0b1010);  // z0 x1 | z2 x3
+  const __m256d r = _mm256_shuffle_pd(y, z, 0b1111);  // y1 z1 | y3 z3
+  _mm256_storeu_pd(t, _mm256_permute2f128_pd(p, q, 0x20));
+  _mm256_storeu_pd(t + 4, _mm256_permute2f128_pd(r, p, 0x30));
+  _mm256_storeu_pd(t + 8, _mm256_permute2f128_pd(q, r, 0x31));
+}
+
+// SplitState four particles at a time with AVX2 (the same bits).
+__attribute__((target("avx2"))) void SplitRowAvx2(const double* x, const double* v, const double* e,
+                                                  double drag, size_t count, const SoaViews& a) {
+  const __m256d d = _mm256_set1_pd(drag);
+  size_t p = 0;
+  for (; p + 4 <= count; p += 4) {
+    __m256d lx, ly, lz, lvx, lvy, lvz, ex, ey, ez;
+    TriplesToLanesPd(x + 3 * p, &lx, &ly, &lz);
+    TriplesToLanesPd(v + 3 * p, &lvx, &lvy, &lvz);
+    TriplesToLanesPd(e + 3 * p, &ex, &ey, &ez);
+    _mm256_storeu_pd(a.x + p, lx);
+    _mm256_storeu_pd(a.y + p, ly);
+    _mm256_storeu_pd(a.z + p, lz);
+    _mm256_storeu_pd(a.vx + p, lvx);
+    _mm256_storeu_pd(a.vy + p, lvy);
+    _mm256_storeu_pd(a.vz + p, lvz);
+    _mm256_storeu_pd(a.fx + p, _mm256_sub_pd(ex, _mm256_mul_pd(d, lvx)));
+    _mm256_storeu_pd(a.fy + p, _mm256_sub_pd(ey, _mm256_mul_pd(d, lvy)));
+    _mm256_storeu_pd(a.fz + p, _mm256_sub_pd(ez, _mm256_mul_pd(d, lvz)));
+  }
+  if (p < count) {
+    const SoaViews rest{a.x + p,  a.y + p,  a.z + p,  a.vx + p, a.vy + p, a.vz + p,
+                        a.fx + p, a.fy + p, a.fz + p, nullptr,  nullptr,  nullptr};
+    SplitState(x + 3 * p, v + 3 * p, e + 3 * p, drag, count - p, rest);
+  }
+}
+
+// a = g + F / m for four particles with inverse masses inv_mass[0 .. 3] (0 where pinned: a = 0),
+// F in lanes fx, fy, fz, into accel[0 .. 11] (xyz per particle).
+__attribute__((target("avx2"), always_inline)) inline void StoreAccelerations(
+    const Vec3& g, const double* inv_mass, __m256d fx, __m256d fy, __m256d fz, double* accel) {
+  const __m256d w = _mm256_loadu_pd(inv_mass);
+  const __m256d free = _mm256_cmp_pd(w, _mm256_setzero_pd(), _CMP_GT_OQ);
+  LanesToTriplesPd(_mm256_and_pd(free, _mm256_add_pd(_mm256_set1_pd(g.x()), _mm256_mul_pd(w, fx))),
+                   _mm256_and_pd(free, _mm256_add_pd(_mm256_set1_pd(g.y()), _mm256_mul_pd(w, fy))),
+                   _mm256_and_pd(free, _mm256_add_pd(_mm256_set1_pd(g.z()), _mm256_mul_pd(w, fz))),
+                   accel);
+}
+
+// FinishRow with AVX2 over the columns every term covers (the same bits): four particles a
+// step, the terms in order, then a = g + F / m; the columns outside, and the tail, as
+// FinishRowColumns.
+__attribute__((target("avx2"))) void FinishRowAvx2(const RowTerm* terms, size_t count,
+                                                   const SoaViews& row, const double* inv_mass,
+                                                   const Vec3& g, int32_t width, double* accel) {
+  ptrdiff_t lo = 0, hi = width;
+  for (size_t t = 0; t < count; ++t) {
+    lo = std::max<ptrdiff_t>(lo, terms[t].lo);
+    hi = std::min<ptrdiff_t>(hi, terms[t].hi);
+  }
+  if (hi - lo < 4) {
+    FinishRowColumns(terms, count, row, inv_mass, g, 0, width, accel);
+    return;
+  }
+  FinishRowColumns(terms, count, row, inv_mass, g, 0, lo, accel);
+  const __m256d zero = _mm256_setzero_pd();
+  // A subtracted term is added negated (its sign bit flipped): IEEE 754 defines x - y as
+  // x + (-y), so the bits are the same, without a branch per term.
+  __m256d negate[2 * kMaxSpringFamilies];
+  FELT_CHECK(count <= 2 * kMaxSpringFamilies);
+  for (size_t t = 0; t < count; ++t) {
+    negate[t] = terms[t].subtract ? _mm256_set1_pd(-0.0) : zero;
+  }
+  ptrdiff_t p = lo;
+  // Eight particles a step: each term's pointers are loaded once for two vectors.
+  for (; p + 8 <= hi; p += 8) {
+    __m256d ax = _mm256_loadu_pd(row.fx + p), ay = _mm256_loadu_pd(row.fy + p),
+            az = _mm256_loadu_pd(row.fz + p), bx = _mm256_loadu_pd(row.fx + p + 4),
+            by = _mm256_loadu_pd(row.fy + p + 4), bz = _mm256_loadu_pd(row.fz + p + 4);
+    for (size_t t = 0; t < count; ++t) {
+      const double* tx = terms[t].x + p;
+      const double* ty = terms[t].y + p;
+      const double* tz = terms[t].z + p;
+      const __m256d m = negate[t];
+      ax = _mm256_add_pd(ax, _mm256_xor_pd(_mm256_loadu_pd(tx), m));
+      ay = _mm256_add_pd(ay, _mm256_xor_pd(_mm256_loadu_pd(ty), m));
+      az = _mm256_add_pd(az, _mm256_xor_pd(_mm256_loadu_pd(tz), m));
+      bx = _mm256_add_pd(bx, _mm256_xor_pd(_mm256_loadu_pd(tx + 4), m));
+      by = _mm256_add_pd(by, _mm256_xor_pd(_mm256_loadu_pd(ty + 4), m));
+      bz = _mm256_add_pd(bz, _mm256_xor_pd(_mm256_loadu_pd(tz + 4), m));
+    }
+    StoreAccelerations(g, inv_mass + p, ax, ay, az, accel + 3 * p);
+    StoreAccelerations(g, inv_mass + p + 4, bx, by, bz, accel + 3 * p + 12);
+  }
+  FinishRowColumns(terms, count, row, inv_mass, g, p, width, accel);
+}
 #endif
 
 // The spring kernels of one level (SimdTable): AVX2 where the level has it, else the portable
@@ -241,12 +463,24 @@ struct SpringKernels {
   // Both ends in one pass for off >= 4 (FamilySpringForcesBothEndsAvx2); null: two passes.
   void (*both_ends)(const SoaViews& a, const SpringFamily& family, ptrdiff_t off, ptrdiff_t lo,
                     ptrdiff_t hi);
+  // The forces of a family's springs with end i at columns [lo, hi) of row a and end j dc
+  // columns on in row b into (sx, sy, sz)[p - lo] alone (FamilySpringRow).
+  void (*row)(const SoaViews& a, const SoaViews& b, const SpringFamily& family, ptrdiff_t dc,
+              ptrdiff_t lo, ptrdiff_t hi, double* sx, double* sy, double* sz);
+  // A row's particles into its structure-of-arrays slot, F = external - drag v (SplitState).
+  void (*split_row)(const double* x, const double* v, const double* e, double drag, size_t count,
+                    const SoaViews& a);
+  // A row's force sums and accelerations (FinishRow).
+  void (*finish_row)(const RowTerm* terms, size_t count, const SoaViews& row,
+                     const double* inv_mass, const Vec3& g, int32_t width, double* accel);
 };
 
-constexpr SpringKernels kPortableSpringKernels{FamilySpringForces, SubtractFrom, nullptr};
+constexpr SpringKernels kPortableSpringKernels{FamilySpringForces, SubtractFrom, nullptr,
+                                               FamilySpringRow,    SplitState,   FinishRow};
 #if defined(__x86_64__)
-constexpr SpringKernels kAvx2SpringKernels{FamilySpringForcesAvx2, SubtractFromAvx2,
-                                           FamilySpringForcesBothEndsAvx2};
+constexpr SpringKernels kAvx2SpringKernels{
+    FamilySpringForcesAvx2, SubtractFromAvx2, FamilySpringForcesBothEndsAvx2,
+    FamilySpringRowAvx2,    SplitRowAvx2,     FinishRowAvx2};
 // AVX-512 has no spring kernels of its own: its entry is AVX2's.
 constexpr SimdTable<SpringKernels> kSpringKernels{kPortableSpringKernels, kAvx2SpringKernels,
                                                   kAvx2SpringKernels};
@@ -254,31 +488,6 @@ constexpr SimdTable<SpringKernels> kSpringKernels{kPortableSpringKernels, kAvx2S
 constexpr SimdTable<SpringKernels> kSpringKernels{kPortableSpringKernels, kPortableSpringKernels,
                                                   kPortableSpringKernels};
 #endif
-
-// Splits n packed (x, y, z) triples into three arrays, and sets f = e - drag v per coordinate.
-void SplitState(const double* __restrict x, const double* __restrict v, const double* __restrict e,
-                double drag, size_t n, const SoaViews& a) {
-  double* __restrict ox = a.x;
-  double* __restrict oy = a.y;
-  double* __restrict oz = a.z;
-  double* __restrict ovx = a.vx;
-  double* __restrict ovy = a.vy;
-  double* __restrict ovz = a.vz;
-  double* __restrict fx = a.fx;
-  double* __restrict fy = a.fy;
-  double* __restrict fz = a.fz;
-  for (size_t p = 0; p < n; ++p) {
-    ox[p] = x[3 * p];
-    oy[p] = x[3 * p + 1];
-    oz[p] = x[3 * p + 2];
-    ovx[p] = v[3 * p];
-    ovy[p] = v[3 * p + 1];
-    ovz[p] = v[3 * p + 2];
-    fx[p] = e[3 * p] - drag * v[3 * p];
-    fy[p] = e[3 * p + 1] - drag * v[3 * p + 1];
-    fz[p] = e[3 * p + 2] - drag * v[3 * p + 2];
-  }
-}
 
 // Adds every spring of `family` to the forces: f_i += s, f_j -= s (grid stencil, no indices).
 // Row by row over the columns [c_lo, c_hi) where springs start: every end i first (fused into the
@@ -314,6 +523,25 @@ void AddFamilyForces(const SpringKernels& kernels, const SoaViews& a, int32_t wi
 
 }  // namespace
 
+namespace {
+
+// a = g + F / m for the `count` particles of `soa` (F in its fx, fy, fz), inverse masses
+// inv_mass, into out (xyz per particle); pinned particles (inv_mass 0) do not accelerate.
+void AccelerationsOf(const Vec3& g, const double* __restrict inv_mass, const SoaViews& soa,
+                     size_t count, double* __restrict out) {
+  const double* __restrict fx = soa.fx;
+  const double* __restrict fy = soa.fy;
+  const double* __restrict fz = soa.fz;
+  for (size_t p = 0; p < count; ++p) {
+    const double w = inv_mass[p];
+    out[3 * p] = w > 0.0 ? g.x() + w * fx[p] : 0.0;
+    out[3 * p + 1] = w > 0.0 ? g.y() + w * fy[p] : 0.0;
+    out[3 * p + 2] = w > 0.0 ? g.z() + w * fz[p] : 0.0;
+  }
+}
+
+}  // namespace
+
 void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
                           ClothState::Scratch* scratch, std::span<Vec3> a) {
   const int32_t n = model.num_particles();
@@ -328,22 +556,128 @@ void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std:
   for (const SpringFamily& family : model.spring_families) {
     AddFamilyForces(kernels, soa, model.width, model.height, family);
   }
-  // a = g + F / m for free particles; pinned particles (inv_mass 0) do not accelerate.
-  const Vec3 g = model.gravity_m_per_s2;
-  const double* inv_mass = model.inv_mass_per_kg.data();
-  const double* __restrict fx = soa.fx;
-  const double* __restrict fy = soa.fy;
-  const double* __restrict fz = soa.fz;
-  double* __restrict out = a.data()->data();
-  for (int32_t p = 0; p < n; ++p) {
-    const double w = inv_mass[p];
-    out[3 * p] = w > 0.0 ? g.x() + w * fx[p] : 0.0;
-    out[3 * p + 1] = w > 0.0 ? g.y() + w * fy[p] : 0.0;
-    out[3 * p + 2] = w > 0.0 ? g.z() + w * fz[p] : 0.0;
-  }
+  double* out = a.data()->data();
+  AccelerationsOf(model.gravity_m_per_s2, model.inv_mass_per_kg.data(), soa, static_cast<size_t>(n),
+                  out);
   // Haptic contact springs at these positions (sim_loop/cloth_coupling.h), as accelerations:
   // every particle has mass model.particle_mass_kg and pinned ones take no share.
   AddCouplingForces(scratch->coupling, x, 1.0 / model.particle_mass_kg, out);
+}
+
+size_t StreamScratchSize(const ClothModel& model) {
+  int32_t max_dr = 0;
+  for (const SpringFamily& f : model.spring_families) max_dr = std::max(max_dr, f.dr);
+  const size_t depth = static_cast<size_t>(max_dr) + 2;
+  // Per slot of the ring: 9 rows of particles (x, y, z, v, F) and 3 per family (its springs);
+  // then two rows of accelerations; each SoaStride(width) apart (no two 4 KiB apart), and 8
+  // doubles to align the start to a cache line.
+  return (depth * (9 + 3 * model.spring_families.size()) + 6) *
+             SoaStride(static_cast<size_t>(model.width)) +
+         8;
+}
+
+void StreamAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
+                         ClothState::Scratch* scratch, AcceleratedRows sink) {
+  const int32_t width = model.width, height = model.height;
+  const size_t n = static_cast<size_t>(model.num_particles());
+  FELT_CHECK(x.size() == n && v.size() == n && sink.rows != nullptr);
+  FELT_CHECK(scratch->stream_rows.size() >= StreamScratchSize(model));
+  const double drag = model.drag_N_s_per_m;
+  const double* xp = x.data()->data();
+  const double* vp = v.data()->data();
+  const double* ep = scratch->external_N.data()->data();
+  const SpringKernels& kernels = PickSimd(kSpringKernels);
+  const std::vector<SpringFamily>& families = model.spring_families;
+  const size_t num_fam = families.size();
+  FELT_CHECK(num_fam <= kMaxSpringFamilies);
+  int32_t max_dr = 0;
+  for (const SpringFamily& f : families) max_dr = std::max(max_dr, f.dr);
+  // A ring of `depth` row slots: slot r % depth holds row r's x, y, z, v and F = external - drag
+  // v (+ springs once the row is finished), then each family's springs with end i in row r (x, y,
+  // z rows, by end i's column). Row r is finished one iteration after its springs are made, and
+  // handed to the sink one row behind too: everything a finish or an update loads was then
+  // stored a row earlier, never still in the store buffer (a load that spans a wider or
+  // misaligned pending store cannot be forwarded from it and waits: 20 % of the frame at 128 x
+  // 128 when the update ran on the row just finished).
+  const size_t depth = static_cast<size_t>(max_dr) + 2;
+  const size_t w = static_cast<size_t>(width);
+  const size_t ws = SoaStride(w);  // doubles from one row array to the next (no 4K aliasing)
+  double* base = scratch->stream_rows.data();
+  base += (8 - (reinterpret_cast<uintptr_t>(base) / sizeof(double)) % 8) % 8;  // a cache line
+  const size_t slot_size = (9 + 3 * num_fam) * ws;
+  auto slot = [&](int32_t r) {
+    double* b = base + (static_cast<size_t>(r) % depth) * slot_size;
+    return SoaViews{b,          b + ws,     b + 2 * ws, b + 3 * ws, b + 4 * ws, b + 5 * ws,
+                    b + 6 * ws, b + 7 * ws, b + 8 * ws, nullptr,    nullptr,    nullptr};
+  };
+  // Family k's springs of row r: column p's at [p], [p + ws], [p + 2 ws].
+  auto springs = [&](size_t k, int32_t r) {
+    return base + (static_cast<size_t>(r) % depth) * slot_size + (9 + 3 * k) * ws;
+  };
+  // Two rows of accelerations, xyz per particle, alternating.
+  auto accel = [&](int32_t r) {
+    return base + depth * slot_size + static_cast<size_t>(r % 2) * 3 * ws;
+  };
+  std::array<RowTerm, 2 * kMaxSpringFamilies> terms;
+  // The contact springs first, at the positions before any row moves: their accelerations by row.
+  const bool coupled = scratch->coupling.count > 0;
+  if (coupled) {
+    CouplingTermsByRow(scratch->coupling, x, 1.0 / model.particle_mass_kg, width,
+                       &scratch->coupling_rows);
+  }
+  // Rows [0, split) are in their slots, with F = external - drag v (001 §6.1).
+  int32_t split = 0;
+  for (int32_t r = 0; r <= height; ++r) {
+    if (r < height) {
+      // The springs with end i in row r reach rows up to r + max_dr.
+      for (const int32_t need = std::min(height, r + max_dr + 1); split < need; ++split) {
+        const size_t lo = static_cast<size_t>(split) * w;
+        kernels.split_row(xp + 3 * lo, vp + 3 * lo, ep + 3 * lo, drag, w, slot(split));
+      }
+      // Every family's springs with end i in row r.
+      for (size_t k = 0; k < num_fam; ++k) {
+        const SpringFamily& f = families[k];
+        const int32_t c_lo = std::max(0, -f.dc), c_hi = width - std::max(0, f.dc);
+        if (r >= height - f.dr || c_hi <= c_lo) continue;
+        double* s = springs(k, r) + c_lo;
+        kernels.row(slot(r), slot(r + f.dr), f, f.dc, c_lo, c_hi, s, s + ws, s + 2 * ws);
+      }
+    }
+    if (r == 0) continue;
+    // Row q = r - 1's forces are complete: per particle, family by family, its term as end i,
+    // then as end j (of the spring from row q - dr), ComputeAccelerations' order.
+    const int32_t q = r - 1;
+    size_t num_terms = 0;
+    for (size_t k = 0; k < num_fam; ++k) {
+      const SpringFamily& f = families[k];
+      const int32_t c_lo = std::max(0, -f.dc), c_hi = width - std::max(0, f.dc);
+      if (c_hi <= c_lo) continue;
+      if (q < height - f.dr) {
+        const double* s = springs(k, q);
+        terms[num_terms++] = {s, s + ws, s + 2 * ws, c_lo, c_hi, false};
+      }
+      if (q >= f.dr) {
+        const double* s = springs(k, q - f.dr) - f.dc;  // end j's column p: the spring at p - dc
+        terms[num_terms++] = {s, s + ws, s + 2 * ws, c_lo + f.dc, c_hi + f.dc, true};
+      }
+    }
+    const size_t row = static_cast<size_t>(q) * w;
+    double* out = accel(q);
+    kernels.finish_row(terms.data(), num_terms, slot(q), model.inv_mass_per_kg.data() + row,
+                       model.gravity_m_per_s2, width, out);
+    if (coupled) {
+      const CouplingTermRows& c = scratch->coupling_rows;
+      const auto uq = static_cast<size_t>(q);
+      for (int32_t t = c.row_start[uq]; t < c.row_start[uq + 1]; ++t) {
+        const CouplingTerm& term = c.sorted[static_cast<size_t>(t)];
+        double* o = out + 3 * (static_cast<size_t>(term.particle) - row);
+        o[0] += term.value.x();
+        o[1] += term.value.y();
+        o[2] += term.value.z();
+      }
+    }
+    sink.rows(sink.context, q, out);
+  }
 }
 
 double MaxStretch(const ClothModel& model, const ClothState& state) {

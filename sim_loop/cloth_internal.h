@@ -32,6 +32,11 @@ struct ClothState::Scratch {
   std::vector<Vec3> kv_sum;      ///< RK4: weighted sum of velocity slopes
   std::vector<Vec3> x_start;     ///< positions at the start of the substep (obstacle sweeps)
   CouplingSprings coupling;      ///< contact springs of this frame (fixed capacity)
+  /// The contact springs' accelerations by row, for StreamAccelerations (fixed capacity).
+  CouplingTermRows coupling_rows;
+  /// [StreamScratchSize] StreamAccelerations' ring of rows (positions, velocities, forces and
+  /// springs of the last max(dr) + 1 rows) and one row's accelerations.
+  std::vector<double> stream_rows;
   /// Self-collision response (collision/self_response.h), built only with [self_collision].
   std::optional<SelfCollisionResponse> self_collision;
   /// [12 SoaStride(n)] structure-of-arrays work space of the force kernel: x, y, z, vx, vy, vz,
@@ -91,6 +96,29 @@ constexpr size_t ProvotSoaStride(size_t n) { return (n + 1023) / 1024 * 1024 + 3
 /// families as grid stencils, with the kernels of base/simd.h's level in use).
 void ComputeAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
                           ClothState::Scratch* scratch, std::span<Vec3> a);
+
+/// Spring families a grid model has at most: structural, shear and bend, two directions each
+/// (StreamAccelerations' fixed work space).
+inline constexpr size_t kMaxSpringFamilies = 6;
+
+/// Receives grid row `row`'s accelerations from StreamAccelerations: accel [m/s^2], xyz per
+/// particle of the row (3 width doubles).
+struct AcceleratedRows {
+  void* context = nullptr;
+  void (*rows)(void* context, int32_t row, const double* accel) = nullptr;
+};
+
+/// Doubles of ClothState::Scratch::stream_rows that StreamAccelerations needs for `model`.
+size_t StreamScratchSize(const ClothModel& model);
+
+/// ComputeAccelerations' accelerations, bit for bit, made a grid row at a time and handed to
+/// `sink` as soon as a row's are final, in row order. No later row's forces read that row's x or
+/// v again (they are copied ahead into a ring of rows, and the contact springs evaluated first),
+/// so the sink may overwrite them: a fused integrator makes one pass over the particles per
+/// substep instead of a pass per spring family and one each for the split, the accelerations and
+/// the update, and its work space stays in the L1 cache.
+void StreamAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
+                         ClothState::Scratch* scratch, AcceleratedRows sink);
 
 /// Advances state->x, state->v by one substep of length h_s with the model's integrator
 /// (001_0f9f1b7fedff7723.txt §3). Pins keep the velocity they were given. Returns false if the
