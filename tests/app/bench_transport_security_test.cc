@@ -22,7 +22,7 @@ TEST(BenchTransportSecurity, WritesBothConditionsAndTheRatio) {
     GTEST_SKIP() << "Cyclone's security plugins (libdds_security_auth.so) were not found";
   }
   const std::string prefix =
-      (std::filesystem::path(testing::TempDir()) / "felt_bench_security").string();
+      (std::filesystem::path(::testing::TempDir()) / "felt_bench_security").string();
   std::filesystem::remove(prefix + ".json");
   const Outcome outcome = RunFelt(
       "bench transport --security-cost --seconds 1 --domain 44 "

@@ -33,7 +33,7 @@ double NumberIn(const std::string& json, const std::string& object, const std::s
 
 TEST(BenchTransport, EndToEndRunWritesEveryKey) {
   const std::string json =
-      (std::filesystem::path(testing::TempDir()) / "felt_bench_transport.json").string();
+      (std::filesystem::path(::testing::TempDir()) / "felt_bench_transport.json").string();
   std::filesystem::remove(json);
   const Outcome outcome =
       RunFelt("bench transport --seconds 1 --domain 43 --json " + json + " --scene " + kSource +

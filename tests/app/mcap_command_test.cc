@@ -18,7 +18,7 @@
 namespace felt::test {
 namespace {
 
-class McapCommand : public testing::Test {
+class McapCommand : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!std::filesystem::exists(kFelt)) GTEST_SKIP() << kFelt << " not built";

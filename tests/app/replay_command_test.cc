@@ -13,7 +13,7 @@
 namespace felt::test {
 namespace {
 
-class ReplayCommand : public testing::Test {
+class ReplayCommand : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!std::filesystem::exists(kFelt)) GTEST_SKIP() << kFelt << " not built";

@@ -20,7 +20,7 @@ const std::string kScenes = kSource + "/scenes";
 
 // Writes `text` to a file of this test's own in the test temp directory; returns its path.
 std::string WriteTemp(const std::string& name, const std::string& text) {
-  const std::filesystem::path path = std::filesystem::path(testing::TempDir()) / name;
+  const std::filesystem::path path = std::filesystem::path(::testing::TempDir()) / name;
   std::ofstream(path) << text;
   return path.string();
 }
@@ -75,7 +75,7 @@ TEST(RunCommand, BadDurationExitsTwo) {
 TEST(RunCommand, GoodScenePrintsStatisticsAndJson) {
   const std::string path = WriteTemp("felt_run_test_small.toml", kSmallScene);
   const std::string json =
-      (std::filesystem::path(testing::TempDir()) / "felt_run_test_small.json").string();
+      (std::filesystem::path(::testing::TempDir()) / "felt_run_test_small.json").string();
   const Outcome outcome = RunFelt("run --scene " + path + " --duration 0.5 --fast --json " + json);
   ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
   EXPECT_NE(outcome.output.find("felt run: small ("), std::string::npos) << outcome.output;
@@ -109,7 +109,7 @@ TEST(RunCommand, TheFinishingLimitersCountersAreReported) {
                                                  "[provot]\niterations = 1\nsweep_headroom = 0.02\n"
                                                  "finish = true\n");
   const std::string json =
-      (std::filesystem::path(testing::TempDir()) / "felt_run_test_finish.json").string();
+      (std::filesystem::path(::testing::TempDir()) / "felt_run_test_finish.json").string();
   const Outcome outcome = RunFelt("run --scene " + path + " --duration 0.5 --fast --json " + json);
   ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
   EXPECT_NE(outcome.output.find("stretch limiter    worklist: "), std::string::npos)

@@ -45,7 +45,7 @@ std::set<pid_t> ChildrenOf(pid_t parent) {
 
 bool Alive(pid_t pid) { return kill(pid, 0) == 0; }
 
-class SoakCommand : public testing::Test {
+class SoakCommand : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!std::filesystem::exists(kFelt)) GTEST_SKIP() << kFelt << " not built";
