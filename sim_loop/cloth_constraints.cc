@@ -159,10 +159,10 @@ void ProjectAttachments(const ProvotSoa& a, const int32_t* pin, const float* max
   }
 }
 
-// ProjectAttachments of every particle [0, n).
+// ProjectAttachments of every particle [0, n), rank after rank (`ranks` ranks of n entries each).
 void ProjectAttachmentsPortable(const ProvotSoa& a, const int32_t* pin, const float* max_len,
-                                size_t n) {
-  ProjectAttachments(a, pin, max_len, 0, n);
+                                size_t n, size_t ranks) {
+  for (size_t k = 0; k < ranks; ++k) ProjectAttachments(a, pin + k * n, max_len + k * n, 0, n);
 }
 
 // The conversion kernels of a level without vector ones: they leave every particle to
@@ -576,33 +576,55 @@ __attribute__((target("avx2"))) size_t FromProvotSoaAvx2(const ProvotSoa& a, siz
 }
 
 // ProjectAttachmentsPortable eight particles a step: the same operations per lane (a correctly
-// rounded square root and division, no fused multiply-add), so the same bits.
+// rounded square root and division, no fused multiply-add), so the same bits. Every rank of a step
+// is done before the next step: a particle's ranks still run in order, and the pins they read never
+// move (a pin is attached to itself with limit 0), so the order across particles does not matter;
+// the step's positions are loaded and stored once. Eight particles that share a pin (all but the
+// steps where the nearest pin changes) read it by a broadcast instead of a gather.
 __attribute__((target("avx2"))) void ProjectAttachmentsAvx2(const ProvotSoa& a, const int32_t* pin,
-                                                            const float* max_len, size_t n) {
+                                                            const float* max_len, size_t n,
+                                                            size_t ranks) {
   size_t p = 0;
   for (; p + 8 <= n; p += 8) {
-    const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(pin + p));
-    const __m256 px = _mm256_loadu_ps(a.x + p), py = _mm256_loadu_ps(a.y + p),
-                 pz = _mm256_loadu_ps(a.z + p);
-    const __m256 dx = _mm256_sub_ps(px, _mm256_i32gather_ps(a.x, q, 4));
-    const __m256 dy = _mm256_sub_ps(py, _mm256_i32gather_ps(a.y, q, 4));
-    const __m256 dz = _mm256_sub_ps(pz, _mm256_i32gather_ps(a.z, q, 4));
-    const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
-                                      _mm256_mul_ps(dz, dz));
-    const __m256 ml = _mm256_loadu_ps(max_len + p);
-    // Moved where not len2 <= max^2 (NaN included), as the scalar test.
-    const __m256 move = _mm256_cmp_ps(len2, _mm256_mul_ps(ml, ml), _CMP_NLE_UQ);
-    if (_mm256_movemask_ps(move) == 0) continue;
-    const __m256 len = _mm256_sqrt_ps(len2);
-    const __m256 scale = _mm256_div_ps(_mm256_sub_ps(len, ml), len);
-    _mm256_storeu_ps(a.x + p,
-                     _mm256_blendv_ps(px, _mm256_sub_ps(px, _mm256_mul_ps(scale, dx)), move));
-    _mm256_storeu_ps(a.y + p,
-                     _mm256_blendv_ps(py, _mm256_sub_ps(py, _mm256_mul_ps(scale, dy)), move));
-    _mm256_storeu_ps(a.z + p,
-                     _mm256_blendv_ps(pz, _mm256_sub_ps(pz, _mm256_mul_ps(scale, dz)), move));
+    __m256 px = _mm256_loadu_ps(a.x + p), py = _mm256_loadu_ps(a.y + p),
+           pz = _mm256_loadu_ps(a.z + p);
+    bool moved = false;
+    for (size_t k = 0; k < ranks; ++k) {
+      const int32_t* rank_pin = pin + k * n;
+      const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rank_pin + p));
+      const int32_t q0 = rank_pin[p];
+      __m256 qx, qy, qz;
+      if (_mm256_movemask_epi8(_mm256_cmpeq_epi32(q, _mm256_set1_epi32(q0))) == -1) {
+        qx = _mm256_set1_ps(a.x[q0]);
+        qy = _mm256_set1_ps(a.y[q0]);
+        qz = _mm256_set1_ps(a.z[q0]);
+      } else {
+        qx = _mm256_i32gather_ps(a.x, q, 4);
+        qy = _mm256_i32gather_ps(a.y, q, 4);
+        qz = _mm256_i32gather_ps(a.z, q, 4);
+      }
+      const __m256 dx = _mm256_sub_ps(px, qx);
+      const __m256 dy = _mm256_sub_ps(py, qy);
+      const __m256 dz = _mm256_sub_ps(pz, qz);
+      const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                                        _mm256_mul_ps(dz, dz));
+      const __m256 ml = _mm256_loadu_ps(max_len + k * n + p);
+      // Moved where not len2 <= max^2 (NaN included), as the scalar test.
+      const __m256 move = _mm256_cmp_ps(len2, _mm256_mul_ps(ml, ml), _CMP_NLE_UQ);
+      if (_mm256_movemask_ps(move) == 0) continue;
+      moved = true;
+      const __m256 len = _mm256_sqrt_ps(len2);
+      const __m256 scale = _mm256_div_ps(_mm256_sub_ps(len, ml), len);
+      px = _mm256_blendv_ps(px, _mm256_sub_ps(px, _mm256_mul_ps(scale, dx)), move);
+      py = _mm256_blendv_ps(py, _mm256_sub_ps(py, _mm256_mul_ps(scale, dy)), move);
+      pz = _mm256_blendv_ps(pz, _mm256_sub_ps(pz, _mm256_mul_ps(scale, dz)), move);
+    }
+    if (!moved) continue;
+    _mm256_storeu_ps(a.x + p, px);
+    _mm256_storeu_ps(a.y + p, py);
+    _mm256_storeu_ps(a.z + p, pz);
   }
-  ProjectAttachments(a, pin, max_len, p, n);
+  for (size_t k = 0; k < ranks; ++k) ProjectAttachments(a, pin + k * n, max_len + k * n, p, n);
 }
 #endif
 
@@ -612,8 +634,10 @@ struct ProvotSimdKernels {
   // The state's packed positions xo [3 n] into the single-precision arrays, a first run of
   // particles; returns how many (ApplyProvot's scalar loop does the rest).
   size_t (*to_soa)(const double* xo, size_t n, const ProvotSoa& a);
-  // One rank of long range attachments over particles [0, n) (ProjectAttachments).
-  void (*attachments)(const ProvotSoa& a, const int32_t* pin, const float* max_len, size_t n);
+  // Every rank of long range attachments over particles [0, n) (ProjectAttachments): `ranks`
+  // ranks of n pins and limits each.
+  void (*attachments)(const ProvotSoa& a, const int32_t* pin, const float* max_len, size_t n,
+                      size_t ranks);
   // One Gauss-Seidel sweep over a family along a row (dr = 0; SweepFamilyPortable).
   bool (*sweep_along_rows)(const ProvotSoa& a, int32_t width, const ProvotFamily& f);
   // One Gauss-Seidel sweep over a family across rows (dr > 0; SweepFamilyPortable).
@@ -712,9 +736,9 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   }
   // Long range attachments first: each free particle back into the ball around its pins (Kim,
   // Chentanez & Mueller 2012), nearest first; the pins are kinematic, so only the particle moves.
-  for (size_t k = 0; k < static_cast<size_t>(model.attachment_ranks); ++k) {
-    kernels.attachments(a, model.attachment_pin.data() + k * n,
-                        model.attachment_max_m.data() + k * n, n);
+  if (model.attachment_ranks > 0) {
+    kernels.attachments(a, model.attachment_pin.data(), model.attachment_max_m.data(), n,
+                        static_cast<size_t>(model.attachment_ranks));
   }
   // Sweeps over the families, coarse to fine (the coarse ones in the first provot_coarse_sweeps
   // only); converged once no pair of a sweep was more than kProvotConverged over its limit.
