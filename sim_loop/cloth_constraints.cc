@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
@@ -302,6 +303,26 @@ __attribute__((target("avx2"), always_inline)) inline __m256 ProjectTaken(
   return _mm256_and_ps(loose, take);
 }
 
+// NothingToProject16 on eight pairs (AVX2): true if projecting the lanes of `take` would leave
+// every bit as it is (each taken pair at most its limit, not NaN, and no coordinate -0.0).
+__attribute__((target("avx2"), always_inline)) inline bool NothingToProject(
+    __m256 take, __m256 px, __m256 py, __m256 pz, __m256 qx, __m256 qy, __m256 qz, __m256 max2) {
+  const __m256 dx = _mm256_sub_ps(qx, px);
+  const __m256 dy = _mm256_sub_ps(qy, py);
+  const __m256 dz = _mm256_sub_ps(qz, pz);
+  const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                                    _mm256_mul_ps(dz, dz));
+  const __m256 over = _mm256_cmp_ps(len2, max2, _CMP_NLE_UQ);
+  // A -0.0 in any of the six.
+  const __m256i negative_zero = _mm256_set1_epi32(INT32_MIN);
+  __m256i found = _mm256_setzero_si256();
+  for (const __m256 c : {px, py, pz, qx, qy, qz}) {
+    found = _mm256_or_si256(found, _mm256_cmpeq_epi32(_mm256_castps_si256(c), negative_zero));
+  }
+  return _mm256_movemask_ps(_mm256_and_ps(_mm256_or_ps(over, _mm256_castsi256_ps(found)), take)) ==
+         0;
+}
+
 // The strided runs of a family along a row with dc = kDc (1, 2, 4 or 8), sixteen particles and
 // eight pairs per step (PairShuffle); a run's last, partial step projects only the pairs that start
 // in the run (ProjectTaken; its loads may reach up to 15 floats past the run, inside
@@ -328,6 +349,9 @@ __attribute__((target("avx2"))) __m256 SweepShuffledRunsAvx2(const ProvotSoa& a,
         p[k] = S::P(lo, hi);
         q[k] = S::Q(lo, hi);
       }
+      const __m256 take = full ? _mm256_castsi256_ps(_mm256_set1_epi32(-1))
+                               : LanesBelow(PairStarts<kDc>(), run.hi - c);
+      if (NothingToProject(take, p[0], p[1], p[2], q[0], q[1], q[2], max2)) continue;
       __m256 w0 = one, w1 = one;
       if (run.pinned) {
         // Only the run's particles, [c, run.hi + kDc): movability has no padding.
@@ -340,7 +364,6 @@ __attribute__((target("avx2"))) __m256 SweepShuffledRunsAvx2(const ProvotSoa& a,
         loose = _mm256_or_ps(
             loose, ProjectLanes(&p[0], &p[1], &p[2], &q[0], &q[1], &q[2], wp, wq, max2, loose2));
       } else {
-        const __m256 take = LanesBelow(PairStarts<kDc>(), run.hi - c);
         loose = _mm256_or_ps(loose, ProjectTaken(take, &p[0], &p[1], &p[2], &q[0], &q[1], &q[2], wp,
                                                  wq, max2, loose2));
       }
@@ -394,6 +417,7 @@ __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t
       __m256 qy = _mm256_loadu_ps(y + q), qz = _mm256_loadu_ps(z + q);
       __m256 wp = one, wq = one;
       const __m256 take = LanesBelow(lanes, run.hi - p);
+      if (NothingToProject(take, px, py, pz, qx, qy, qz, max2)) continue;
       if (run.pinned) {
         wp = _mm256_maskload_ps(w + p, _mm256_castps_si256(take));
         wq = _mm256_maskload_ps(w + q, _mm256_castps_si256(take));
@@ -450,6 +474,28 @@ __attribute__((target("avx512f"), always_inline)) inline __mmask16 ProjectLanes1
   return _mm512_cmp_ps_mask(len2, loose2, _CMP_GT_OQ);
 }
 
+// True if projecting the taken lanes of sixteen pairs would leave every bit as it is, so a sweep
+// may skip them (most steps of the coarse families; 57 % of all steps across rows in
+// curtain_128): each pair is at most its limit (ordered: not NaN, so its differences are finite),
+// which makes ProjectLanes16's share exactly +0, and no coordinate is -0.0, the one value that
+// adding a +0 move would change (to +0.0).
+__attribute__((target("avx512f"), always_inline)) inline bool NothingToProject16(
+    __mmask16 take, __m512 px, __m512 py, __m512 pz, __m512 qx, __m512 qy, __m512 qz, __m512 max2) {
+  const __m512 dx = _mm512_sub_ps(qx, px);
+  const __m512 dy = _mm512_sub_ps(qy, py);
+  const __m512 dz = _mm512_sub_ps(qz, pz);
+  const __m512 len2 = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy)),
+                                    _mm512_mul_ps(dz, dz));
+  if (_mm512_mask_cmp_ps_mask(take, len2, max2, _CMP_NLE_UQ) != 0) return false;
+  // A -0.0 in a taken lane of any of the six.
+  const __m512i negative_zero = _mm512_set1_epi32(INT32_MIN);
+  __mmask16 found = 0;
+  for (const __m512 c : {px, py, pz, qx, qy, qz}) {
+    found |= _mm512_mask_cmpeq_epi32_mask(take, _mm512_castps_si512(c), negative_zero);
+  }
+  return found == 0;
+}
+
 // SweepFamilyAvx2's loop over contiguous ends sixteen pairs at a time, for the families across
 // rows (dr > 0): their runs lie in one row, so a run is no longer than its offset and the taken
 // lanes of a step are independent pairs. A run's last, partial step keeps the untaken lanes' bits
@@ -475,6 +521,7 @@ __attribute__((target("avx512f"))) bool SweepAcrossRowsAvx512(const ProvotSoa& a
       __m512 px = _mm512_loadu_ps(x + p), py = _mm512_loadu_ps(y + p);
       __m512 pz = _mm512_loadu_ps(z + p), qx = _mm512_loadu_ps(x + q);
       __m512 qy = _mm512_loadu_ps(y + q), qz = _mm512_loadu_ps(z + q);
+      if (NothingToProject16(take, px, py, pz, qx, qy, qz, max2)) continue;
       __m512 wp = one, wq = one;
       if (run.pinned) {
         wp = _mm512_maskz_loadu_ps(take, w + p);
