@@ -165,11 +165,13 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
                  dz = x[3 * q + 2] - x[3 * p + 2];
     return dx * dx + dy * dy + dz * dz > lf.max2_m2;
   };
+  // The ring's wrap by a compare, not a division (head, count <= cap).
+  const auto wrap = [cap](size_t i) { return i >= cap ? i - cap : i; };
   const auto push = [&](size_t f, int32_t p) {
     const size_t id = f * n + static_cast<size_t>(p);
     if (queued[id]) return;
     queued[id] = 1;
-    ring[(head + count) % cap] = static_cast<int32_t>(id);
+    ring[wrap(head + count)] = static_cast<int32_t>(id);
     ++count;
   };
 
@@ -200,11 +202,17 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
   size_t budget = kWorklistBudgetPerParticle * n;
   while (count > 0 && budget > 0) {
     const size_t id = static_cast<size_t>(ring[head]);
-    head = (head + 1) % cap;
+    head = wrap(head + 1);
     --count;
     queued[id] = 0;
-    const LimitFamily& lf = model.limit_families[id / n];
-    const int32_t p = static_cast<int32_t>(id % n);
+    // The family and end i of pair id = f n + p, by subtraction (at most four families).
+    size_t f = 0, pi = id;
+    while (pi >= n) {
+      pi -= n;
+      ++f;
+    }
+    const LimitFamily& lf = model.limit_families[f];
+    const int32_t p = static_cast<int32_t>(pi);
     const int32_t q = p + lf.off;
     const double dx = x[3 * q] - x[3 * p], dy = x[3 * q + 1] - x[3 * p + 1],
                  dz = x[3 * q + 2] - x[3 * p + 2];
@@ -234,8 +242,11 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
     v[3 * q + 1] -= inv_h * (mq * dy);
     v[3 * q + 2] -= inv_h * (mq * dz);
     ++state->counters.limiter_projections;
-    // The pairs at both moved ends that are now over: each end as end i, then as end j.
-    for (const LimiterEnd e : {LimiterEnd{p, p % w, p / w}, LimiterEnd{q, q % w, q / w}}) {
+    // The pairs at both moved ends that are now over: each end as end i, then as end j. End j's
+    // column and row are end i's plus the family's offsets (both ends are on the grid).
+    const int32_t p_row = p / w, p_col = p - p_row * w;
+    for (const LimiterEnd e :
+         {LimiterEnd{p, p_col, p_row}, LimiterEnd{q, p_col + lf.dc, p_row + lf.dr}}) {
       if (inv_m[e.index] == 0.0) continue;
       for (size_t g = 0; g < num_fam; ++g) {
         const LimitFamily& lg = model.limit_families[g];
@@ -259,7 +270,7 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
   if (undo) ++state->counters.limiter_unconverged;
   while (count > 0) {
     queued[static_cast<size_t>(ring[head])] = 0;
-    head = (head + 1) % cap;
+    head = wrap(head + 1);
     --count;
   }
   for (size_t k = 0; k < logs; ++k) {
