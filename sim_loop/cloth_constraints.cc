@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
@@ -159,10 +160,10 @@ void ProjectAttachments(const ProvotSoa& a, const int32_t* pin, const float* max
   }
 }
 
-// ProjectAttachments of every particle [0, n).
+// ProjectAttachments of every particle [0, n), rank after rank (`ranks` ranks of n entries each).
 void ProjectAttachmentsPortable(const ProvotSoa& a, const int32_t* pin, const float* max_len,
-                                size_t n) {
-  ProjectAttachments(a, pin, max_len, 0, n);
+                                size_t n, size_t ranks) {
+  for (size_t k = 0; k < ranks; ++k) ProjectAttachments(a, pin + k * n, max_len + k * n, 0, n);
 }
 
 // The conversion kernels of a level without vector ones: they leave every particle to
@@ -302,6 +303,19 @@ __attribute__((target("avx2"), always_inline)) inline __m256 ProjectTaken(
   return _mm256_and_ps(loose, take);
 }
 
+// NothingToProject16 on eight pairs (AVX2): true if projecting the lanes of `take` would change
+// no coordinate's value (each taken pair at most its limit, not NaN).
+__attribute__((target("avx2"), always_inline)) inline bool NothingToProject(
+    __m256 take, __m256 px, __m256 py, __m256 pz, __m256 qx, __m256 qy, __m256 qz, __m256 max2) {
+  const __m256 dx = _mm256_sub_ps(qx, px);
+  const __m256 dy = _mm256_sub_ps(qy, py);
+  const __m256 dz = _mm256_sub_ps(qz, pz);
+  const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                                    _mm256_mul_ps(dz, dz));
+  const __m256 over = _mm256_cmp_ps(len2, max2, _CMP_NLE_UQ);
+  return _mm256_movemask_ps(_mm256_and_ps(over, take)) == 0;
+}
+
 // The strided runs of a family along a row with dc = kDc (1, 2, 4 or 8), sixteen particles and
 // eight pairs per step (PairShuffle); a run's last, partial step projects only the pairs that start
 // in the run (ProjectTaken; its loads may reach up to 15 floats past the run, inside
@@ -328,6 +342,9 @@ __attribute__((target("avx2"))) __m256 SweepShuffledRunsAvx2(const ProvotSoa& a,
         p[k] = S::P(lo, hi);
         q[k] = S::Q(lo, hi);
       }
+      const __m256 take = full ? _mm256_castsi256_ps(_mm256_set1_epi32(-1))
+                               : LanesBelow(PairStarts<kDc>(), run.hi - c);
+      if (NothingToProject(take, p[0], p[1], p[2], q[0], q[1], q[2], max2)) continue;
       __m256 w0 = one, w1 = one;
       if (run.pinned) {
         // Only the run's particles, [c, run.hi + kDc): movability has no padding.
@@ -340,7 +357,6 @@ __attribute__((target("avx2"))) __m256 SweepShuffledRunsAvx2(const ProvotSoa& a,
         loose = _mm256_or_ps(
             loose, ProjectLanes(&p[0], &p[1], &p[2], &q[0], &q[1], &q[2], wp, wq, max2, loose2));
       } else {
-        const __m256 take = LanesBelow(PairStarts<kDc>(), run.hi - c);
         loose = _mm256_or_ps(loose, ProjectTaken(take, &p[0], &p[1], &p[2], &q[0], &q[1], &q[2], wp,
                                                  wq, max2, loose2));
       }
@@ -394,6 +410,7 @@ __attribute__((target("avx2"))) bool SweepFamilyAvx2(const ProvotSoa& a, int32_t
       __m256 qy = _mm256_loadu_ps(y + q), qz = _mm256_loadu_ps(z + q);
       __m256 wp = one, wq = one;
       const __m256 take = LanesBelow(lanes, run.hi - p);
+      if (NothingToProject(take, px, py, pz, qx, qy, qz, max2)) continue;
       if (run.pinned) {
         wp = _mm256_maskload_ps(w + p, _mm256_castps_si256(take));
         wq = _mm256_maskload_ps(w + q, _mm256_castps_si256(take));
@@ -450,6 +467,26 @@ __attribute__((target("avx512f"), always_inline)) inline __mmask16 ProjectLanes1
   return _mm512_cmp_ps_mask(len2, loose2, _CMP_GT_OQ);
 }
 
+// True if projecting the taken lanes of sixteen pairs would change no coordinate's value, so a
+// sweep may skip them (most steps of the coarse families; 57 % of all steps across rows in
+// curtain_128): each pair is at most its limit (ordered: not NaN, so its differences are finite),
+// which makes ProjectLanes16's share exactly +0, and a move of +0 or -0 keeps every value. It may
+// change a zero's sign (-0.0 + +0 is +0.0), but no result sees that sign: lengths square it away,
+// a coordinate can only hold -0.0 if it began as -0.0 (a sum is -0.0 only if both terms are), and
+// such a coordinate's move back to the state, a - (-0.0), is +0 for a = +-0 alike. So the state,
+// the loose flags and the worklist's scan get the same bits (provot_sweep_skip_test.cc); only the
+// single-precision positions may differ, in the sign of a zero. (Testing for -0.0 in the six
+// coordinates as well, to keep even those bits, cost 13 % of ApplyProvot's sweeps on curtain_128.)
+__attribute__((target("avx512f"), always_inline)) inline bool NothingToProject16(
+    __mmask16 take, __m512 px, __m512 py, __m512 pz, __m512 qx, __m512 qy, __m512 qz, __m512 max2) {
+  const __m512 dx = _mm512_sub_ps(qx, px);
+  const __m512 dy = _mm512_sub_ps(qy, py);
+  const __m512 dz = _mm512_sub_ps(qz, pz);
+  const __m512 len2 = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy)),
+                                    _mm512_mul_ps(dz, dz));
+  return _mm512_mask_cmp_ps_mask(take, len2, max2, _CMP_NLE_UQ) == 0;
+}
+
 // SweepFamilyAvx2's loop over contiguous ends sixteen pairs at a time, for the families across
 // rows (dr > 0): their runs lie in one row, so a run is no longer than its offset and the taken
 // lanes of a step are independent pairs. A run's last, partial step keeps the untaken lanes' bits
@@ -475,6 +512,7 @@ __attribute__((target("avx512f"))) bool SweepAcrossRowsAvx512(const ProvotSoa& a
       __m512 px = _mm512_loadu_ps(x + p), py = _mm512_loadu_ps(y + p);
       __m512 pz = _mm512_loadu_ps(z + p), qx = _mm512_loadu_ps(x + q);
       __m512 qy = _mm512_loadu_ps(y + q), qz = _mm512_loadu_ps(z + q);
+      if (NothingToProject16(take, px, py, pz, qx, qy, qz, max2)) continue;
       __m512 wp = one, wq = one;
       if (run.pinned) {
         wp = _mm512_maskz_loadu_ps(take, w + p);
@@ -576,33 +614,55 @@ __attribute__((target("avx2"))) size_t FromProvotSoaAvx2(const ProvotSoa& a, siz
 }
 
 // ProjectAttachmentsPortable eight particles a step: the same operations per lane (a correctly
-// rounded square root and division, no fused multiply-add), so the same bits.
+// rounded square root and division, no fused multiply-add), so the same bits. Every rank of a step
+// is done before the next step: a particle's ranks still run in order, and the pins they read never
+// move (a pin is attached to itself with limit 0), so the order across particles does not matter;
+// the step's positions are loaded and stored once. Eight particles that share a pin (all but the
+// steps where the nearest pin changes) read it by a broadcast instead of a gather.
 __attribute__((target("avx2"))) void ProjectAttachmentsAvx2(const ProvotSoa& a, const int32_t* pin,
-                                                            const float* max_len, size_t n) {
+                                                            const float* max_len, size_t n,
+                                                            size_t ranks) {
   size_t p = 0;
   for (; p + 8 <= n; p += 8) {
-    const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(pin + p));
-    const __m256 px = _mm256_loadu_ps(a.x + p), py = _mm256_loadu_ps(a.y + p),
-                 pz = _mm256_loadu_ps(a.z + p);
-    const __m256 dx = _mm256_sub_ps(px, _mm256_i32gather_ps(a.x, q, 4));
-    const __m256 dy = _mm256_sub_ps(py, _mm256_i32gather_ps(a.y, q, 4));
-    const __m256 dz = _mm256_sub_ps(pz, _mm256_i32gather_ps(a.z, q, 4));
-    const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
-                                      _mm256_mul_ps(dz, dz));
-    const __m256 ml = _mm256_loadu_ps(max_len + p);
-    // Moved where not len2 <= max^2 (NaN included), as the scalar test.
-    const __m256 move = _mm256_cmp_ps(len2, _mm256_mul_ps(ml, ml), _CMP_NLE_UQ);
-    if (_mm256_movemask_ps(move) == 0) continue;
-    const __m256 len = _mm256_sqrt_ps(len2);
-    const __m256 scale = _mm256_div_ps(_mm256_sub_ps(len, ml), len);
-    _mm256_storeu_ps(a.x + p,
-                     _mm256_blendv_ps(px, _mm256_sub_ps(px, _mm256_mul_ps(scale, dx)), move));
-    _mm256_storeu_ps(a.y + p,
-                     _mm256_blendv_ps(py, _mm256_sub_ps(py, _mm256_mul_ps(scale, dy)), move));
-    _mm256_storeu_ps(a.z + p,
-                     _mm256_blendv_ps(pz, _mm256_sub_ps(pz, _mm256_mul_ps(scale, dz)), move));
+    __m256 px = _mm256_loadu_ps(a.x + p), py = _mm256_loadu_ps(a.y + p),
+           pz = _mm256_loadu_ps(a.z + p);
+    bool moved = false;
+    for (size_t k = 0; k < ranks; ++k) {
+      const int32_t* rank_pin = pin + k * n;
+      const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rank_pin + p));
+      const int32_t q0 = rank_pin[p];
+      __m256 qx, qy, qz;
+      if (_mm256_movemask_epi8(_mm256_cmpeq_epi32(q, _mm256_set1_epi32(q0))) == -1) {
+        qx = _mm256_set1_ps(a.x[q0]);
+        qy = _mm256_set1_ps(a.y[q0]);
+        qz = _mm256_set1_ps(a.z[q0]);
+      } else {
+        qx = _mm256_i32gather_ps(a.x, q, 4);
+        qy = _mm256_i32gather_ps(a.y, q, 4);
+        qz = _mm256_i32gather_ps(a.z, q, 4);
+      }
+      const __m256 dx = _mm256_sub_ps(px, qx);
+      const __m256 dy = _mm256_sub_ps(py, qy);
+      const __m256 dz = _mm256_sub_ps(pz, qz);
+      const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                                        _mm256_mul_ps(dz, dz));
+      const __m256 ml = _mm256_loadu_ps(max_len + k * n + p);
+      // Moved where not len2 <= max^2 (NaN included), as the scalar test.
+      const __m256 move = _mm256_cmp_ps(len2, _mm256_mul_ps(ml, ml), _CMP_NLE_UQ);
+      if (_mm256_movemask_ps(move) == 0) continue;
+      moved = true;
+      const __m256 len = _mm256_sqrt_ps(len2);
+      const __m256 scale = _mm256_div_ps(_mm256_sub_ps(len, ml), len);
+      px = _mm256_blendv_ps(px, _mm256_sub_ps(px, _mm256_mul_ps(scale, dx)), move);
+      py = _mm256_blendv_ps(py, _mm256_sub_ps(py, _mm256_mul_ps(scale, dy)), move);
+      pz = _mm256_blendv_ps(pz, _mm256_sub_ps(pz, _mm256_mul_ps(scale, dz)), move);
+    }
+    if (!moved) continue;
+    _mm256_storeu_ps(a.x + p, px);
+    _mm256_storeu_ps(a.y + p, py);
+    _mm256_storeu_ps(a.z + p, pz);
   }
-  ProjectAttachments(a, pin, max_len, p, n);
+  for (size_t k = 0; k < ranks; ++k) ProjectAttachments(a, pin + k * n, max_len + k * n, p, n);
 }
 #endif
 
@@ -612,8 +672,10 @@ struct ProvotSimdKernels {
   // The state's packed positions xo [3 n] into the single-precision arrays, a first run of
   // particles; returns how many (ApplyProvot's scalar loop does the rest).
   size_t (*to_soa)(const double* xo, size_t n, const ProvotSoa& a);
-  // One rank of long range attachments over particles [0, n) (ProjectAttachments).
-  void (*attachments)(const ProvotSoa& a, const int32_t* pin, const float* max_len, size_t n);
+  // Every rank of long range attachments over particles [0, n) (ProjectAttachments): `ranks`
+  // ranks of n pins and limits each.
+  void (*attachments)(const ProvotSoa& a, const int32_t* pin, const float* max_len, size_t n,
+                      size_t ranks);
   // One Gauss-Seidel sweep over a family along a row (dr = 0; SweepFamilyPortable).
   bool (*sweep_along_rows)(const ProvotSoa& a, int32_t width, const ProvotFamily& f);
   // One Gauss-Seidel sweep over a family across rows (dr > 0; SweepFamilyPortable).
@@ -696,8 +758,17 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   // The kernels of the level in use, picked once per call.
   const ProvotSimdKernels& kernels = PickSimd(kProvotKernels);
   const size_t n = static_cast<size_t>(model.num_particles());
-  const size_t stride = ProvotSoaStride(n);
-  float* soa = state->scratch->provot_soa.data();
+  // x, y, z each on a 64-byte line (with n a multiple of 16), so a row of 16 floats is one line,
+  // not two: x at the first line of the buffer, the stride ProvotSoaStride(n) rounded down to 16
+  // floats (it is 8 more than a multiple of 16). Every array keeps at least 336 - 15 floats of
+  // padding, and they stay about a third of a 4 KiB page apart (ProvotSoaStride). AVX-512 sweeps
+  // of curtain_128 without the worklist: 0.147 -> 0.140 ms a substep.
+  ClothState::Scratch& scratch = *state->scratch;
+  float* const buffer = scratch.provot_soa.data();
+  scratch.provot_soa_first = (64 - reinterpret_cast<uintptr_t>(buffer) % 64) % 64 / sizeof(float);
+  scratch.provot_soa_stride = ProvotSoaStride(n) / 16 * 16;
+  const size_t stride = scratch.provot_soa_stride;
+  float* const soa = buffer + scratch.provot_soa_first;
   const ProvotSoa a{soa, soa + stride, soa + 2 * stride, model.provot_movable.data()};
   // Into structure-of-arrays, single precision, relative to the first particle (so the precision
   // does not depend on where the cloth is in the world): ~6e-8 of the cloth's size, 1e-4 of a
@@ -712,9 +783,9 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   }
   // Long range attachments first: each free particle back into the ball around its pins (Kim,
   // Chentanez & Mueller 2012), nearest first; the pins are kinematic, so only the particle moves.
-  for (size_t k = 0; k < static_cast<size_t>(model.attachment_ranks); ++k) {
-    kernels.attachments(a, model.attachment_pin.data() + k * n,
-                        model.attachment_max_m.data() + k * n, n);
+  if (model.attachment_ranks > 0) {
+    kernels.attachments(a, model.attachment_pin.data(), model.attachment_max_m.data(), n,
+                        static_cast<size_t>(model.attachment_ranks));
   }
   // Sweeps over the families, coarse to fine (the coarse ones in the first provot_coarse_sweeps
   // only); converged once no pair of a sweep was more than kProvotConverged over its limit.

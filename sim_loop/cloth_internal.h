@@ -54,6 +54,11 @@ struct ClothState::Scratch {
   std::vector<uint8_t> limit_logged;
   std::vector<int32_t> limit_log_index;
   std::vector<double> limit_log_xv;
+  /// Where ApplyProvot put x, y, z in provot_soa in its latest call (ApplyLimitWorklist reads
+  /// them there): x this many floats in, on a 64-byte line; y and z each provot_soa_stride floats
+  /// after the one before.
+  size_t provot_soa_first = 0;
+  size_t provot_soa_stride = 0;
 
   // Integrator history (leapfrog, basic Verlet), [n] each.
   bool history_valid = false;  ///< false: restart from x, v at the next substep

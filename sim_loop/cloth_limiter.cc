@@ -16,7 +16,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
+#include "base/simd.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
 
@@ -44,6 +49,82 @@ struct LimiterEnd {
   int32_t col;
   int32_t row;
 };
+
+// The sweeps' single-precision positions (scratch.provot_soa) as the scan reads them.
+struct LimiterSoa {
+  const float* x;
+  const float* y;
+  const float* z;
+};
+
+// True if a pair (p, p + off), p in [lo, hi), has a squared length above near2 (ordered: a NaN
+// length is not above), in single precision.
+bool AnyNearPortable(const LimiterSoa& a, ptrdiff_t lo, ptrdiff_t hi, ptrdiff_t off, float near2) {
+  int any = 0;
+  for (ptrdiff_t p = lo; p < hi; ++p) {
+    const ptrdiff_t q = p + off;
+    const float dx = a.x[q] - a.x[p], dy = a.y[q] - a.y[p], dz = a.z[q] - a.z[p];
+    any |= dx * dx + dy * dy + dz * dz > near2 ? 1 : 0;
+  }
+  return any != 0;
+}
+
+#if defined(__x86_64__)
+// AnyNearPortable eight pairs a step (the same operations per pair, so the same answer). A run's
+// last, partial step loads up to 7 floats past it, inside ProvotSoaStride's padding, and masks
+// those lanes out of the test.
+__attribute__((target("avx2"))) bool AnyNearAvx2(const LimiterSoa& a, ptrdiff_t lo, ptrdiff_t hi,
+                                                 ptrdiff_t off, float near2) {
+  const __m256 n2 = _mm256_set1_ps(near2);
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256 any = _mm256_setzero_ps();
+  for (ptrdiff_t p = lo; p < hi; p += 8) {
+    const ptrdiff_t q = p + off;
+    const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(a.x + q), _mm256_loadu_ps(a.x + p));
+    const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(a.y + q), _mm256_loadu_ps(a.y + p));
+    const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(a.z + q), _mm256_loadu_ps(a.z + p));
+    const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                                      _mm256_mul_ps(dz, dz));
+    const __m256 in_run = _mm256_castsi256_ps(_mm256_cmpgt_epi32(
+        _mm256_set1_epi32(static_cast<int>(std::min<ptrdiff_t>(hi - p, 8))), lanes));
+    any = _mm256_or_ps(any, _mm256_and_ps(in_run, _mm256_cmp_ps(len2, n2, _CMP_GT_OQ)));
+  }
+  return _mm256_movemask_ps(any) != 0;
+}
+
+// AnyNearPortable sixteen pairs a step (AVX-512F, the same operations per pair); a run's last,
+// partial step loads only its own lanes.
+#pragma GCC push_options
+#pragma GCC optimize("fp-contract=off")
+__attribute__((target("avx512f"))) bool AnyNearAvx512(const LimiterSoa& a, ptrdiff_t lo,
+                                                      ptrdiff_t hi, ptrdiff_t off, float near2) {
+  const __m512 n2 = _mm512_set1_ps(near2);
+  __mmask16 any = 0;
+  for (ptrdiff_t p = lo; p < hi; p += 16) {
+    const ptrdiff_t q = p + off;
+    const ptrdiff_t count = hi - p;
+    const __mmask16 take =
+        count >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << count) - 1u);
+    const __m512 dx =
+        _mm512_sub_ps(_mm512_maskz_loadu_ps(take, a.x + q), _mm512_maskz_loadu_ps(take, a.x + p));
+    const __m512 dy =
+        _mm512_sub_ps(_mm512_maskz_loadu_ps(take, a.y + q), _mm512_maskz_loadu_ps(take, a.y + p));
+    const __m512 dz =
+        _mm512_sub_ps(_mm512_maskz_loadu_ps(take, a.z + q), _mm512_maskz_loadu_ps(take, a.z + p));
+    const __m512 len2 = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy)),
+                                      _mm512_mul_ps(dz, dz));
+    any |= _mm512_mask_cmp_ps_mask(take, len2, n2, _CMP_GT_OQ);
+  }
+  return any != 0;
+}
+#pragma GCC pop_options
+
+constexpr SimdTable<bool (*)(const LimiterSoa&, ptrdiff_t, ptrdiff_t, ptrdiff_t, float)>
+    kAnyNearKernels{AnyNearPortable, AnyNearAvx2, AnyNearAvx512};
+#else
+constexpr SimdTable<bool (*)(const LimiterSoa&, ptrdiff_t, ptrdiff_t, ptrdiff_t, float)>
+    kAnyNearKernels{AnyNearPortable, AnyNearPortable, AnyNearPortable};
+#endif
 
 }  // namespace
 
@@ -84,21 +165,23 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
                  dz = x[3 * q + 2] - x[3 * p + 2];
     return dx * dx + dy * dy + dz * dz > lf.max2_m2;
   };
+  // The ring's wrap by a compare, not a division (head, count <= cap).
+  const auto wrap = [cap](size_t i) { return i >= cap ? i - cap : i; };
   const auto push = [&](size_t f, int32_t p) {
     const size_t id = f * n + static_cast<size_t>(p);
     if (queued[id]) return;
     queued[id] = 1;
-    ring[(head + count) % cap] = static_cast<int32_t>(id);
+    ring[wrap(head + count)] = static_cast<int32_t>(id);
     ++count;
   };
 
   // Every pair over its limit into the worklist: a row at a time, a vectorised test on the sweeps'
   // single-precision positions (scratch.provot_soa, still those of the sweeps' end) whether any
   // pair of the row is near or over its limit, then the exact test in double on that row's pairs.
-  const size_t stride = ProvotSoaStride(n);
-  const float* __restrict fx = s.provot_soa.data();
-  const float* __restrict fy = fx + stride;
-  const float* __restrict fz = fx + 2 * stride;
+  const float* const soa_x = s.provot_soa.data() + s.provot_soa_first;
+  const size_t stride = s.provot_soa_stride;
+  const LimiterSoa soa{soa_x, soa_x + stride, soa_x + 2 * stride};
+  const auto any_near = PickSimd(kAnyNearKernels);
   for (size_t f = 0; f < num_fam; ++f) {
     const LimitFamily& lf = model.limit_families[f];
     const float near = static_cast<float>(lf.max_m) * (1.0f - kCandidateMargin);
@@ -106,13 +189,7 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
     const int32_t c_lo = std::max(0, -lf.dc), c_hi = w - std::max(0, lf.dc);
     for (int32_t r = 0; r + lf.dr < ht; ++r) {
       const int32_t lo = r * w + c_lo, hi = r * w + c_hi;
-      int any = 0;
-      for (int32_t p = lo; p < hi; ++p) {
-        const int32_t q = p + lf.off;
-        const float dx = fx[q] - fx[p], dy = fy[q] - fy[p], dz = fz[q] - fz[p];
-        any |= dx * dx + dy * dy + dz * dz > near2 ? 1 : 0;
-      }
-      if (!any) continue;
+      if (!any_near(soa, lo, hi, lf.off, near2)) continue;
       for (int32_t p = lo; p < hi; ++p) {
         if (over(lf, p)) push(f, p);
       }
@@ -125,11 +202,17 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
   size_t budget = kWorklistBudgetPerParticle * n;
   while (count > 0 && budget > 0) {
     const size_t id = static_cast<size_t>(ring[head]);
-    head = (head + 1) % cap;
+    head = wrap(head + 1);
     --count;
     queued[id] = 0;
-    const LimitFamily& lf = model.limit_families[id / n];
-    const int32_t p = static_cast<int32_t>(id % n);
+    // The family and end i of pair id = f n + p, by subtraction (at most four families).
+    size_t f = 0, pi = id;
+    while (pi >= n) {
+      pi -= n;
+      ++f;
+    }
+    const LimitFamily& lf = model.limit_families[f];
+    const int32_t p = static_cast<int32_t>(pi);
     const int32_t q = p + lf.off;
     const double dx = x[3 * q] - x[3 * p], dy = x[3 * q + 1] - x[3 * p + 1],
                  dz = x[3 * q + 2] - x[3 * p + 2];
@@ -159,8 +242,11 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
     v[3 * q + 1] -= inv_h * (mq * dy);
     v[3 * q + 2] -= inv_h * (mq * dz);
     ++state->counters.limiter_projections;
-    // The pairs at both moved ends that are now over: each end as end i, then as end j.
-    for (const LimiterEnd e : {LimiterEnd{p, p % w, p / w}, LimiterEnd{q, q % w, q / w}}) {
+    // The pairs at both moved ends that are now over: each end as end i, then as end j. End j's
+    // column and row are end i's plus the family's offsets (both ends are on the grid).
+    const int32_t p_row = p / w, p_col = p - p_row * w;
+    for (const LimiterEnd e :
+         {LimiterEnd{p, p_col, p_row}, LimiterEnd{q, p_col + lf.dc, p_row + lf.dr}}) {
       if (inv_m[e.index] == 0.0) continue;
       for (size_t g = 0; g < num_fam; ++g) {
         const LimitFamily& lg = model.limit_families[g];
@@ -184,7 +270,7 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
   if (undo) ++state->counters.limiter_unconverged;
   while (count > 0) {
     queued[static_cast<size_t>(ring[head])] = 0;
-    head = (head + 1) % cap;
+    head = wrap(head + 1);
     --count;
   }
   for (size_t k = 0; k < logs; ++k) {
