@@ -402,9 +402,26 @@ __attribute__((target("avx2"), always_inline)) inline void StoreAccelerations(
                    accel);
 }
 
-// FinishRow with AVX2 over the columns every term covers (the same bits): four particles a
-// step, the terms in order, then a = g + F / m; the columns outside, and the tail, as
-// FinishRowColumns.
+// Lanes p .. p + 3 that lie in [lo, hi), as a blend mask.
+__attribute__((target("avx2"), always_inline)) inline __m256d LanesIn(ptrdiff_t p, ptrdiff_t lo,
+                                                                      ptrdiff_t hi) {
+  const __m256i lane = _mm256_add_epi64(_mm256_set1_epi64x(p), _mm256_set_epi64x(3, 2, 1, 0));
+  const __m256i in = _mm256_and_si256(_mm256_cmpgt_epi64(lane, _mm256_set1_epi64x(lo - 1)),
+                                      _mm256_cmpgt_epi64(_mm256_set1_epi64x(hi), lane));
+  return _mm256_castsi256_pd(in);
+}
+
+// sum + (s[0 .. 3] with its sign bits flipped by `negate`) in the lanes of `in`, sum elsewhere.
+__attribute__((target("avx2"), always_inline)) inline __m256d AddWhere(__m256d sum, const double* s,
+                                                                       __m256d negate, __m256d in) {
+  return _mm256_blendv_pd(sum, _mm256_add_pd(sum, _mm256_xor_pd(_mm256_loadu_pd(s), negate)), in);
+}
+
+// FinishRow with AVX2 (the same bits), eight columns a step from column 0: a step every term
+// covers adds them all; a step at an edge of the row adds each term where it covers the column
+// only (a blend: the other lanes keep their sum; their loads stay inside the stream's ring); the
+// last width % 4 columns as FinishRowColumns. A subtracted term is added negated (its sign bit
+// flipped): IEEE 754 defines x - y as x + (-y), so the bits are the same, without a branch.
 __attribute__((target("avx2"))) void FinishRowAvx2(const RowTerm* terms, size_t count,
                                                    const SoaViews& row, const double* inv_mass,
                                                    const Vec3& g, int32_t width, double* accel) {
@@ -413,36 +430,42 @@ __attribute__((target("avx2"))) void FinishRowAvx2(const RowTerm* terms, size_t 
     lo = std::max<ptrdiff_t>(lo, terms[t].lo);
     hi = std::min<ptrdiff_t>(hi, terms[t].hi);
   }
-  if (hi - lo < 4) {
-    FinishRowColumns(terms, count, row, inv_mass, g, 0, width, accel);
-    return;
-  }
-  FinishRowColumns(terms, count, row, inv_mass, g, 0, lo, accel);
-  const __m256d zero = _mm256_setzero_pd();
-  // A subtracted term is added negated (its sign bit flipped): IEEE 754 defines x - y as
-  // x + (-y), so the bits are the same, without a branch per term.
   __m256d negate[2 * kMaxSpringFamilies];
   FELT_CHECK(count <= 2 * kMaxSpringFamilies);
   for (size_t t = 0; t < count; ++t) {
-    negate[t] = terms[t].subtract ? _mm256_set1_pd(-0.0) : zero;
+    negate[t] = terms[t].subtract ? _mm256_set1_pd(-0.0) : _mm256_setzero_pd();
   }
-  ptrdiff_t p = lo;
-  // Eight particles a step: each term's pointers are loaded once for two vectors.
-  for (; p + 8 <= hi; p += 8) {
+  ptrdiff_t p = 0;
+  for (; p + 8 <= width; p += 8) {
     __m256d ax = _mm256_loadu_pd(row.fx + p), ay = _mm256_loadu_pd(row.fy + p),
             az = _mm256_loadu_pd(row.fz + p), bx = _mm256_loadu_pd(row.fx + p + 4),
             by = _mm256_loadu_pd(row.fy + p + 4), bz = _mm256_loadu_pd(row.fz + p + 4);
-    for (size_t t = 0; t < count; ++t) {
-      const double* tx = terms[t].x + p;
-      const double* ty = terms[t].y + p;
-      const double* tz = terms[t].z + p;
-      const __m256d m = negate[t];
-      ax = _mm256_add_pd(ax, _mm256_xor_pd(_mm256_loadu_pd(tx), m));
-      ay = _mm256_add_pd(ay, _mm256_xor_pd(_mm256_loadu_pd(ty), m));
-      az = _mm256_add_pd(az, _mm256_xor_pd(_mm256_loadu_pd(tz), m));
-      bx = _mm256_add_pd(bx, _mm256_xor_pd(_mm256_loadu_pd(tx + 4), m));
-      by = _mm256_add_pd(by, _mm256_xor_pd(_mm256_loadu_pd(ty + 4), m));
-      bz = _mm256_add_pd(bz, _mm256_xor_pd(_mm256_loadu_pd(tz + 4), m));
+    if (p >= lo && p + 8 <= hi) {
+      // Each term's pointers are loaded once for two vectors.
+      for (size_t t = 0; t < count; ++t) {
+        const double* tx = terms[t].x + p;
+        const double* ty = terms[t].y + p;
+        const double* tz = terms[t].z + p;
+        const __m256d m = negate[t];
+        ax = _mm256_add_pd(ax, _mm256_xor_pd(_mm256_loadu_pd(tx), m));
+        ay = _mm256_add_pd(ay, _mm256_xor_pd(_mm256_loadu_pd(ty), m));
+        az = _mm256_add_pd(az, _mm256_xor_pd(_mm256_loadu_pd(tz), m));
+        bx = _mm256_add_pd(bx, _mm256_xor_pd(_mm256_loadu_pd(tx + 4), m));
+        by = _mm256_add_pd(by, _mm256_xor_pd(_mm256_loadu_pd(ty + 4), m));
+        bz = _mm256_add_pd(bz, _mm256_xor_pd(_mm256_loadu_pd(tz + 4), m));
+      }
+    } else {
+      for (size_t t = 0; t < count; ++t) {
+        const RowTerm& term = terms[t];
+        const __m256d m = negate[t];
+        const __m256d in_a = LanesIn(p, term.lo, term.hi), in_b = LanesIn(p + 4, term.lo, term.hi);
+        ax = AddWhere(ax, term.x + p, m, in_a);
+        ay = AddWhere(ay, term.y + p, m, in_a);
+        az = AddWhere(az, term.z + p, m, in_a);
+        bx = AddWhere(bx, term.x + p + 4, m, in_b);
+        by = AddWhere(by, term.y + p + 4, m, in_b);
+        bz = AddWhere(bz, term.z + p + 4, m, in_b);
+      }
     }
     StoreAccelerations(g, inv_mass + p, ax, ay, az, accel + 3 * p);
     StoreAccelerations(g, inv_mass + p + 4, bx, by, bz, accel + 3 * p + 12);
