@@ -533,6 +533,63 @@ __attribute__((target("avx512f"))) void FamilySpringRowAvx512(const SoaViews& a,
   }
 }
 
+// A term's value at s[0 .. 7], its sign bits flipped by negate_bits (AVX-512F).
+__attribute__((target("avx512f"), always_inline)) inline __m512d TermAt(const double* s,
+                                                                        __m512i negate_bits) {
+  return _mm512_castsi512_pd(
+      _mm512_xor_si512(_mm512_castpd_si512(_mm512_loadu_pd(s)), negate_bits));
+}
+
+// FinishRowAvx2 eight columns a vector with AVX-512F (the same bits): half the instructions for
+// a pass bound by its loads.
+__attribute__((target("avx512f"))) void FinishRowAvx512(const RowTerm* terms, size_t count,
+                                                        const SoaViews& row, const double* inv_mass,
+                                                        const Vec3& g, int32_t width,
+                                                        double* accel) {
+  ptrdiff_t lo = 0, hi = width;
+  for (size_t t = 0; t < count; ++t) {
+    lo = std::max<ptrdiff_t>(lo, terms[t].lo);
+    hi = std::min<ptrdiff_t>(hi, terms[t].hi);
+  }
+  __m512i negate[2 * kMaxSpringFamilies];
+  FELT_CHECK(count <= 2 * kMaxSpringFamilies);
+  for (size_t t = 0; t < count; ++t) {
+    negate[t] = _mm512_set1_epi64(terms[t].subtract ? INT64_MIN : 0);
+  }
+  const __m512i lanes = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+  ptrdiff_t p = 0;
+  for (; p + 8 <= width; p += 8) {
+    __m512d fx = _mm512_loadu_pd(row.fx + p), fy = _mm512_loadu_pd(row.fy + p),
+            fz = _mm512_loadu_pd(row.fz + p);
+    if (p >= lo && p + 8 <= hi) {
+      for (size_t t = 0; t < count; ++t) {
+        const RowTerm& term = terms[t];
+        fx = _mm512_add_pd(fx, TermAt(term.x + p, negate[t]));
+        fy = _mm512_add_pd(fy, TermAt(term.y + p, negate[t]));
+        fz = _mm512_add_pd(fz, TermAt(term.z + p, negate[t]));
+      }
+    } else {
+      // At an edge: each term only in the columns it covers (the other lanes keep their sum).
+      const __m512i column = _mm512_add_epi64(_mm512_set1_epi64(p), lanes);
+      for (size_t t = 0; t < count; ++t) {
+        const RowTerm& term = terms[t];
+        const __mmask8 in =
+            _mm512_cmp_epi64_mask(column, _mm512_set1_epi64(term.lo), _MM_CMPINT_NLT) &
+            _mm512_cmp_epi64_mask(column, _mm512_set1_epi64(term.hi), _MM_CMPINT_LT);
+        fx = _mm512_mask_add_pd(fx, in, fx, TermAt(term.x + p, negate[t]));
+        fy = _mm512_mask_add_pd(fy, in, fy, TermAt(term.y + p, negate[t]));
+        fz = _mm512_mask_add_pd(fz, in, fz, TermAt(term.z + p, negate[t]));
+      }
+    }
+    StoreAccelerations(g, inv_mass + p, _mm512_castpd512_pd256(fx), _mm512_castpd512_pd256(fy),
+                       _mm512_castpd512_pd256(fz), accel + 3 * p);
+    StoreAccelerations(g, inv_mass + p + 4, _mm512_extractf64x4_pd(fx, 1),
+                       _mm512_extractf64x4_pd(fy, 1), _mm512_extractf64x4_pd(fz, 1),
+                       accel + 3 * p + 12);
+  }
+  FinishRowColumns(terms, count, row, inv_mass, g, p, width, accel);
+}
+
 #pragma GCC diagnostic pop
 #pragma GCC pop_options
 #endif
@@ -567,10 +624,11 @@ constexpr SpringKernels kPortableSpringKernels{FamilySpringForces, SubtractFrom,
 constexpr SpringKernels kAvx2SpringKernels{
     FamilySpringForcesAvx2, SubtractFromAvx2, FamilySpringForcesBothEndsAvx2,
     FamilySpringRowAvx2,    SplitRowAvx2,     FinishRowAvx2};
-// AVX-512: AVX2's kernels but the row of springs (FamilySpringRowAvx512).
+// AVX-512: AVX2's kernels but the row of springs and the row's sums (FamilySpringRowAvx512,
+// FinishRowAvx512).
 constexpr SpringKernels kAvx512SpringKernels{
     FamilySpringForcesAvx2, SubtractFromAvx2, FamilySpringForcesBothEndsAvx2,
-    FamilySpringRowAvx512,  SplitRowAvx2,     FinishRowAvx2};
+    FamilySpringRowAvx512,  SplitRowAvx2,     FinishRowAvx512};
 constexpr SimdTable<SpringKernels> kSpringKernels{kPortableSpringKernels, kAvx2SpringKernels,
                                                   kAvx512SpringKernels};
 #else
