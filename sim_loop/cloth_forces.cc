@@ -501,19 +501,23 @@ __attribute__((target("avx512f"))) void FamilySpringRowAvx512(const SoaViews& a,
   const double *ax = a.x, *ay = a.y, *az = a.z, *avx = a.vx, *avy = a.vy, *avz = a.vz;
   const double *bx = b.x + dc, *by = b.y + dc, *bz = b.z + dc, *bvx = b.vx + dc, *bvy = b.vy + dc,
                *bvz = b.vz + dc;
-  ptrdiff_t p = lo;
-  for (; p + 8 <= hi; p += 8) {
-    const __m512d dx = _mm512_sub_pd(_mm512_loadu_pd(bx + p), _mm512_loadu_pd(ax + p));
-    const __m512d dy = _mm512_sub_pd(_mm512_loadu_pd(by + p), _mm512_loadu_pd(ay + p));
-    const __m512d dz = _mm512_sub_pd(_mm512_loadu_pd(bz + p), _mm512_loadu_pd(az + p));
+  // Eight springs a step; the last step masked to the springs left (masked-off lanes load zeros,
+  // compute a dead spring and store nothing).
+  for (ptrdiff_t p = lo; p < hi; p += 8) {
+    const __mmask8 m =
+        hi - p >= 8 ? static_cast<__mmask8>(0xff) : static_cast<__mmask8>((1u << (hi - p)) - 1u);
+    auto load = [m](const double* q) { return _mm512_maskz_loadu_pd(m, q); };
+    const __m512d dx = _mm512_sub_pd(load(bx + p), load(ax + p));
+    const __m512d dy = _mm512_sub_pd(load(by + p), load(ay + p));
+    const __m512d dz = _mm512_sub_pd(load(bz + p), load(az + p));
     const __m512d len2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)),
                                        _mm512_mul_pd(dz, dz));
     const __mmask8 live = _mm512_cmp_pd_mask(len2, min2, _CMP_GT_OQ);
     const __m512d len = _mm512_sqrt_pd(_mm512_mask_blend_pd(live, min2, len2));
     const __m512d inv_len = _mm512_div_pd(one, len);
-    const __m512d dvx = _mm512_sub_pd(_mm512_loadu_pd(bvx + p), _mm512_loadu_pd(avx + p));
-    const __m512d dvy = _mm512_sub_pd(_mm512_loadu_pd(bvy + p), _mm512_loadu_pd(avy + p));
-    const __m512d dvz = _mm512_sub_pd(_mm512_loadu_pd(bvz + p), _mm512_loadu_pd(avz + p));
+    const __m512d dvx = _mm512_sub_pd(load(bvx + p), load(avx + p));
+    const __m512d dvy = _mm512_sub_pd(load(bvy + p), load(avy + p));
+    const __m512d dvz = _mm512_sub_pd(load(bvz + p), load(avz + p));
     const __m512d rel_speed =
         _mm512_mul_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dvx, dx), _mm512_mul_pd(dvy, dy)),
                                     _mm512_mul_pd(dvz, dz)),
@@ -524,12 +528,9 @@ __attribute__((target("avx512f"))) void FamilySpringRowAvx512(const SoaViews& a,
     // magnitude is +0 or -0 by its sign, which a masked zero would not keep).
     const __m512d live_one = _mm512_maskz_mov_pd(live, one);
     const __m512d scale = _mm512_mul_pd(_mm512_mul_pd(live_one, magnitude), inv_len);
-    _mm512_storeu_pd(sx + (p - lo), _mm512_mul_pd(scale, dx));
-    _mm512_storeu_pd(sy + (p - lo), _mm512_mul_pd(scale, dy));
-    _mm512_storeu_pd(sz + (p - lo), _mm512_mul_pd(scale, dz));
-  }
-  if (p < hi) {
-    FamilySpringRowAvx2(a, b, family, dc, p, hi, sx + (p - lo), sy + (p - lo), sz + (p - lo));
+    _mm512_mask_storeu_pd(sx + (p - lo), m, _mm512_mul_pd(scale, dx));
+    _mm512_mask_storeu_pd(sy + (p - lo), m, _mm512_mul_pd(scale, dy));
+    _mm512_mask_storeu_pd(sz + (p - lo), m, _mm512_mul_pd(scale, dz));
   }
 }
 
