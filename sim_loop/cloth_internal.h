@@ -121,7 +121,7 @@ size_t StreamScratchSize(const ClothModel& model);
 /// v again (they are copied ahead into a ring of rows, and the contact springs evaluated first),
 /// so the sink may overwrite them: a fused integrator makes one pass over the particles per
 /// substep instead of a pass per spring family and one each for the split, the accelerations and
-/// the update, and its work space stays in the L1 cache.
+/// the update, and its work space (max(dr) + 2 rows: 117 KiB at width 128) stays in the L2 cache.
 void StreamAccelerations(const ClothModel& model, std::span<const Vec3> x, std::span<const Vec3> v,
                          ClothState::Scratch* scratch, AcceleratedRows sink);
 
