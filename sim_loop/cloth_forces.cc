@@ -11,6 +11,7 @@
 #endif
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "base/simd.h"
@@ -186,6 +187,17 @@ inline void SumTerms(const RowTerm* terms, size_t count, ptrdiff_t p, double* fx
       *fz += term.z[p];
     }
   }
+}
+
+// The columns [lo, hi) of a row of `width` that every one of the `count` terms covers.
+std::pair<ptrdiff_t, ptrdiff_t> ColumnsEveryTermCovers(const RowTerm* terms, size_t count,
+                                                       int32_t width) {
+  ptrdiff_t lo = 0, hi = width;
+  for (size_t t = 0; t < count; ++t) {
+    lo = std::max<ptrdiff_t>(lo, terms[t].lo);
+    hi = std::min<ptrdiff_t>(hi, terms[t].hi);
+  }
+  return {lo, hi};
 }
 
 // A row's accelerations, a = g + F / m (0 for pinned particles, inv_mass 0), into accel (xyz per
@@ -425,11 +437,7 @@ __attribute__((target("avx2"), always_inline)) inline __m256d AddWhere(__m256d s
 __attribute__((target("avx2"))) void FinishRowAvx2(const RowTerm* terms, size_t count,
                                                    const SoaViews& row, const double* inv_mass,
                                                    const Vec3& g, int32_t width, double* accel) {
-  ptrdiff_t lo = 0, hi = width;
-  for (size_t t = 0; t < count; ++t) {
-    lo = std::max<ptrdiff_t>(lo, terms[t].lo);
-    hi = std::min<ptrdiff_t>(hi, terms[t].hi);
-  }
+  const auto [lo, hi] = ColumnsEveryTermCovers(terms, count, width);
   __m256d negate[2 * kMaxSpringFamilies];
   FELT_CHECK(count <= 2 * kMaxSpringFamilies);
   for (size_t t = 0; t < count; ++t) {
@@ -547,11 +555,7 @@ __attribute__((target("avx512f"))) void FinishRowAvx512(const RowTerm* terms, si
                                                         const SoaViews& row, const double* inv_mass,
                                                         const Vec3& g, int32_t width,
                                                         double* accel) {
-  ptrdiff_t lo = 0, hi = width;
-  for (size_t t = 0; t < count; ++t) {
-    lo = std::max<ptrdiff_t>(lo, terms[t].lo);
-    hi = std::min<ptrdiff_t>(hi, terms[t].hi);
-  }
+  const auto [lo, hi] = ColumnsEveryTermCovers(terms, count, width);
   __m512i negate[2 * kMaxSpringFamilies];
   FELT_CHECK(count <= 2 * kMaxSpringFamilies);
   for (size_t t = 0; t < count; ++t) {
