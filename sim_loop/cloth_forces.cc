@@ -79,6 +79,12 @@ SoaViews Views(std::vector<double>* soa, size_t particles) {
           b + 6 * n, b + 7 * n, b + 8 * n, b + 9 * n, b + 10 * n, b + 11 * n};
 }
 
+// The columns [c_lo, c_hi) where a family's springs start (end i) on a grid `width` wide: those
+// whose end j, dc columns on, is on the grid too.
+std::pair<int32_t, int32_t> FamilyColumns(const SpringFamily& family, int32_t width) {
+  return {std::max(0, -family.dc), width - std::max(0, family.dc)};
+}
+
 // A spring family's constants as the portable kernels use them.
 struct FamilyConstants {
   double k, c, rest;
@@ -200,6 +206,25 @@ std::pair<ptrdiff_t, ptrdiff_t> ColumnsEveryTermCovers(const RowTerm* terms, siz
   return {lo, hi};
 }
 
+// One axis of a = g + w F for inverse mass w, force F and gravity g; 0 for a pinned particle
+// (w = 0), which does not accelerate.
+inline double AxisAcceleration(double w, double g, double f) { return w > 0.0 ? g + w * f : 0.0; }
+
+// a = g + F / m for the `count` particles of `soa` (F in its fx, fy, fz), inverse masses
+// inv_mass, into out (xyz per particle); pinned particles (inv_mass 0) do not accelerate.
+void AccelerationsOf(const Vec3& g, const double* __restrict inv_mass, const SoaViews& soa,
+                     size_t count, double* __restrict out) {
+  const double* __restrict fx = soa.fx;
+  const double* __restrict fy = soa.fy;
+  const double* __restrict fz = soa.fz;
+  for (size_t p = 0; p < count; ++p) {
+    const double w = inv_mass[p];
+    out[3 * p] = AxisAcceleration(w, g.x(), fx[p]);
+    out[3 * p + 1] = AxisAcceleration(w, g.y(), fy[p]);
+    out[3 * p + 2] = AxisAcceleration(w, g.z(), fz[p]);
+  }
+}
+
 // A row's accelerations, a = g + F / m (0 for pinned particles, inv_mass 0), into accel (xyz per
 // particle), F being row.fx, fy, fz plus `terms` in order, for columns [lo, hi).
 void FinishRowColumns(const RowTerm* terms, size_t count, const SoaViews& row,
@@ -209,9 +234,9 @@ void FinishRowColumns(const RowTerm* terms, size_t count, const SoaViews& row,
     double fx = row.fx[p], fy = row.fy[p], fz = row.fz[p];
     SumTerms(terms, count, p, &fx, &fy, &fz);
     const double w = inv_mass[p];
-    accel[3 * p] = w > 0.0 ? g.x() + w * fx : 0.0;
-    accel[3 * p + 1] = w > 0.0 ? g.y() + w * fy : 0.0;
-    accel[3 * p + 2] = w > 0.0 ? g.z() + w * fz : 0.0;
+    accel[3 * p] = AxisAcceleration(w, g.x(), fx);
+    accel[3 * p + 1] = AxisAcceleration(w, g.y(), fy);
+    accel[3 * p + 2] = AxisAcceleration(w, g.z(), fz);
   }
 }
 
@@ -432,7 +457,7 @@ __attribute__((target("avx2"), always_inline)) inline __m256d AddWhere(__m256d s
 // FinishRow with AVX2 (the same bits), eight columns a step from column 0: a step every term
 // covers adds them all; a step at an edge of the row adds each term where it covers the column
 // only (a blend: the other lanes keep their sum; their loads stay inside the stream's ring); the
-// last width % 4 columns as FinishRowColumns. A subtracted term is added negated (its sign bit
+// last width % 8 columns as FinishRowColumns. A subtracted term is added negated (its sign bit
 // flipped): IEEE 754 defines x - y as x + (-y), so the bits are the same, without a branch.
 __attribute__((target("avx2"))) void FinishRowAvx2(const RowTerm* terms, size_t count,
                                                    const SoaViews& row, const double* inv_mass,
@@ -648,7 +673,7 @@ constexpr SimdTable<SpringKernels> kSpringKernels{kPortableSpringKernels, kPorta
 // one pass does both ends in that same order per particle (FamilySpringForcesBothEndsAvx2).
 void AddFamilyForces(const SpringKernels& kernels, const SoaViews& a, int32_t width, int32_t height,
                      const SpringFamily& family) {
-  const int32_t c_lo = std::max(0, -family.dc), c_hi = width - std::max(0, family.dc);
+  const auto [c_lo, c_hi] = FamilyColumns(family, width);
   const int32_t rows = height - family.dr;
   if (rows <= 0 || c_hi <= c_lo) return;
   const ptrdiff_t off = static_cast<ptrdiff_t>(family.dr) * width + family.dc;
@@ -670,25 +695,6 @@ void AddFamilyForces(const SpringKernels& kernels, const SoaViews& a, int32_t wi
     kernels.subtract(a.fx + lo + off, a.sx + lo, count);
     kernels.subtract(a.fy + lo + off, a.sy + lo, count);
     kernels.subtract(a.fz + lo + off, a.sz + lo, count);
-  }
-}
-
-}  // namespace
-
-namespace {
-
-// a = g + F / m for the `count` particles of `soa` (F in its fx, fy, fz), inverse masses
-// inv_mass, into out (xyz per particle); pinned particles (inv_mass 0) do not accelerate.
-void AccelerationsOf(const Vec3& g, const double* __restrict inv_mass, const SoaViews& soa,
-                     size_t count, double* __restrict out) {
-  const double* __restrict fx = soa.fx;
-  const double* __restrict fy = soa.fy;
-  const double* __restrict fz = soa.fz;
-  for (size_t p = 0; p < count; ++p) {
-    const double w = inv_mass[p];
-    out[3 * p] = w > 0.0 ? g.x() + w * fx[p] : 0.0;
-    out[3 * p + 1] = w > 0.0 ? g.y() + w * fy[p] : 0.0;
-    out[3 * p + 2] = w > 0.0 ? g.z() + w * fz[p] : 0.0;
   }
 }
 
@@ -789,7 +795,7 @@ void StreamAccelerations(const ClothModel& model, std::span<const Vec3> x, std::
       // Every family's springs with end i in row r.
       for (size_t k = 0; k < num_fam; ++k) {
         const SpringFamily& f = families[k];
-        const int32_t c_lo = std::max(0, -f.dc), c_hi = width - std::max(0, f.dc);
+        const auto [c_lo, c_hi] = FamilyColumns(f, width);
         if (r >= height - f.dr || c_hi <= c_lo) continue;
         double* s = springs(k, r) + c_lo;
         kernels.row(slot(r), slot(r + f.dr), f, f.dc, c_lo, c_hi, s, s + ws, s + 2 * ws);
@@ -802,7 +808,7 @@ void StreamAccelerations(const ClothModel& model, std::span<const Vec3> x, std::
     size_t num_terms = 0;
     for (size_t k = 0; k < num_fam; ++k) {
       const SpringFamily& f = families[k];
-      const int32_t c_lo = std::max(0, -f.dc), c_hi = width - std::max(0, f.dc);
+      const auto [c_lo, c_hi] = FamilyColumns(f, width);
       if (c_hi <= c_lo) continue;
       if (q < height - f.dr) {
         const double* s = springs(k, q);

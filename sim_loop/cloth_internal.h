@@ -35,7 +35,7 @@ struct ClothState::Scratch {
   /// The contact springs' accelerations by row, for StreamAccelerations (fixed capacity).
   CouplingTermRows coupling_rows;
   /// [StreamScratchSize] StreamAccelerations' ring of rows (positions, velocities, forces and
-  /// springs of the last max(dr) + 1 rows) and one row's accelerations.
+  /// springs of max(dr) + 2 rows) and two rows of accelerations.
   std::vector<double> stream_rows;
   /// Self-collision response (collision/self_response.h), built only with [self_collision].
   std::optional<SelfCollisionResponse> self_collision;

@@ -26,6 +26,18 @@ namespace {
 using testing::HingedGrid;
 using testing::SpacedGrid;
 
+// The culled detection's hits `got` are the reference's, in the same order, toi bit for bit.
+void ExpectSameHits(const std::vector<CcdPairHit>& got, const std::vector<CcdPairHit>& ref,
+                    const std::string& label) {
+  ASSERT_EQ(got.size(), ref.size()) << label;
+  for (size_t i = 0; i < ref.size(); ++i) {
+    EXPECT_EQ(got[i].kind, ref[i].kind) << label;
+    EXPECT_EQ(got[i].first, ref[i].first) << label;
+    EXPECT_EQ(got[i].second, ref[i].second) << label;
+    EXPECT_EQ(got[i].toi, ref[i].toi) << label;
+  }
+}
+
 // Runs SelfCcd with normal cones on x0 -> x1 and compares with AllPairsCcd at thickness h;
 // returns the number of reference hits and the patches the cones skipped.
 void ConeCheck(std::span<const Vec3> rest, std::span<const Vec3> x0, std::span<const Vec3> x1,
@@ -42,13 +54,8 @@ void ConeCheck(std::span<const Vec3> rest, std::span<const Vec3> x0, std::span<c
   hits.reserve(ref.size() + 16);
   const SelfCcdStats st = SelfCcd(&cones, x0, x1, options, &hits);
   ASSERT_FALSE(st.overflow) << label;
-  ASSERT_EQ(hits.size(), ref.size()) << label;
-  for (size_t i = 0; i < ref.size(); ++i) {
-    EXPECT_EQ(hits[i].kind, ref[i].kind) << label;
-    EXPECT_EQ(hits[i].first, ref[i].first) << label;
-    EXPECT_EQ(hits[i].second, ref[i].second) << label;
-    EXPECT_EQ(hits[i].toi, ref[i].toi) << label;
-  }
+  ExpectSameHits(hits, ref, label);
+  if (::testing::Test::HasFatalFailure()) return;
   // The cones only remove candidates: a subset of the plain traversal's box-overlap set.
   const SelfBroadPhaseStats all = plain.FindCandidates(x0, x1, h);
   EXPECT_LE(st.broad.vertex_triangle + st.broad.edge_edge, all.vertex_triangle + all.edge_edge)
@@ -118,13 +125,8 @@ void UpdateCheckOnce(std::span<const Vec3> rest, std::span<const Vec3> x0, std::
     *kept += cones.kept_from().size();
     const std::vector<CcdPairHit> got = NarrowOverCandidates(cones, x0, x1b, options, name);
     const std::vector<CcdPairHit> ref = AllPairsCcd(x0, x1b, tris, options);
-    ASSERT_EQ(got.size(), ref.size()) << name;
-    for (size_t i = 0; i < ref.size(); ++i) {
-      EXPECT_EQ(got[i].kind, ref[i].kind) << name;
-      EXPECT_EQ(got[i].first, ref[i].first) << name;
-      EXPECT_EQ(got[i].second, ref[i].second) << name;
-      EXPECT_EQ(got[i].toi, ref[i].toi) << name;
-    }
+    ExpectSameHits(got, ref, name);
+    if (::testing::Test::HasFatalFailure()) return;
     *reference_hits += ref.size();
   }
 }
