@@ -758,18 +758,10 @@ void ApplyProvot(const ClothModel& model, double h_s, ClothState* state) {
   // The kernels of the level in use, picked once per call.
   const ProvotSimdKernels& kernels = PickSimd(kProvotKernels);
   const size_t n = static_cast<size_t>(model.num_particles());
-  // x, y, z each on a 64-byte line (with n a multiple of 16), so a row of 16 floats is one line,
-  // not two: x at the first line of the buffer, the stride ProvotSoaStride(n) rounded down to 16
-  // floats (it is 8 more than a multiple of 16). Every array keeps at least 336 - 15 floats of
-  // padding, and they stay about a third of a 4 KiB page apart (ProvotSoaStride). AVX-512 sweeps
-  // of curtain_128 without the worklist: 0.147 -> 0.140 ms a substep.
+  // x, y, z each on a 64-byte line (ProvotSoaIn).
   ClothState::Scratch& scratch = *state->scratch;
-  float* const buffer = scratch.provot_soa.data();
-  scratch.provot_soa_first = (64 - reinterpret_cast<uintptr_t>(buffer) % 64) % 64 / sizeof(float);
-  scratch.provot_soa_stride = ProvotSoaStride(n) / 16 * 16;
-  const size_t stride = scratch.provot_soa_stride;
-  float* const soa = buffer + scratch.provot_soa_first;
-  const ProvotSoa a{soa, soa + stride, soa + 2 * stride, model.provot_movable.data()};
+  const ProvotSoaArrays arrays = ProvotSoaIn(&scratch.provot_soa, n);
+  const ProvotSoa a{arrays.x, arrays.y, arrays.z, model.provot_movable.data()};
   // Into structure-of-arrays, single precision, relative to the first particle (so the precision
   // does not depend on where the cloth is in the world): ~6e-8 of the cloth's size, 1e-4 of a
   // 64 x 64 curtain's spacing against the 1e-3 convergence tolerance.

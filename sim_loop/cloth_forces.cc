@@ -760,8 +760,7 @@ void StreamAccelerations(const ClothModel& model, std::span<const Vec3> x, std::
   const size_t depth = static_cast<size_t>(max_dr) + 2;
   const size_t w = static_cast<size_t>(width);
   const size_t ws = SoaStride(w);  // doubles from one row array to the next (no 4K aliasing)
-  double* base = scratch->stream_rows.data();
-  base += (8 - (reinterpret_cast<uintptr_t>(base) / sizeof(double)) % 8) % 8;  // a cache line
+  double* const base = OnCacheLine(scratch->stream_rows.data());
   const size_t slot_size = (9 + 3 * num_fam) * ws;
   auto slot = [&](int32_t r) {
     double* b = base + (static_cast<size_t>(r) % depth) * slot_size;

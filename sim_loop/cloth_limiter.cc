@@ -178,9 +178,8 @@ void ApplyLimitWorklist(const ClothModel& model, double h_s, ClothState* state) 
   // Every pair over its limit into the worklist: a row at a time, a vectorised test on the sweeps'
   // single-precision positions (scratch.provot_soa, still those of the sweeps' end) whether any
   // pair of the row is near or over its limit, then the exact test in double on that row's pairs.
-  const float* const soa_x = s.provot_soa.data() + s.provot_soa_first;
-  const size_t stride = s.provot_soa_stride;
-  const LimiterSoa soa{soa_x, soa_x + stride, soa_x + 2 * stride};
+  const ProvotSoaArrays arrays = ProvotSoaIn(&s.provot_soa, n);
+  const LimiterSoa soa{arrays.x, arrays.y, arrays.z};
   const auto any_near = PickSimd(kAnyNearKernels);
   for (size_t f = 0; f < num_fam; ++f) {
     const LimitFamily& lf = model.limit_families[f];

@@ -38,12 +38,9 @@ Result WithNegativeZeros(SimdLevel level, const ClothModel& model, double stretc
   ApplyProvot(model, 1.0 / 600.0, &state);
   LimitSimdLevel(kWidestSimdLevel);
   Result out;
-  const ClothState::Scratch& s = *state.scratch;
   const size_t n = state.x.size();
-  for (size_t k = 0; k < 3; ++k) {
-    const float* a = s.provot_soa.data() + s.provot_soa_first + k * s.provot_soa_stride;
-    out.soa.insert(out.soa.end(), a, a + n);
-  }
+  const ProvotSoaArrays arrays = ProvotSoaIn(&state.scratch->provot_soa, n);
+  for (const float* a : {arrays.x, arrays.y, arrays.z}) out.soa.insert(out.soa.end(), a, a + n);
   out.xv = state.x;
   out.xv.insert(out.xv.end(), state.v.begin(), state.v.end());
   return out;
