@@ -148,30 +148,45 @@ void UpdateCheck(std::span<const Vec3> rest, std::span<const Vec3> x0, std::span
   }
 }
 
-// One wave case: a 20 x 20 grid 0.02 m apart (rest, tris) with smooth waves of amplitude
-// 0.02 (1 + c) m and a crumple of 0.05 step at x0, moving a little to x1 (a fifth of the amplitude
-// along z, plus noise of 0.1 step), drawn from rng; thickness h = 0.001 m.
-struct WaveCase {
-  static constexpr int32_t kWidth = 20;
-  static constexpr double kStep = 0.02, kThickness = 0.001;
-  std::vector<Triangle> tris = MakeGridTriangles(kWidth, kWidth);
-  std::vector<Vec3> rest = SpacedGrid(kWidth, kWidth, kStep);
-  std::vector<Vec3> x0, x1;
-
-  WaveCase(int32_t c, std::mt19937_64* rng) {
-    std::normal_distribution<double> n01(0.0, 1.0);
-    const auto noise = [&] { return Vec3(n01(*rng), n01(*rng), n01(*rng)); };
-    const double amp = 0.02 * (1 + c), phase = 0.3 * c;
-    x0 = rest;
-    x1 = rest;
-    for (size_t i = 0; i < rest.size(); ++i) {
-      const Vec3& p = rest[i];
-      x0[i].z() = amp * std::sin(9 * p.x() + phase) * std::sin(7 * p.y());
-      x0[i] += 0.05 * kStep * noise();
-      x1[i] = x0[i] + Vec3(0.0, 0.0, amp * 0.2 * std::sin(11 * p.y())) + 0.1 * kStep * noise();
-    }
-  }
+// A motion both cone tests check: a grid (rest, tris) moving from x0 to x1, its spacing and the
+// thickness to test it at, m.
+struct MotionCase {
+  std::vector<Triangle> tris;
+  std::vector<Vec3> rest, x0, x1;
+  double step = 0.0, thickness = 0.0;
 };
+
+// A w x w grid `step` apart at rest, thickness 0.001 m, its motion still to fill in.
+MotionCase GridCase(int32_t w, double step) {
+  return {MakeGridTriangles(w, w), SpacedGrid(w, w, step), {}, {}, step, 0.001};
+}
+
+// Wave case c: a 20 x 20 grid 0.02 m apart with smooth waves of amplitude 0.02 (1 + c) m and a
+// crumple of 0.05 step at x0, moving a little to x1 (a fifth of the amplitude along z, plus noise
+// of 0.1 step), drawn from rng.
+MotionCase Waves(int32_t c, std::mt19937_64* rng) {
+  MotionCase m = GridCase(20, 0.02);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const auto noise = [&] { return Vec3(n01(*rng), n01(*rng), n01(*rng)); };
+  const double amp = 0.02 * (1 + c), phase = 0.3 * c;
+  m.x0 = m.rest;
+  m.x1 = m.rest;
+  for (size_t i = 0; i < m.rest.size(); ++i) {
+    const Vec3& p = m.rest[i];
+    m.x0[i].z() = amp * std::sin(9 * p.x() + phase) * std::sin(7 * p.y());
+    m.x0[i] += 0.05 * m.step * noise();
+    m.x1[i] = m.x0[i] + Vec3(0.0, 0.0, amp * 0.2 * std::sin(11 * p.y())) + 0.1 * m.step * noise();
+  }
+  return m;
+}
+
+// A 14 x 14 grid 0.04 m apart folded at row 7 into a U whose top layer falls 5 cm through the
+// bottom within the step (testing::FallingUFold), drawn from rng.
+MotionCase FallingFold(std::mt19937_64& rng) {
+  MotionCase m = GridCase(14, 0.04);
+  testing::FallingUFold(14, 7, m.step, 0.01, 0.05, rng, &m.x0, &m.x1);
+  return m;
+}
 
 // A grid of `len` rows 0.01 m apart (rest) wound into a ramp of 2.3 turns (radius 0.1 m plus
 // the column's x) rising 0.002 m per radian at x0 and falling as much at x1: its last turn passes
@@ -204,18 +219,14 @@ TEST(SelfNormalCones, UpdatedCandidatesMissNothingAgainstAllPairs) {
   }
   // Four wave motions; one under a sanitizer (test_env.h: the all-pairs reference is O(T^2)).
   for (int32_t c = 0; c < (testing::Sanitized() ? 1 : 4); ++c) {
-    const WaveCase wave(c, &rng);
-    UpdateCheck(wave.rest, wave.x0, wave.x1, wave.tris, WaveCase::kThickness, WaveCase::kStep,
-                "waves " + std::to_string(c), &rng, &reference_hits, &kept);
+    const MotionCase m = Waves(c, &rng);
+    UpdateCheck(m.rest, m.x0, m.x1, m.tris, m.thickness, m.step, "waves " + std::to_string(c), &rng,
+                &reference_hits, &kept);
   }
   {
-    const int32_t w = 14, hinge = 7;
-    const double step = 0.04, h = 0.001;
-    const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-    const std::vector<Vec3> rest = SpacedGrid(w, w, step);
-    std::vector<Vec3> x0, x1;
-    testing::FallingUFold(w, hinge, step, 0.01, 0.05, rng, &x0, &x1);
-    UpdateCheck(rest, x0, x1, tris, h, step, "falling", &rng, &reference_hits, &kept);
+    const MotionCase m = FallingFold(rng);
+    UpdateCheck(m.rest, m.x0, m.x1, m.tris, m.thickness, m.step, "falling", &rng, &reference_hits,
+                &kept);
   }
   {
     const int32_t w = 5, len = 80;
@@ -266,19 +277,14 @@ TEST(SelfNormalCones, FoldedAndFallingClothMissNothingAgainstAllPairs) {
   // Random smooth waves with a crumple, moving a little (mostly culled, some folds).
   std::mt19937_64 rng(2210);
   for (int32_t c = 0; c < 6; ++c) {
-    const WaveCase wave(c, &rng);
-    ConeCheck(wave.rest, wave.x0, wave.x1, wave.tris, WaveCase::kThickness,
-              "waves " + std::to_string(c), &reference_hits, &culled);
+    const MotionCase m = Waves(c, &rng);
+    ConeCheck(m.rest, m.x0, m.x1, m.tris, m.thickness, "waves " + std::to_string(c),
+              &reference_hits, &culled);
   }
   // A U-fold whose top layer falls 5 cm through the bottom within the step.
   {
-    const int32_t w = 14, hinge = 7;
-    const double step = 0.04, h = 0.001;
-    const std::vector<Triangle> tris = MakeGridTriangles(w, w);
-    const std::vector<Vec3> rest = SpacedGrid(w, w, step);
-    std::vector<Vec3> x0, x1;
-    testing::FallingUFold(w, hinge, step, 0.01, 0.05, rng, &x0, &x1);
-    ConeCheck(rest, x0, x1, tris, h, "falling", &reference_hits, &culled);
+    const MotionCase m = FallingFold(rng);
+    ConeCheck(m.rest, m.x0, m.x1, m.tris, m.thickness, "falling", &reference_hits, &culled);
   }
   // A strip twisted by a full turn along its length, twisting further in the step.
   {

@@ -132,13 +132,20 @@ TEST(ClothPatchTest, ARigidlyMovingClothIsFollowedExactly) {
   EXPECT_LT(patch.MaxDistanceFrom(s), tau * velocity.norm() + 1e-7);
 }
 
+// Places `patch`'s one window around particle (10, 10) of snapshot s at t = 0 (a 1 ms tick) and
+// returns that particle.
+int32_t PlaceAroundCentre(const ClothModel& model, const ClothSnapshot& s, ClothPatch* patch) {
+  const int32_t centre = At(model, 10, 10);
+  const std::vector<int32_t> centres = {centre};
+  patch->Place(centres, s, 0.0, 1e-3);
+  return centre;
+}
+
 TEST(ClothPatchTest, AContactSpringPushesTheFreeParticlesAndTheRingsStayWithTheDrive) {
   const ClothModel model = RestingSheet();
   const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
   ClothPatch patch(model, 4, 1);
-  const int32_t centre = At(model, 10, 10);
-  const std::vector<int32_t> centres = {centre};
-  patch.Place(centres, s, 0.0, 1e-3);
+  const int32_t centre = PlaceAroundCentre(model, s, &patch);
   // A hand 2 cm behind the centre particle pressing from the +z side (world), sphere radius 4 mm.
   const int32_t tri = TriangleFrom(model, centre);
   ASSERT_GE(tri, 0);
@@ -271,9 +278,7 @@ TEST(ClothPatchTest, ThePatchSweepsToItsOwnLengthAndTheSimIgnoresIt) {
   const auto pressed_stretch = [](const ClothModel& model) {
     const ClothSnapshot s = SnapshotOf(model, MakeClothState(model));
     ClothPatch patch(model, 4, 1);
-    const int32_t centre = At(model, 10, 10);
-    const std::vector<int32_t> centres = {centre};
-    patch.Place(centres, s, 0.0, 1e-3);
+    const int32_t centre = PlaceAroundCentre(model, s, &patch);
     const int32_t tri = TriangleFrom(model, centre);
     ExternalForce press = PressBehind(model, tri, centre);
     press.max_force_N = 5.0;
