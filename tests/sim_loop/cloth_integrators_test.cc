@@ -10,6 +10,7 @@
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_internal.h"
 #include "tests/sim_loop/cloth_test_util.h"
+#include "tests/test_env.h"
 
 namespace felt {
 namespace {
@@ -158,7 +159,8 @@ EnergyRun SwingEnergy(IntegratorKind kind) {
   const double e0 = TotalEnergy(model, state);
   EnergyRun run{0.0, 0.0, 0.0};
   double first = 0.0, last = 0.0;
-  constexpr int kFrames = 600;
+  // Ten seconds; three under a sanitizer (tests/test_env.h): the same paths, a shorter swing.
+  const int kFrames = testing::Sanitized() ? 180 : 600;
   for (int f = 0; f < kFrames; ++f) {
     StepFrame(model, {}, 1.0 / 60.0, &state);
     const double e = TotalEnergy(model, state);

@@ -107,15 +107,15 @@ TEST(SelfCollisionScene, BothCullingMethodsKeepTheFoldDropClean) {
        {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
     SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
     spec.self_collision->method = method;
-    const SelfRun run = RunSelfScene(spec, 60);
+    const SelfRun run = RunSelfScene(spec, kSelfFrames / 2);
     EXPECT_EQ(run.max_intersections, 0) << SelfCullingMethodName(method);
   }
 }
 
 TEST(SelfCollisionScene, ResponseIsDeterministic) {
   const SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
-  const SelfRun a = RunSelfScene(spec, 60);
-  const SelfRun b = RunSelfScene(spec, 60);
+  const SelfRun a = RunSelfScene(spec, kSelfFrames / 2);
+  const SelfRun b = RunSelfScene(spec, kSelfFrames / 2);
   ASSERT_EQ(a.final_state.x.size(), b.final_state.x.size());
   for (size_t p = 0; p < a.final_state.x.size(); ++p) {
     ASSERT_EQ(a.final_state.x[p], b.final_state.x[p]) << p;  // bit for bit
