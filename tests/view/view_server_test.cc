@@ -4,9 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstring>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "server/server.h"
 #include "tests/server/server_test_util.h"
@@ -124,6 +126,12 @@ TEST(ViewServer, FramesCarryTheClothAndTheDevicesExactly) {
   EXPECT_EQ(ViewF32(frame.payload, dev + 40), static_cast<float>(body.num_contacts));
   EXPECT_EQ(ViewF32(frame.payload, dev + 4 * (12 + 6)),
             static_cast<float>(body.contacts[0].triangle));
+  // The sender counts a frame once its write has returned, which may be after the client has read
+  // it (a release run in CI read 0 here): wait for the count, up to 5 s.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (view.stats().frames_sent < 1u && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
   EXPECT_GE(view.stats().frames_sent, 1u);
 }
 
