@@ -98,7 +98,7 @@ test-asan: deps
 	cmake -S . -B $(BUILD)-asan -G Ninja $(SAN_FLAGS) -DFELT_SANITIZE=address -DFELT_TEST_MODULES= \
 	  $(CMAKE_FLAGS)
 	cmake --build $(BUILD)-asan -j $(JOBS)
-	cd $(BUILD)-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
+	cd $(BUILD)-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:handle_sigill=1 \
 	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 FELT_SANITIZER=address \
 	  ctest --output-on-failure -j $(JOBS)
 
