@@ -140,7 +140,10 @@ TEST(ServerThreads, InjectedSimStallIsFlaggedWhileTheHapticLoopRuns) {
   server.Stop();
   EXPECT_FALSE(r->sim_stalled);  // the sim came back
   EXPECT_GT(r->body_ticks - ticks_at_flag, 50u);
-  EXPECT_GT(r->sim_stalled_ticks, 100u);
+  // About 200 ticks at 1 kHz (the 300 ms stall less the 100 ms limit, plus the last frame's age);
+  // at least half of them, a quarter under a sanitizer, whose ticks are slower (a TSan run in CI
+  // counted 98 on the loaded 2-core machine). Not a loop-timing target: `felt bench loops` is.
+  EXPECT_GT(r->sim_stalled_ticks, testing::Sanitized() ? 50u : 100u);
   EXPECT_GT(server.sim_frames(), frames_before);
   // The blocked frame overran and its periods were skipped (recorded once the loop woke again).
   EXPECT_GE(server.Report()->sim.overruns, 1u);
