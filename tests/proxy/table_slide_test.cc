@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -143,9 +144,9 @@ SlideRun Slide(const std::string& scene, SnapshotMode mode, double stiffness_N_p
 void ExpectSlideStaysOutside(const std::string& scene, int sanitized_half) {
   const SnapshotMode modes[] = {SnapshotMode::kNewest, SnapshotMode::kBlendForces,
                                 SnapshotMode::kInterpolate, SnapshotMode::kExtrapolate};
-  for (int m = 0; m < 4; ++m) {
+  for (size_t m = 0; m < std::size(modes); ++m) {
     const SnapshotMode mode = modes[m];
-    if (testing::Sanitized() && m % 2 != sanitized_half) continue;
+    if (testing::Sanitized() && static_cast<int>(m % 2) != sanitized_half) continue;
     for (double k : {100.0, 200.0, 400.0}) {
       if (testing::Sanitized() && k != 400.0) continue;
       const SlideRun run = Slide(scene, mode, k);
