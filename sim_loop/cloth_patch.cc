@@ -474,6 +474,14 @@ WindowSoa WindowArrays(float* single, size_t stride, int32_t base, const PatchWi
 
 // One window's spring and constraint passes, built by Layout from the window's shape (PairRange)
 // and used by every substep until the windows change.
+// A long range attachment inside a window (ClothPatch::BuildAttachments): the free particle at
+// local index `local` stays within max_m of the pin at local index `pin`.
+struct PatchAttachment {
+  int32_t local = 0;
+  int32_t pin = 0;
+  float max_m = 0.0f;  // (1 + max_elongation) * rest distance, m (single precision, as the sim's)
+};
+
 struct WindowPasses {
   std::array<SpringPass, 16> springs;
   int32_t num_springs = 0;
@@ -544,6 +552,12 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
   for (size_t i = 0; i < model.provot_families.size(); ++i) {
     if (model.provot_families[i].level == 1) level1_.push_back(static_cast<int32_t>(i));
   }
+  attach_.resize(model.attachments.size());
+  attach_start_.assign(n + 1, 0);
+  for (const PinAttachment& at : model.attachments)
+    ++attach_start_[static_cast<size_t>(at.particle) + 1];
+  for (size_t p = 0; p < n; ++p) attach_start_[p + 1] += attach_start_[p];
+  attach_base_.assign(static_cast<size_t>(max_windows) + 1, 0);
 }
 
 ClothPatch::~ClothPatch() = default;
@@ -686,6 +700,31 @@ void ClothPatch::Layout() {
   base_[window_count_] = next;
   locals_ = next;
   drive_loaded_ = false;
+  BuildAttachments();
+}
+
+void ClothPatch::BuildAttachments() {
+  // The model's attachments (particle by particle, ranks in order) of each window's free
+  // particles whose pin lies in the same window. A pin outside it reaches the window through the
+  // driven rings, which follow the 60 Hz cloth that holds its attachments; a pin inside has only
+  // the window's few sweeps to hold the particles near it (the slow propagation the attachments
+  // exist for: Kim, Chentanez & Mueller 2012).
+  int32_t next = 0;
+  for (size_t k = 0; k < window_count_; ++k) {
+    attach_base_[k] = next;
+    const int32_t first = base_[k], last = base_[k + 1];
+    for (int32_t l = first; l < last; ++l) {
+      const int32_t p = global_[l];
+      if (p < 0 || !(D(kFree)[l] > 0.0)) continue;
+      for (int32_t i = attach_start_[p]; i < attach_start_[p + 1]; ++i) {
+        const PinAttachment& at = model_.attachments[static_cast<size_t>(i)];
+        const int32_t q = local_[at.pin];
+        if (q < first || q >= last) continue;  // outside this window
+        attach_[static_cast<size_t>(next++)] = {l, q, static_cast<float>(at.max_length_m)};
+      }
+    }
+  }
+  attach_base_[window_count_] = next;
 }
 
 void ClothPatch::LoadDrive(const ClothSnapshot& drive) {
@@ -877,6 +916,21 @@ void ClothPatch::ApplyProvotToWindows(double h) {
       float* __restrict px = w.p[a];
       const double o = x[0];
       for (int32_t l = 0; l < w.count; ++l) px[l] = static_cast<float>(x[l] - o);
+    }
+    // The attachments to the window's pins first, as ApplyProvot (Kim, Chentanez & Mueller 2012:
+    // each particle back into the ball around its pin; ProjectAttachments' arithmetic).
+    for (int32_t i = attach_base_[k]; i < attach_base_[k + 1]; ++i) {
+      const PatchAttachment& at = attach_[static_cast<size_t>(i)];
+      const int32_t l = at.local - base, q = at.pin - base;
+      const float dx = w.p[0][l] - w.p[0][q], dy = w.p[1][l] - w.p[1][q],
+                  dz = w.p[2][l] - w.p[2][q];
+      const float len2 = dx * dx + dy * dy + dz * dz;
+      if (len2 <= at.max_m * at.max_m) continue;
+      const float len = std::sqrt(len2);
+      const float scale = (len - at.max_m) / len;
+      w.p[0][l] -= scale * dx;
+      w.p[1][l] -= scale * dy;
+      w.p[2][l] -= scale * dz;
     }
     const WindowPasses& passes = passes_[k];
     for (int32_t it = 0; it < model_.patch_provot_iterations; ++it) {

@@ -12,10 +12,12 @@
 // pinned particles. The inner particles are free: integrated with the cloth's own forces (the
 // model's springs, gravity, drag), the haptic contact springs of the last tick (the same unilateral
 // sphere the sim integrates: sim_loop/cloth_coupling.h), Provot's structural and shear limits
-// (000_25210a744b053ca5.txt slide 9, Gauss-Seidel over the window's pairs, driven ends fixed), and
-// the scene's obstacles (projection to the margin, inward velocity removed). The integrator is
-// leapfrog Verlet (001_0f9f1b7fedff7723.txt §3.5, kick-drift-kick as sim_loop's), at substeps no
-// longer than the cloth's nominal one (and the contact spring's stability bound).
+// (000_25210a744b053ca5.txt slide 9, Gauss-Seidel over the window's pairs, driven ends fixed),
+// after the long range attachments to the pins inside the window (Kim, Chentanez & Mueller 2012,
+// as the sim's ApplyProvot), and the scene's obstacles (projection to the margin, inward velocity
+// removed). The integrator is leapfrog Verlet (001_0f9f1b7fedff7723.txt §3.5, kick-drift-kick as
+// sim_loop's), at substeps no longer than the cloth's nominal one (and the contact spring's
+// stability bound).
 //
 // A window edge on the cloth's own edge has nothing beyond it, so its rings there are free. Windows
 // that overlap or come within two particles of each other (so that a spring joins them) are merged
@@ -50,6 +52,7 @@ namespace felt {
 
 struct CouplingSprings;  // sim_loop/cloth_coupling.h (internal to sim_loop)
 struct WindowPasses;     // sim_loop/cloth_patch.cc
+struct PatchAttachment;  // sim_loop/cloth_patch.cc
 
 /// A rectangle of the cloth's grid, columns col0..col1 and rows row0..row1 inclusive.
 struct PatchWindow {
@@ -174,6 +177,7 @@ class ClothPatch {
   void StorePositions(Vec3* x) const;
   void SubstepForces(std::span<const Vec3> positions);
   void ApplyProvotToWindows(double h);
+  void BuildAttachments();
   void ApplyObstaclesToWindows();
   bool AllFinite() const;
   void RestartFromDrive(double tau_s);
@@ -217,6 +221,11 @@ class ClothPatch {
   bool drive_loaded_ = false;
   std::vector<double> f_;        // [3 n] AddCouplingForces' output, zero between uses
   std::vector<int32_t> level1_;  // indices of model_.provot_families with level 1
+  // The long range attachments of free window particles to pins in the same window (Layout):
+  // window k's are [attach_base_[k], attach_base_[k + 1]); room for every attachment of the model.
+  std::vector<PatchAttachment> attach_;
+  std::vector<int32_t> attach_base_;   // [max_windows + 1]
+  std::vector<int32_t> attach_start_;  // [n + 1] CSR: model_.attachments of each particle
   double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
   double drive_distance_m_ = 0.0;             // DistanceFromDrive
   std::unique_ptr<CouplingSprings> springs_;  // the contact springs of the step

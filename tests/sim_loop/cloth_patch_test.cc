@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -313,6 +314,68 @@ TEST(ClothPatchTest, ThePatchSweepsToItsOwnLengthAndTheSimIgnoresIt) {
   }
   EXPECT_EQ(sa.x, sb.x);
   EXPECT_EQ(sa.v, sb.v);
+}
+
+// A 21 x 21 curtain without gravity, with or without long range attachments, its sweeps in the
+// patch off (patch_provot_iterations 0, set on the built model), whose every free particle starts
+// 30 cm in front of its rest place: each attachment is over its length (particle (5, 5), 0.395 m
+// from the top-right pin at rest, is 0.496 m from it; limit 0.435 m). One 1 ms step of a radius-4
+// window around particle (3, 3): columns and rows 0..7, of which 0..5 free (the window ends on the
+// cloth's edges), the top-left pin inside, the top-right outside.
+struct DisplacedStep {
+  std::unique_ptr<ClothModel> model;  // the patch keeps a reference: it lives here
+  std::unique_ptr<ClothPatch> patch;
+};
+DisplacedStep StepDisplacedCorner(bool attachments) {
+  SimSpec spec = Curtain(21);
+  spec.cloth.gravity_m_per_s2 = Vec3::Zero();
+  spec.provot.long_range_attachments = attachments;
+  DisplacedStep out;
+  out.model = std::make_unique<ClothModel>(BuildClothModel(spec));
+  const ClothModel& model = *out.model;
+  out.model->patch_provot_iterations = 0;
+  ClothState state = MakeClothState(model);
+  for (int32_t p = 0; p < model.num_particles(); ++p) {
+    if (model.inv_mass_per_kg[p] > 0.0) state.x[p].z() += 0.3;
+  }
+  const ClothSnapshot s = SnapshotOf(model, state);
+  out.patch = std::make_unique<ClothPatch>(model, 4, 1);
+  const std::vector<int32_t> centre = {At(model, 3, 3)};
+  out.patch->Place(centre, s, 0.0, 1e-3);
+  out.patch->Step({}, 1e-3, s, 1e-3);
+  return out;
+}
+
+// Long range attachments in the patch: a free window particle is held within its attachment's
+// length of a pin in its own window (applied before the sweeps, as ApplyProvot; with the sweeps
+// off the bound is exact to single precision), and not of a pin outside it (the driven rings
+// carry that one); a model without attachments leaves them over.
+TEST(ClothPatchTest, AttachmentsHoldTheFreeParticlesToTheWindowsOwnPins) {
+  const DisplacedStep with = StepDisplacedCorner(true);
+  ASSERT_EQ(with.patch->windows().size(), 1u);
+  const PatchRole* roles = with.patch->roles();
+  const Vec3* x = with.patch->x();
+  int32_t held = 0, over_outside = 0;
+  for (const PinAttachment& at : with.model->attachments) {
+    if (roles[at.particle] != PatchRole::kFree) continue;
+    if (roles[at.pin] == PatchRole::kOutside) {  // the patch's x() is the windows' only
+      const double d = (x[at.particle] - with.model->rest_position_m[at.pin]).norm();
+      over_outside += d > at.max_length_m ? 1 : 0;
+    } else {
+      const double d = (x[at.particle] - x[at.pin]).norm();
+      EXPECT_LE(d, at.max_length_m * (1.0 + 1e-6)) << "particle " << at.particle;
+      ++held;
+    }
+  }
+  EXPECT_EQ(held, 35);         // every free window particle (6 x 6 less the pin), to its pin
+  EXPECT_GT(over_outside, 0);  // the top-right pin is outside the window: not applied
+  const DisplacedStep without = StepDisplacedCorner(false);
+  int32_t over = 0;
+  for (const PinAttachment& at : with.model->attachments) {
+    if (roles[at.particle] != PatchRole::kFree || roles[at.pin] == PatchRole::kOutside) continue;
+    over += (without.patch->x()[at.particle] - without.patch->x()[at.pin]).norm() > at.max_length_m;
+  }
+  EXPECT_EQ(over, 35);
 }
 
 }  // namespace
