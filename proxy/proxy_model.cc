@@ -82,7 +82,7 @@ ProxyModel CompileProxyModel(const DeviceSpec& device, const ProxySpec& proxy) {
   m.obstacles = proxy.obstacles;
   m.snapshot_mode = proxy.snapshot_mode;
   m.candidate_capacity = proxy.candidate_capacity;
-  m.predict_hand = proxy.snapshot_mode == SnapshotMode::kPatch;
+  m.predict_hand = proxy.predict_hand && proxy.snapshot_mode == SnapshotMode::kPatch;
   return m;
 }
 

@@ -49,8 +49,9 @@ struct ProxyModel {
   SnapshotMode snapshot_mode = SnapshotMode::kNewest;  ///< which cloth each tick runs against
   int32_t candidate_capacity = 0;  ///< triangles gathered per tick (ProxyState's size), >= 1
   /// The sim's contact spring moves with the device's velocity over its frame
-  /// (ExternalForce::anchor_velocity_m_per_s): on in mode patch, where the 60 Hz cloth drives the
-  /// patch's rings and must keep up with a fast hand (issue 20).
+  /// (ExternalForce::anchor_velocity_m_per_s): ProxySpec::predict_hand, in mode patch only (where
+  /// the 60 Hz cloth drives the patch's rings); off by default (docs/proxy.md, "The hand over the
+  /// frame").
   bool predict_hand = false;
 
   /// Device position [m, device frame] to world [m] (MapDeviceToWorld, as DeviceToWorld).

@@ -159,7 +159,7 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
   if (!table) return p;
   table->ExpectKeys({"force_shading", "friction_static", "friction_dynamic", "snapshot_mode",
                      "max_iterations", "candidate_capacity", "collision_structure", "patch_radius",
-                     "patch_follow"});
+                     "patch_follow", "predict_hand"});
   p.force_shading = table->Bool("force_shading", p.force_shading);
   p.friction_static = table->Number("friction_static", p.friction_static, NonNegative());
   p.friction_dynamic = table->Number("friction_dynamic", p.friction_dynamic, NonNegative());
@@ -173,6 +173,7 @@ ProxySpec ParseProxySpec(const SceneDocument& doc) {
   p.patch_radius =
       table->Integer("patch_radius", p.patch_radius, InRange(kMinPatchRadius, kMaxPatchRadius));
   p.patch_follow = table->Integer("patch_follow", p.patch_follow, InRange(1, p.patch_radius));
+  p.predict_hand = table->Bool("predict_hand", p.predict_hand);
   p.max_iterations =
       table->Integer("max_iterations", p.max_iterations, InRange(1, kMaxProxyIterations));
   p.candidate_capacity = table->Integer("candidate_capacity", p.candidate_capacity,

@@ -96,6 +96,12 @@ struct ProxySpec {
   /// (Chebyshev) from the window's centre, in [1, patch_radius] (kPatchDefaultFollow: 2, by
   /// measurement, docs/proxy.md "Where"); unused by the other modes.
   int32_t patch_follow = kPatchDefaultFollow;
+  /// Mode patch: the sim's contact spring moves with the device's velocity over its frame (a
+  /// first-order prediction of the hand: ProxyModel::predict_hand). Off by default: the
+  /// instantaneous velocity of a vibrating or trembling hand, carried over a 16.7 ms frame, moves
+  /// the 60 Hz cloth that drives the patch's rings by centimetres (docs/proxy.md, "The hand over
+  /// the frame"); unused by the other modes.
+  bool predict_hand = false;
   int32_t max_iterations = 10;  ///< sweep/solve rounds per pass within one tick, >= 1
   /// Triangles near the proxy gathered per tick (sized once in the proxy state), >= 16. A tick
   /// that finds more is counted (ProxyCounters::overflow_ticks) and uses the first ones found.

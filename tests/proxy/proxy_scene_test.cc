@@ -4,6 +4,8 @@
 
 #include <string>
 
+#include "proxy/proxy_model.h"
+
 namespace felt {
 namespace {
 
@@ -36,6 +38,8 @@ TEST(ProxySceneTest, DefaultsWhenSectionsAreAbsent) {
   const ProxySpec p = ParseProxySpec(doc);
   EXPECT_TRUE(p.force_shading);
   EXPECT_EQ(p.friction_static, 0.0);
+  EXPECT_FALSE(p.predict_hand);
+  EXPECT_FALSE(CompileProxyModel(d, p).predict_hand);
   EXPECT_EQ(CollisionStructureName(p.structure), "bvh-aabb-4-bottomup");  // the fastest (README-collision)
   const std::vector<DeviceSpec> all = ParseDeviceSpecs(doc);
   ASSERT_EQ(all.size(), 1u);
@@ -62,6 +66,7 @@ snapshot_mode = "blend_forces"
 max_iterations = 7
 candidate_capacity = 64
 collision_structure = "bvh-aabb-2-topdown"
+predict_hand = true
 )",
                                            "full.toml");
   const DeviceSpec d = ParseDeviceSpec(doc);
@@ -82,6 +87,12 @@ collision_structure = "bvh-aabb-2-topdown"
   EXPECT_EQ(p.max_iterations, 7);
   EXPECT_EQ(p.candidate_capacity, 64);
   EXPECT_EQ(CollisionStructureName(p.structure), "bvh-aabb-2-topdown");
+  EXPECT_TRUE(p.predict_hand);
+  // The prediction is mode patch's only.
+  EXPECT_FALSE(CompileProxyModel(d, p).predict_hand);
+  ProxySpec patch = p;
+  patch.snapshot_mode = SnapshotMode::kPatch;
+  EXPECT_TRUE(CompileProxyModel(d, patch).predict_hand);
 }
 
 TEST(ProxySceneTest, RotationMatrixAndDevicesList) {
@@ -147,6 +158,8 @@ TEST(ProxySceneTest, EveryErrorNamesFileLineColumnFieldAndRule) {
             "test.toml:3:1: proxy.patch_follow: must be in [1, 5], got 6");
   EXPECT_EQ(ProxyError("[proxy]\npatch_follow = 0\n"),
             "test.toml:2:1: proxy.patch_follow: must be in [1, 8], got 0");
+  EXPECT_EQ(ProxyError("[proxy]\npredict_hand = 1\n"),
+            "test.toml:2:1: proxy.predict_hand: must be true or false, got an integer 1");
   EXPECT_NE(ProxyError("[proxy]\ncollision_structure = \"bvh-sphere-3\"\n")
                 .find("test.toml:2:1: proxy.collision_structure: unknown value 'bvh-sphere-3' "
                       "(did you mean 'bvh-sphere-2'?)"),
