@@ -472,8 +472,6 @@ WindowSoa WindowArrays(float* single, size_t stride, int32_t base, const PatchWi
 
 }  // namespace
 
-// One window's spring and constraint passes, built by Layout from the window's shape (PairRange)
-// and used by every substep until the windows change.
 // A long range attachment inside a window (ClothPatch::BuildAttachments): the free particle at
 // local index `local` stays within max_m of the pin at local index `pin`.
 struct PatchAttachment {
@@ -482,6 +480,8 @@ struct PatchAttachment {
   float max_m = 0.0f;  // (1 + max_elongation) * rest distance, m (single precision, as the sim's)
 };
 
+// One window's spring and constraint passes, built by Layout from the window's shape (PairRange)
+// and used by every substep until the windows change.
 struct WindowPasses {
   std::array<SpringPass, 16> springs;
   int32_t num_springs = 0;
