@@ -148,15 +148,7 @@ bool SweepFamilyPortable(const ProvotSoa& a, int32_t width, const ProvotFamily& 
 void ProjectAttachments(const ProvotSoa& a, const int32_t* pin, const float* max_len, size_t lo,
                         size_t hi) {
   for (size_t p = lo; p < hi; ++p) {
-    const size_t q = static_cast<size_t>(pin[p]);
-    const float dx = a.x[p] - a.x[q], dy = a.y[p] - a.y[q], dz = a.z[p] - a.z[q];
-    const float len2 = dx * dx + dy * dy + dz * dz;
-    if (len2 <= max_len[p] * max_len[p]) continue;
-    const float len = std::sqrt(len2);
-    const float scale = (len - max_len[p]) / len;
-    a.x[p] -= scale * dx;
-    a.y[p] -= scale * dy;
-    a.z[p] -= scale * dz;
+    ProjectIntoBall(a.x, a.y, a.z, p, static_cast<size_t>(pin[p]), max_len[p]);
   }
 }
 

@@ -5,6 +5,8 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <array>
+#include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -116,6 +118,20 @@ inline ProvotSoaArrays ProvotSoaIn(std::vector<float>* soa, size_t n) {
   float* const x = OnCacheLine(soa->data());
   const size_t stride = ProvotSoaStride(n) / 16 * 16;
   return {x, x + stride, x + 2 * stride};
+}
+
+/// A long range attachment (Kim, Chentanez & Mueller 2012) in single-precision arrays x, y, z [m]:
+/// particle p, if outside the ball of radius max_len [m] around particle q, goes back onto it; q
+/// (a pin) does not move. ApplyProvot's scalar path and the haptic patch's windows.
+inline void ProjectIntoBall(float* x, float* y, float* z, size_t p, size_t q, float max_len) {
+  const float dx = x[p] - x[q], dy = y[p] - y[q], dz = z[p] - z[q];
+  const float len2 = dx * dx + dy * dy + dz * dz;
+  if (len2 <= max_len * max_len) return;
+  const float len = std::sqrt(len2);
+  const float scale = (len - max_len) / len;
+  x[p] -= scale * dx;
+  y[p] -= scale * dy;
+  z[p] -= scale * dz;
 }
 
 /// Accelerations [m/s^2] at positions x and velocities v: gravity, drag, springs, and the frame's

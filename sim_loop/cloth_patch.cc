@@ -553,10 +553,6 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
     if (model.provot_families[i].level == 1) level1_.push_back(static_cast<int32_t>(i));
   }
   attach_.resize(model.attachments.size());
-  attach_start_.assign(n + 1, 0);
-  for (const PinAttachment& at : model.attachments)
-    ++attach_start_[static_cast<size_t>(at.particle) + 1];
-  for (size_t p = 0; p < n; ++p) attach_start_[p + 1] += attach_start_[p];
   attach_base_.assign(static_cast<size_t>(max_windows) + 1, 0);
 }
 
@@ -704,11 +700,12 @@ void ClothPatch::Layout() {
 }
 
 void ClothPatch::BuildAttachments() {
-  // The model's attachments (particle by particle, ranks in order) of each window's free
-  // particles whose pin lies in the same window. A pin outside it reaches the window through the
-  // driven rings, which follow the 60 Hz cloth that holds its attachments; a pin inside has only
-  // the window's few sweeps to hold the particles near it (the slow propagation the attachments
-  // exist for: Kim, Chentanez & Mueller 2012).
+  // The model's attachments (its dense ranks, ClothModel::attachment_pin, in rank order) of each
+  // window's free particles whose pin lies in the same window. A pin outside it reaches the window
+  // through the driven rings, which follow the 60 Hz cloth that holds its attachments; a pin inside
+  // has only the window's few sweeps to hold the particles near it (the slow propagation the
+  // attachments exist for: Kim, Chentanez & Mueller 2012).
+  const size_t n = static_cast<size_t>(model_.num_particles());
   int32_t next = 0;
   for (size_t k = 0; k < window_count_; ++k) {
     attach_base_[k] = next;
@@ -716,11 +713,11 @@ void ClothPatch::BuildAttachments() {
     for (int32_t l = first; l < last; ++l) {
       const int32_t p = global_[l];
       if (p < 0 || !(D(kFree)[l] > 0.0)) continue;
-      for (int32_t i = attach_start_[p]; i < attach_start_[p + 1]; ++i) {
-        const PinAttachment& at = model_.attachments[static_cast<size_t>(i)];
-        const int32_t q = local_[at.pin];
+      for (int32_t r = 0; r < model_.attachment_ranks; ++r) {
+        const size_t slot = static_cast<size_t>(r) * n + static_cast<size_t>(p);
+        const int32_t q = local_[model_.attachment_pin[slot]];
         if (q < first || q >= last) continue;  // outside this window
-        attach_[static_cast<size_t>(next++)] = {l, q, static_cast<float>(at.max_length_m)};
+        attach_[static_cast<size_t>(next++)] = {l, q, model_.attachment_max_m[slot]};
       }
     }
   }
@@ -921,16 +918,8 @@ void ClothPatch::ApplyProvotToWindows(double h) {
     // each particle back into the ball around its pin; ProjectAttachments' arithmetic).
     for (int32_t i = attach_base_[k]; i < attach_base_[k + 1]; ++i) {
       const PatchAttachment& at = attach_[static_cast<size_t>(i)];
-      const int32_t l = at.local - base, q = at.pin - base;
-      const float dx = w.p[0][l] - w.p[0][q], dy = w.p[1][l] - w.p[1][q],
-                  dz = w.p[2][l] - w.p[2][q];
-      const float len2 = dx * dx + dy * dy + dz * dz;
-      if (len2 <= at.max_m * at.max_m) continue;
-      const float len = std::sqrt(len2);
-      const float scale = (len - at.max_m) / len;
-      w.p[0][l] -= scale * dx;
-      w.p[1][l] -= scale * dy;
-      w.p[2][l] -= scale * dz;
+      ProjectIntoBall(w.p[0], w.p[1], w.p[2], static_cast<size_t>(at.local - base),
+                      static_cast<size_t>(at.pin - base), at.max_m);
     }
     const WindowPasses& passes = passes_[k];
     for (int32_t it = 0; it < model_.patch_provot_iterations; ++it) {

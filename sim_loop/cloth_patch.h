@@ -224,8 +224,7 @@ class ClothPatch {
   // The long range attachments of free window particles to pins in the same window (Layout):
   // window k's are [attach_base_[k], attach_base_[k + 1]); room for every attachment of the model.
   std::vector<PatchAttachment> attach_;
-  std::vector<int32_t> attach_base_;   // [max_windows + 1]
-  std::vector<int32_t> attach_start_;  // [n + 1] CSR: model_.attachments of each particle
+  std::vector<int32_t> attach_base_;  // [max_windows + 1]
   double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
   double drive_distance_m_ = 0.0;             // DistanceFromDrive
   std::unique_ptr<CouplingSprings> springs_;  // the contact springs of the step
