@@ -198,44 +198,61 @@ TEST(ProxyTest, ModeAUsesTheNewestClothAndCatchesAFreeProxy) {
   }
 }
 
-TEST(ProxyTest, FlapClosingOnAProxyInItsFoldSqueezesItOutNeverThrough) {
-  // A sheet on z = 0 (x in [0, 0.1]) and a flap hinged to it along the y axis, (s cos a, y,
-  // s sin a). The pointer presses the sheet at x = 2 cm; the flap folds from 80 to 10 degrees in
-  // one frame. It catches the proxy (at 22.6 degrees) while the sheet carries it: riding the flap
-  // alone would put the proxy 0.5 mm under the sheet; it must come out of the fold instead.
-  const double r = 0.004;
-  auto flap_at = [](double deg) {
+// A sheet on z = 0 (x in [0, len]) and a flap hinged to it along the y axis, (s cos a, y, s sin a)
+// for s in [0, len], both 0.1 m wide, `cols` particles along x and 11 along y; the flap stands at
+// 80 degrees in frames 0-2 and at 10 degrees from frame 3 (closing in one frame).
+struct FoldingFlap {
+  double len = 0.1;  ///< face length, m
+  int32_t cols = 11;
+  TestMesh Flap(double deg) const {
     const double a = deg * M_PI / 180.0;
-    return GridMesh(11, 11, [a](double u, double v) {
-      return Vec3(0.1 * u * std::cos(a), (v - 0.5) * 0.1, 0.1 * u * std::sin(a));
+    const double l = len;
+    return GridMesh(cols, 11, [a, l](double u, double v) {
+      return Vec3(l * u * std::cos(a), (v - 0.5) * 0.1, l * u * std::sin(a));
     });
-  };
-  const TestMesh sheet =
-      GridMesh(11, 11, [](double u, double v) { return Vec3(0.1 * u, (v - 0.5) * 0.1, 0.0); });
-  TestMesh both = sheet;
-  testing::Append(&both, flap_at(80.0));
+  }
+  TestMesh Sheet() const {
+    const double l = len;
+    return GridMesh(cols, 11,
+                    [l](double u, double v) { return Vec3(l * u, (v - 0.5) * 0.1, 0.0); });
+  }
+  /// The sheet then the flap at 80 degrees (the snapshots' triangles).
+  TestMesh Both() const {
+    TestMesh both = Sheet();
+    testing::Append(&both, Flap(80.0));
+    return both;
+  }
+  /// Frame f's positions into `s` (16 ms frames, at rest).
+  void Fill(uint64_t f, ClothSnapshot* s) const {
+    std::vector<Vec3> x = Sheet().x;
+    const TestMesh flap = Flap(f < 3 ? 80.0 : 10.0);
+    x.insert(x.end(), flap.x.begin(), flap.x.end());
+    testing::Refill(x, std::vector<Vec3>(x.size(), Vec3::Zero()), f, f * 0.016, 0.016, s);
+  }
+};
+
+TEST(ProxyTest, FlapClosingOnAProxyInItsFoldSqueezesItOutNeverThrough) {
+  // A sheet on z = 0 (x in [0, 0.1]) and a flap hinged to it along the y axis (FoldingFlap). The
+  // pointer presses the sheet at x = 2 cm; the flap folds from 80 to 10 degrees in one frame. It
+  // catches the proxy (at 22.6 degrees) while the sheet carries it: riding the flap alone would put
+  // the proxy 0.5 mm under the sheet; it must come out of the fold instead.
+  const double r = 0.004;
+  const FoldingFlap fold{0.1, 11};
   const DeviceSpec d = UnitDevice(r);
   for (SnapshotMode mode : kAllModes) {
-    ClothSnapshot prev = Snap(both);
-    ClothSnapshot next = Snap(both);
+    ClothSnapshot prev = Snap(fold.Both());
+    ClothSnapshot next = Snap(fold.Both());
     const ProxySpec p = Spec(mode, true);
     const ProxyModel pm = CompileProxyModel(d, p);
     ProxyState st = MakeProxyState(pm);
-    auto angle = [](uint64_t f) { return f < 3 ? 80.0 : 10.0; };
-    auto fill = [&](ClothSnapshot* s, uint64_t f) {
-      std::vector<Vec3> x = sheet.x;
-      const TestMesh flap = flap_at(angle(f));
-      x.insert(x.end(), flap.x.begin(), flap.x.end());
-      testing::Refill(x, std::vector<Vec3>(x.size(), Vec3::Zero()), f, f * 0.016, 0.016, s);
-    };
-    fill(&prev, 0);
-    fill(&next, 1);
+    fold.Fill(0, &prev);
+    fold.Fill(1, &next);
     uint64_t frame = 1;
     ProxyTickResult r_last;
     for (int k = 0; k < 16 * 8; ++k) {
       if (k > 0 && k % 16 == 0) {
         std::swap(prev, next);
-        fill(&next, ++frame);
+        fold.Fill(++frame, &next);
       }
       // Down from 1 cm above the sheet to 2 mm into it, then held.
       const double gz = std::max(-0.002, 0.01 - 0.001 * k);
@@ -693,36 +710,21 @@ TEST(ProxyTest, ShortFlapClosingOnAProxySqueezesItOutPastTheFoldsEdges) {
   // closed flap in modes newest, blend_forces and extrapolate.
   const double r = 0.004;
   const double len = 0.02;
-  auto flap_at = [len](double deg) {
-    const double a = deg * M_PI / 180.0;
-    return GridMesh(5, 11, [a, len](double u, double v) {
-      return Vec3(len * u * std::cos(a), (v - 0.5) * 0.1, len * u * std::sin(a));
-    });
-  };
-  const TestMesh sheet =
-      GridMesh(5, 11, [len](double u, double v) { return Vec3(len * u, (v - 0.5) * 0.1, 0.0); });
-  TestMesh both = sheet;
-  testing::Append(&both, flap_at(80.0));
+  const FoldingFlap fold{len, 5};
   const DeviceSpec d = UnitDevice(r);
   for (SnapshotMode mode : kAllModes) {
-    ClothSnapshot prev = Snap(both);
-    ClothSnapshot next = Snap(both);
+    ClothSnapshot prev = Snap(fold.Both());
+    ClothSnapshot next = Snap(fold.Both());
     const ProxyModel pm = CompileProxyModel(d, Spec(mode, true));
     ProxyState st = MakeProxyState(pm);
-    auto fill = [&](ClothSnapshot* s, uint64_t f) {
-      std::vector<Vec3> x = sheet.x;
-      const TestMesh flap = flap_at(f < 3 ? 80.0 : 10.0);
-      x.insert(x.end(), flap.x.begin(), flap.x.end());
-      testing::Refill(x, std::vector<Vec3>(x.size(), Vec3::Zero()), f, f * 0.016, 0.016, s);
-    };
-    fill(&prev, 0);
-    fill(&next, 1);
+    fold.Fill(0, &prev);
+    fold.Fill(1, &next);
     uint64_t frame = 1;
     Vec3 q = Vec3::Zero();
     for (int k = 0; k < 16 * 8; ++k) {
       if (k > 0 && k % 16 == 0) {
         std::swap(prev, next);
-        fill(&next, ++frame);
+        fold.Fill(++frame, &next);
       }
       // Down from 1 cm above the sheet's middle to 2 mm into it, then held.
       const double gz = std::max(-0.002, 0.01 - 0.001 * k);
