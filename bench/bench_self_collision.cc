@@ -1,7 +1,8 @@
-// `felt bench self-collision [--quick] [--grids 32,64,128] [--frames N] [--detect-grid G]
-// [--detect-frames N] [--out DIR] [--json F]`: the cost and the result of the self-collision
-// response (issue 22; collision/self_response.h) on the fold-drop hard case
-// (scenes/self_fold_drop.toml) resized to grid x grid particles over a 0.3 m square: per culling
+// `felt bench self-collision [--quick] [--case fold_drop|curtain] [--grids 32,64,128] [--frames N]
+// [--detect-grid G] [--detect-frames N] [--out DIR] [--json F]`: the cost and the result of the
+// self-collision response (issue 22; collision/self_response.h) on the fold-drop hard case
+// (scenes/self_fold_drop.toml) resized to grid x grid particles over a 0.3 m square, or with
+// --case curtain on the haptic curtain (scenes/curtain.toml) at each grid: per culling
 // method and size, the detection's and the response's wall time per frame (median, p99), the
 // frame time with and without self-collision, the collisions the culled detection missed against
 // the all-pairs continuous reference (AllPairsCcd) on the same frames' motion, the pairs,
@@ -42,6 +43,10 @@ struct Args {
   std::string out = "bench/results";
   std::string json;
   std::string scene = "scenes/self_fold_drop.toml";
+  // "fold_drop" (the scene above on a 0.3 m square) or "curtain" (scenes/curtain.toml, the
+  // haptic curtain, at each grid over its own 0.496 m square, hanging from its two top corners
+  // and released from rest: issue 22's "64 x 64 curtain with self-collision on").
+  std::string case_name = "fold_drop";
   int32_t detect_grid = 150;                 // the ~45k-triangle detection row (0: none)
   int32_t detect_frames = 60;                // its frames
   int32_t passes_per_frame = 8;              // SelfCollisionSettings::passes_per_frame
@@ -116,17 +121,25 @@ void CompareWithReference(const ClothModel& model, const SelfCollisionResponse& 
   ++row->reference_frames;
 }
 
-// The fold-drop scene on a grid x grid cloth over a 0.3 m square; thickness min(2 mm, spacing/4).
-SimSpec SelfBenchSpec(const std::string& scene, int32_t grid, const std::string& method) {
-  SimSpec spec = ParseSimSpec(LoadSceneDocument(scene));
-  ClothSpec& c = spec.cloth;
-  const double particles_before = static_cast<double>(c.width) * c.height;
-  c.width = grid;
-  c.height = grid;
-  c.spacing_m = 0.3 / (grid - 1);
-  c.drag_N_s_per_m *= particles_before / (static_cast<double>(grid) * grid);
-  c.mass_kg = 0.17 * 0.3 * 0.3;  // 0.17 kg/m^2
-  c.origin_m = Vec3(-0.15, 0.016 + 0.3 * 0.955336, 0.0);
+// The case's scene on a grid x grid cloth: the fold drop over a 0.3 m square, or the curtain
+// resized as `felt bench cloth` does (bench/bench_util.h ResizedCurtain); thickness min(2 mm,
+// spacing / 4), the scene's other [self_collision] settings or the defaults.
+SimSpec SelfBenchSpec(const Args& args, int32_t grid, const std::string& method) {
+  SimSpec spec;
+  if (args.case_name == "curtain") {
+    spec = ResizedCurtain(args.scene, grid);
+  } else {
+    spec = ParseSimSpec(LoadSceneDocument(args.scene));
+    ClothSpec& c = spec.cloth;
+    const double particles_before = static_cast<double>(c.width) * c.height;
+    c.width = grid;
+    c.height = grid;
+    c.spacing_m = 0.3 / (grid - 1);
+    c.drag_N_s_per_m *= particles_before / (static_cast<double>(grid) * grid);
+    c.mass_kg = 0.17 * 0.3 * 0.3;  // 0.17 kg/m^2
+    c.origin_m = Vec3(-0.15, 0.016 + 0.3 * 0.955336, 0.0);
+  }
+  const ClothSpec& c = spec.cloth;
   if (method == "off") {
     spec.self_collision.reset();
   } else {
@@ -141,7 +154,7 @@ SimSpec SelfBenchSpec(const std::string& scene, int32_t grid, const std::string&
 // reference_every: the all-pairs comparison every that many frames (0: never).
 Row RunSelfBench(const Args& args, int32_t grid, const std::string& method, int32_t frames,
                  int32_t count_every, int32_t reference_every) {
-  const SimSpec spec = SelfBenchSpec(args.scene, grid, method);
+  const SimSpec spec = SelfBenchSpec(args, grid, method);
   ClothModel model = BuildClothModel(spec);
   model.self_collision.passes_per_frame = args.passes_per_frame;
   model.self_collision.broad_inflation = args.broad_inflation;
@@ -234,12 +247,18 @@ std::vector<std::string> ParseSelfMethods(const std::string& text, const std::st
   return methods;
 }
 
+// The scene a case reads unless --scene names another.
+std::string DefaultSelfScene(const std::string& case_name) {
+  return case_name == "curtain" ? "scenes/curtain.toml" : "scenes/self_fold_drop.toml";
+}
+
 std::string SelfCommand(const Args& args) {
   std::string cmd = "felt bench self-collision";
   if (args.quick) cmd += " --quick";
   if (args.grids != "32,64,128") cmd += " --grids " + args.grids;
   if (args.frames != 90) cmd += " --frames " + std::to_string(args.frames);
-  if (args.scene != "scenes/self_fold_drop.toml") cmd += " --scene " + args.scene;
+  if (args.case_name != "fold_drop") cmd += " --case " + args.case_name;
+  if (args.scene != DefaultSelfScene(args.case_name)) cmd += " --scene " + args.scene;
   if (args.out != "bench/results") cmd += " --out " + args.out;
   if (args.detect_grid != 150) cmd += " --detect-grid " + std::to_string(args.detect_grid);
   if (args.detect_frames != 60) cmd += " --detect-frames " + std::to_string(args.detect_frames);
@@ -360,7 +379,7 @@ int Run(Args args) {
                      std::to_string(r.overflows)});
     Json item{{"kind", r.kind},
               {"method", r.method},
-              {"case", "fold_drop"},
+              {"case", args.case_name},
               {"grid", r.grid},
               {"triangles", r.triangles},
               {"thickness_m", r.thickness_m},
@@ -402,10 +421,17 @@ int Run(Args args) {
   std::printf("\n%s", md_table.c_str());
   std::string md =
       ReportHeader("Self-collision response (`felt bench self-collision`)", cmd, machine, load_end);
+  const std::string case_text =
+      args.case_name == "curtain"
+          ? "Case `curtain`: " + args.scene +
+                " resized to grid x grid particles over its own 0.496 m square (as `felt bench "
+                "cloth`), hanging from its two top corners and released from rest in its plane "
+                "(it stays in that plane, swinging and crumpling there below its top edge), "
+          : "Case `fold_drop`: " + args.scene +
+                " resized to grid x grid particles over a 0.3 m square (0.17 kg/m^2, leaning 0.3 "
+                "rad, released 1.6 cm above the floor; it piles up in folds), ";
   md +=
-      "Case: scenes/self_fold_drop.toml resized to grid x grid particles over a 0.3 m square "
-      "(0.17 kg/m^2, leaning 0.3 rad, released 1.6 cm above the floor; it piles up in folds), " +
-      std::to_string(args.frames) +
+      case_text + std::to_string(args.frames) +
       " frames of 1/60 s (`response` rows; the `detection` rows, the ~45k-triangle cloth of "
       "issue 22's 4 ms detection target, " +
       std::to_string(args.detect_frames) +
@@ -444,7 +470,14 @@ app::CommandRun SelfSetup(CLI::App& cmd) {
   auto args = std::make_shared<Args>();
   cmd.add_option("--grids", args->grids, "comma-separated grid sizes")->capture_default_str();
   cmd.add_option("--frames", args->frames, "frames per run")->check(CLI::Range(1, 100000));
-  cmd.add_option("--scene", args->scene, "the fold-drop scene")->capture_default_str();
+  cmd.add_option("--case", args->case_name,
+                 "fold_drop (the fold-drop scene on a 0.3 m square) or curtain (the haptic "
+                 "curtain hanging from its top corners)")
+      ->check(CLI::IsMember({"fold_drop", "curtain"}))
+      ->capture_default_str();
+  auto* scene = cmd.add_option("--scene", args->scene,
+                               "the case's scene (default scenes/self_fold_drop.toml, or "
+                               "scenes/curtain.toml with --case curtain)");
   cmd.add_option("--out", args->out, "folder for self_collision.{md,csv}")->capture_default_str();
   cmd.add_option("--json", args->json, "JSON output file (default <out>/self_collision.json)");
   cmd.add_option("--detect-grid", args->detect_grid,
@@ -468,7 +501,10 @@ app::CommandRun SelfSetup(CLI::App& cmd) {
   cmd.add_flag("!--no-reference", args->reference,
                "skip the all-pairs reference (profiling; missed_vs_reference is not measured)");
   cmd.add_flag("--quick", args->quick, "grid 16, 20 frames (seconds; for CI): not a result");
-  return [args]() { return Run(*args); };
+  return [args, scene]() {
+    if (scene->count() == 0) args->scene = DefaultSelfScene(args->case_name);
+    return Run(*args);
+  };
 }
 
 const bool kRegistered = app::RegisterCommand(

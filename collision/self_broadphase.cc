@@ -478,6 +478,7 @@ void SelfBvh::BuildContours(std::span<const Vec3> x, const std::vector<int32_t>&
   constexpr int32_t kSelfConeMinTriangles = 2;
   const size_t nodes = left_.size();
   cone_.assign(nodes, Cone{});
+  fat_.assign(nodes, FatBound{});
   center_.assign(nodes, -1);
   contour_begin_.assign(nodes + 1, 0);
   contour_.clear();
@@ -542,6 +543,20 @@ void SelfBvh::BuildContours(std::span<const Vec3> x, const std::vector<int32_t>&
 
 namespace {
 
+// SelfBvh::FatBound of one triangle: at one time the distance from a corner to the opposite edge
+// is at least the altitude |n| / |opposite edge| >= h = |n| / (longest edge), n the doubled-area
+// normal, so h^2 = |n|^2 / (longest edge)^2, the smaller of the step's ends. A translation
+// common to the three corners changes no distance, so take the corners' moves less their mean,
+// m_k; over the step a corner's distance then changes by at most L |t - s| between times t and
+// s, L = 2 m, m the largest |m_k| (the corner moves by its own motion, the opposite segment by at
+// most its farther end's), so at every time it is at least min(h0, h1) - m. A parent keeps the
+// least h^2 and the largest m^2 of its children.
+
+// The longest squared edge of the triangle with edge vectors A = b - a and B = c - a.
+double SelfLongestEdge2(const Vec3& A, const Vec3& B) {
+  return std::max({A.squaredNorm(), B.squaredNorm(), (B - A).squaredNorm()});
+}
+
 // The cone of a triangle's normal over the step (Tang, Curtis, Yoon & Manocha 2009, continuous
 // normal cones): with A(t) = b(t) - a(t), B(t) = c(t) - a(t) linear in t, the normal
 // n(t) = A(t) x B(t) = (1-t)^2 N0 + 2 t (1-t) Nm + t^2 N1 (Bernstein form), N0 = A0 x B0,
@@ -549,10 +564,19 @@ namespace {
 // and lies in any cone holding them. Axis: the sum of their directions; cos_half <= 0: no cone
 // (a degenerate triangle at an end of the step).
 void SelfTriangleCone(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3& a1,
-                      const Vec3& b1, const Vec3& c1, Vec3* axis, double* cos_half) {
+                      const Vec3& b1, const Vec3& c1, Vec3* axis, double* cos_half, double* fat_h2,
+                      double* fat_move2) {
   const Vec3 A0 = b0 - a0, B0 = c0 - a0, A1 = b1 - a1, B1 = c1 - a1;
   const Vec3 n0 = A0.cross(B0), n1 = A1.cross(B1), nm = 0.5 * (A0.cross(B1) + A1.cross(B0));
   const double l0 = n0.norm(), l1 = n1.norm(), lm = nm.norm();
+  const double e0 = SelfLongestEdge2(A0, B0), e1 = SelfLongestEdge2(A1, B1);
+  const double n0_2 = n0.squaredNorm(), n1_2 = n1.squaredNorm();
+  // min(n0^2 / e0, n1^2 / e1) with one division.
+  *fat_h2 = n0_2 * e1 <= n1_2 * e0 ? (e0 > 0.0 ? n0_2 / e0 : 0.0) : (e1 > 0.0 ? n1_2 / e1 : 0.0);
+  // The corners' moves less their mean: a common translation changes no distance.
+  const Vec3 da = a1 - a0, db = b1 - b0, dc = c1 - c0, mean = (da + db + dc) / 3.0;
+  *fat_move2 =
+      std::max({(da - mean).squaredNorm(), (db - mean).squaredNorm(), (dc - mean).squaredNorm()});
   *cos_half = -1.0;
   if (!(l0 > 0.0) || !(l1 > 0.0)) return;
   const Vec3 u0 = n0 / l0, u1 = n1 / l1;
@@ -569,9 +593,13 @@ void SelfTriangleCone(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3
 // SelfTriangleCone for a triangle at rest (x0 = x1): N0 = Nm = N1, so one cross product; the
 // same arithmetic on the three equal control vectors otherwise.
 void SelfStillTriangleCone(const Vec3& a, const Vec3& b, const Vec3& c, Vec3* axis,
-                           double* cos_half) {
-  const Vec3 n = (b - a).cross(c - a);
+                           double* cos_half, double* fat_h2, double* fat_move2) {
+  const Vec3 A = b - a, B = c - a;
+  const Vec3 n = A.cross(B);
   const double l = n.norm();
+  const double e = SelfLongestEdge2(A, B);
+  *fat_h2 = e > 0.0 ? n.squaredNorm() / e : 0.0;
+  *fat_move2 = 0.0;
   *cos_half = -1.0;
   if (!(l > 0.0)) return;
   const Vec3 u = n / l;
@@ -655,6 +683,12 @@ bool SelfBvh::SelfContactFree(int32_t a, int32_t b, const Cone& cone) const {
   return winding == 1;
 }
 
+bool SelfBvh::SelfFat(const Cone& cone, const FatBound& fat) const {
+  // Every corner of the patch stays at least min(h0, h1) - m from its opposite edge over the step
+  // (SelfFatBound); projected along the cone's axis, at least cos(half-angle) times that.
+  return cone.cos_half * (std::sqrt(fat.h2) - std::sqrt(fat.move2)) >= 2.0 * certify_m_;
+}
+
 SelfBvh::Cone SelfBvh::MergeCones(const Cone& l, const Cone& r) {
   Cone cone;
   if (l.cos_half > 1e-9 && r.cos_half > 1e-9) {
@@ -728,6 +762,7 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
   union_culled_ = 0;
   step_x0_ = x0;
   step_x1_ = x1;
+  certify_m_ = thickness_m;
   incremental_ = false;
   kept_from_.clear();
   Traverse(0, 0, &stats);
@@ -743,10 +778,11 @@ void SelfBvh::RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const 
   if (!normal_cones_) return;
   Cone& cone = cone_[node];
   if (still_) {
-    SelfStillTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], &cone.axis, &cone.cos_half);
+    SelfStillTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], &cone.axis, &cone.cos_half, &fat_[node].h2,
+                          &fat_[node].move2);
   } else {
     SelfTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], x1[t[0]], x1[t[1]], x1[t[2]], &cone.axis,
-                     &cone.cos_half);
+                     &cone.cos_half, &fat_[node].h2, &fat_[node].move2);
   }
   cone.sin_half =
       cone.cos_half > 1e-9 ? std::sqrt(std::max(0.0, 1.0 - cone.cos_half * cone.cos_half)) : 1;
@@ -759,7 +795,11 @@ void SelfBvh::RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const 
 void SelfBvh::RefitParent(int32_t node) {
   node_lo_[node] = node_lo_[left_[node]].cwiseMin(node_lo_[right_[node]]);
   node_hi_[node] = node_hi_[left_[node]].cwiseMax(node_hi_[right_[node]]);
-  if (normal_cones_) cone_[node] = MergeCones(cone_[left_[node]], cone_[right_[node]]);
+  if (normal_cones_) {
+    cone_[node] = MergeCones(cone_[left_[node]], cone_[right_[node]]);
+    fat_[node].h2 = std::min(fat_[left_[node]].h2, fat_[right_[node]].h2);
+    fat_[node].move2 = std::max(fat_[left_[node]].move2, fat_[right_[node]].move2);
+  }
 }
 
 SelfBroadPhaseStats SelfBvh::UpdateCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
@@ -827,6 +867,7 @@ SelfBroadPhaseStats SelfBvh::UpdateCandidates(std::span<const Vec3> x0, std::spa
   union_culled_ = 0;
   step_x0_ = x0;
   step_x1_ = x1;
+  certify_m_ = thickness_m;
   incremental_ = true;
   Traverse(0, 0, &stats);
   incremental_ = false;
@@ -847,7 +888,7 @@ void SelfBvh::Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats) {
     if (left_[a] < 0) return;  // one triangle: its own features are all incident
     // A patch certified free of self-contact over the step is not traversed against itself.
     if (normal_cones_ && center_[a] >= 0 && cone_[a].cos_half > 1e-9 &&
-        SelfContactFree(a, -1, cone_[a])) {
+        SelfFat(cone_[a], fat_[a]) && SelfContactFree(a, -1, cone_[a])) {
       ++cone_culled_;
       return;
     }
@@ -863,7 +904,9 @@ void SelfBvh::Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats) {
       contour_begin_[a + 1] - contour_begin_[a] + contour_begin_[b + 1] - contour_begin_[b] >=
           kSelfUnionMinContour) {
     const Cone both = MergeCones(cone_[a], cone_[b]);
-    if (both.cos_half > 1e-9 && SelfContactFree(a, b, both)) {
+    if (both.cos_half > 1e-9 &&
+        SelfFat(both, {std::min(fat_[a].h2, fat_[b].h2), std::max(fat_[a].move2, fat_[b].move2)}) &&
+        SelfContactFree(a, b, both)) {
       ++union_culled_;
       return;
     }

@@ -212,10 +212,21 @@ class SelfBvh final : public SelfBroadPhase {
     double cos_half = -1.0;
     double sin_half = 0.0;
   };
+  // What bounds a patch's corners' distances to their opposite edges from below over a step,
+  // squared (self_broadphase.cc, SelfTriangleCone): the least squared altitude bound h^2 at the
+  // step's ends [m^2] and the largest squared move of a corner over the step [m^2]; every corner
+  // stays at least sqrt(h2) - sqrt(move2) from its opposite edge.
+  struct FatBound {
+    double h2 = 0.0;
+    double move2 = 0.0;
+  };
   void BuildContours(std::span<const Vec3> x, const std::vector<int32_t>& order,
                      const std::vector<std::array<int32_t, 2>>& range);
   bool SelfContactFree(int32_t a, int32_t b, const Cone& cone) const;
   static Cone MergeCones(const Cone& l, const Cone& r);
+  // True when the patch's corners stay far enough from their opposite edges that the cone's
+  // certificate also holds at the step's thickness (SelfContactFree's comment).
+  bool SelfFat(const Cone& cone, const FatBound& fat) const;
   void Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats);
   void LeafPair(int32_t ta, int32_t tb, SelfBroadPhaseStats* stats);
   bool Overlap(int32_t a, int32_t b) const;
@@ -241,6 +252,11 @@ class SelfBvh final : public SelfBroadPhase {
   // contour_[contour_begin_[node] .. contour_begin_[node + 1]).
   bool normal_cones_ = false;
   std::vector<Cone> cone_;                       ///< [nodes]
+  /// [nodes] what bounds every distance from a corner of the node's triangles to its triangle's
+  /// opposite edge from below over the step (FatBound): with the cone,
+  /// what keeps a certificate from hiding pairs within the detection's thickness (SelfFat).
+  std::vector<FatBound> fat_;
+  double certify_m_ = 0.0;                       ///< the thickness the step is traversed for [m]
   std::vector<int32_t> center_;                  ///< [nodes] center triangle, -1: never skipped
   std::vector<int32_t> contour_begin_;           ///< [nodes + 1]
   std::vector<std::array<int32_t, 2>> contour_;  ///< directed contour edges (region on the left)
