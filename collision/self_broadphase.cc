@@ -7,7 +7,12 @@
 #include <stdexcept>
 #include <string>
 
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
 #include "base/check.h"
+#include "base/simd.h"
 
 namespace felt {
 namespace {
@@ -465,7 +470,17 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
   refit_order_.resize(left_.size());
   std::iota(refit_order_.rbegin(), refit_order_.rend(), 0);
   normal_cones_ = options.normal_cones;
-  if (normal_cones_) BuildContours(x, order, range);
+  if (normal_cones_) {
+    BuildContours(x, order, range);
+    // The leaves in the refit's order, for the batched cones (FindCandidates).
+    leaf_slot_.assign(left_.size(), -1);
+    for (int32_t node : refit_order_) {
+      if (left_[node] >= 0) continue;
+      leaf_slot_[node] = static_cast<int32_t>(leaf_tri_.size());
+      leaf_tri_.push_back(right_[node]);
+    }
+    leaf_out_.assign(7 * leaf_tri_.size(), 0.0);
+  }
 }
 
 // Set-up of the normal-cone test: for every node of at least kSelfConeMinTriangles triangles
@@ -543,72 +558,131 @@ void SelfBvh::BuildContours(std::span<const Vec3> x, const std::vector<int32_t>&
 
 namespace {
 
-// SelfBvh::FatBound of one triangle: at one time the distance from a corner to the opposite edge
-// is at least the altitude |n| / |opposite edge| >= h = |n| / (longest edge), n the doubled-area
-// normal, so h^2 = |n|^2 / (longest edge)^2, the smaller of the step's ends. A translation
-// common to the three corners changes no distance, so take the corners' moves less their mean,
-// m_k; over the step a corner's distance then changes by at most L |t - s| between times t and
-// s, L = 2 m, m the largest |m_k| (the corner moves by its own motion, the opposite segment by at
-// most its farther end's), so at every time it is at least min(h0, h1) - m. A parent keeps the
-// least h^2 and the largest m^2 of its children.
-
-// The longest squared edge of the triangle with edge vectors A = b - a and B = c - a.
-double SelfLongestEdge2(const Vec3& A, const Vec3& B) {
-  return std::max({A.squaredNorm(), B.squaredNorm(), (B - A).squaredNorm()});
-}
-
 // The cone of a triangle's normal over the step (Tang, Curtis, Yoon & Manocha 2009, continuous
 // normal cones): with A(t) = b(t) - a(t), B(t) = c(t) - a(t) linear in t, the normal
 // n(t) = A(t) x B(t) = (1-t)^2 N0 + 2 t (1-t) Nm + t^2 N1 (Bernstein form), N0 = A0 x B0,
 // N1 = A1 x B1, Nm = (A0 x B1 + A1 x B0) / 2, so n(t) is a non-negative combination of the three
 // and lies in any cone holding them. Axis: the sum of their directions; cos_half <= 0: no cone
-// (a degenerate triangle at an end of the step).
-void SelfTriangleCone(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3& a1,
-                      const Vec3& b1, const Vec3& c1, Vec3* axis, double* cos_half, double* fat_h2,
-                      double* fat_move2) {
-  const Vec3 A0 = b0 - a0, B0 = c0 - a0, A1 = b1 - a1, B1 = c1 - a1;
-  const Vec3 n0 = A0.cross(B0), n1 = A1.cross(B1), nm = 0.5 * (A0.cross(B1) + A1.cross(B0));
-  const double l0 = n0.norm(), l1 = n1.norm(), lm = nm.norm();
-  const double e0 = SelfLongestEdge2(A0, B0), e1 = SelfLongestEdge2(A1, B1);
-  const double n0_2 = n0.squaredNorm(), n1_2 = n1.squaredNorm();
-  // min(n0^2 / e0, n1^2 / e1) with one division.
-  *fat_h2 = n0_2 * e1 <= n1_2 * e0 ? (e0 > 0.0 ? n0_2 / e0 : 0.0) : (e1 > 0.0 ? n1_2 / e1 : 0.0);
-  // The corners' moves less their mean: a common translation changes no distance.
-  const Vec3 da = a1 - a0, db = b1 - b0, dc = c1 - c0, mean = (da + db + dc) / 3.0;
-  *fat_move2 =
-      std::max({(da - mean).squaredNorm(), (db - mean).squaredNorm(), (dc - mean).squaredNorm()});
-  *cos_half = -1.0;
-  if (!(l0 > 0.0) || !(l1 > 0.0)) return;
-  const Vec3 u0 = n0 / l0, u1 = n1 / l1;
-  const Vec3 um = lm > 0.0 ? Vec3(nm / lm) : Vec3(Vec3::Zero());
-  const Vec3 s = u0 + u1 + um;
-  const double ls = s.norm();
-  if (!(ls > 1e-6)) return;
-  *axis = s / ls;
-  double c = std::min(axis->dot(u0), axis->dot(u1));
-  if (lm > 0.0) c = std::min(c, axis->dot(um));
-  *cos_half = c - 1e-12;  // rounding margin
+// (a degenerate triangle at an end of the step). At rest (x1 = x0) the three are one (Nm = N0
+// exactly: 0.5 (N0 + N0)).
+//
+// With it, SelfBvh::FatBound: at one time the distance from a corner to the opposite edge is at
+// least the altitude |n| / |opposite edge| >= h = |n| / (longest edge), n the doubled-area normal,
+// so h^2 = |n|^2 / (longest edge)^2, the smaller of the step's ends. A translation common to the
+// three corners changes no distance, so take the corners' moves less their mean, m_k; over the
+// step a corner's distance then changes by at most L |t - s| between times t and s, L = 2 m, m
+// the largest |m_k| (the corner moves by its own motion, the opposite segment by at most its
+// farther end's), so at every time it is at least min(h0, h1) - m. A parent keeps the least h^2
+// and the largest m^2 of its children.
+//
+// Written once for a lane type V (one triangle: double; four: __m256d) with the lane operations
+// of L, every operation in the same order for both, so that every SIMD level gives the same bits
+// (base/simd.h). In: the corners' coordinates at the step's ends, in[0..8] = a0, b0, c0 (x, y, z
+// each), in[9..17] = a1, b1, c1. Out: axis x, y, z, cos_half, sin_half, h2, move2.
+#pragma GCC push_options
+#pragma GCC optimize("fp-contract=off")
+namespace self_portable {
+#include "collision/self_leaf_cone.inc"
+}  // namespace self_portable
+// SelfLeafConeLanes' lane operations on one double (the portable level).
+struct SelfScalarLanes {
+  static double Set(double v) { return v; }
+  static double Sqrt(double v) { return std::sqrt(v); }
+  static double Min(double a, double b) { return a < b ? a : b; }  // as MINPD
+  static double Max(double a, double b) { return a > b ? a : b; }  // as MAXPD
+  static bool Gt(double a, double b) { return a > b; }
+  static bool Le(double a, double b) { return a <= b; }
+  static bool And(bool a, bool b) { return a && b; }
+  static double Select(bool m, double a, double b) { return m ? a : b; }
+};
+
+// The leaves of one refit: leaf i's triangle leaf_tri[i], its cone and fat bound into
+// out[7 i .. 7 i + 6] (SelfLeafConeLanes' order).
+struct SelfLeafConeBatch {
+  std::span<const Vec3> x0, x1;
+  const Triangle* triangles = nullptr;
+  const int32_t* leaf_tri = nullptr;
+  size_t count = 0;
+  double* out = nullptr;
+};
+
+// One leaf's cone and fat bound from its triangle t over x0 -> x1, into out[0 .. 6].
+void SelfLeafConePortable(const Triangle& t, std::span<const Vec3> x0, std::span<const Vec3> x1,
+                          double* out) {
+  double in[18];
+  for (int32_t k = 0; k < 3; ++k) {
+    for (int32_t a = 0; a < 3; ++a) {
+      in[3 * k + a] = x0[t[k]][a];
+      in[9 + 3 * k + a] = x1[t[k]][a];
+    }
+  }
+  self_portable::SelfLeafConeLanes<double, SelfScalarLanes>(in, out);
 }
 
-// SelfTriangleCone for a triangle at rest (x0 = x1): N0 = Nm = N1, so one cross product; the
-// same arithmetic on the three equal control vectors otherwise.
-void SelfStillTriangleCone(const Vec3& a, const Vec3& b, const Vec3& c, Vec3* axis,
-                           double* cos_half, double* fat_h2, double* fat_move2) {
-  const Vec3 A = b - a, B = c - a;
-  const Vec3 n = A.cross(B);
-  const double l = n.norm();
-  const double e = SelfLongestEdge2(A, B);
-  *fat_h2 = e > 0.0 ? n.squaredNorm() / e : 0.0;
-  *fat_move2 = 0.0;
-  *cos_half = -1.0;
-  if (!(l > 0.0)) return;
-  const Vec3 u = n / l;
-  const Vec3 s = u + u + u;
-  const double ls = s.norm();
-  if (!(ls > 1e-6)) return;
-  *axis = s / ls;
-  *cos_half = axis->dot(u) - 1e-12;  // rounding margin
+#if defined(__x86_64__)
+#pragma GCC target("avx2")
+namespace self_avx2 {
+#include "collision/self_leaf_cone.inc"
+}  // namespace self_avx2
+
+// SelfLeafConeLanes' lane operations on four doubles (AVX2), as SelfScalarLanes lane by lane.
+struct SelfAvx2Lanes {
+  static __m256d Set(double v) { return _mm256_set1_pd(v); }
+  static __m256d Sqrt(__m256d v) { return _mm256_sqrt_pd(v); }
+  static __m256d Min(__m256d a, __m256d b) { return _mm256_min_pd(a, b); }
+  static __m256d Max(__m256d a, __m256d b) { return _mm256_max_pd(a, b); }
+  static __m256d Gt(__m256d a, __m256d b) { return _mm256_cmp_pd(a, b, _CMP_GT_OQ); }
+  static __m256d Le(__m256d a, __m256d b) { return _mm256_cmp_pd(a, b, _CMP_LE_OQ); }
+  static __m256d And(__m256d a, __m256d b) { return _mm256_and_pd(a, b); }
+  static __m256d Select(__m256d m, __m256d a, __m256d b) { return _mm256_blendv_pd(b, a, m); }
+};
+
+// SelfLeafConePortable for four leaves at a time (leaf_tri[0 .. count), out 7 doubles per leaf),
+// the rest one by one.
+void SelfLeafConesAvx2(const SelfLeafConeBatch& b) {
+  size_t i = 0;
+  for (; i + 4 <= b.count; i += 4) {
+    alignas(32) double lanes[18][4];
+    for (int32_t l = 0; l < 4; ++l) {
+      const Triangle& t = b.triangles[b.leaf_tri[i + l]];
+      for (int32_t k = 0; k < 3; ++k) {
+        for (int32_t a = 0; a < 3; ++a) {
+          lanes[3 * k + a][l] = b.x0[t[k]][a];
+          lanes[9 + 3 * k + a][l] = b.x1[t[k]][a];
+        }
+      }
+    }
+    __m256d in[18], out[7];
+    for (int32_t k = 0; k < 18; ++k) in[k] = _mm256_load_pd(lanes[k]);
+    self_avx2::SelfLeafConeLanes<__m256d, SelfAvx2Lanes>(in, out);
+    alignas(32) double res[7][4];
+    for (int32_t k = 0; k < 7; ++k) _mm256_store_pd(res[k], out[k]);
+    for (int32_t l = 0; l < 4; ++l) {
+      for (int32_t k = 0; k < 7; ++k) b.out[7 * (i + l) + k] = res[k][l];
+    }
+  }
+  for (; i < b.count; ++i) {
+    SelfLeafConePortable(b.triangles[b.leaf_tri[i]], b.x0, b.x1, b.out + 7 * i);
+  }
 }
+#endif
+#pragma GCC pop_options
+
+// Every leaf one by one (the portable level).
+void SelfLeafConesPortable(const SelfLeafConeBatch& b) {
+  for (size_t i = 0; i < b.count; ++i) {
+    SelfLeafConePortable(b.triangles[b.leaf_tri[i]], b.x0, b.x1, b.out + 7 * i);
+  }
+}
+
+using SelfLeafConesKernel = void (*)(const SelfLeafConeBatch&);
+#if defined(__x86_64__)
+constexpr SimdTable<SelfLeafConesKernel> kSelfLeafConesKernels{
+    SelfLeafConesPortable, SelfLeafConesAvx2, SelfLeafConesAvx2};
+#else
+constexpr SimdTable<SelfLeafConesKernel> kSelfLeafConesKernels{
+    SelfLeafConesPortable, SelfLeafConesPortable, SelfLeafConesPortable};
+#endif
 
 }  // namespace
 
@@ -750,10 +824,18 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
     edge_hi_[i] = vertex_hi_[e[0]].cwiseMax(vertex_hi_[e[1]]);
   }
   // Bottom-up refit (children before parents): a leaf's box (and cone) from its triangle, a
-  // parent's from its children.
+  // parent's from its children. The leaves' cones first, all at once (four a step with AVX2;
+  // the same bits as RefitLeaf's), in the refit's order.
+  if (normal_cones_) {
+    PickSimd(kSelfLeafConesKernels)(
+        {x0, x1, triangles_.data(), leaf_tri_.data(), leaf_tri_.size(), leaf_out_.data()});
+  }
   for (int32_t node : refit_order_) {
     if (left_[node] < 0) {
-      RefitLeaf(node, x0, x1);
+      const Triangle& t = triangles_[right_[node]];
+      node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);
+      node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
+      if (normal_cones_) TakeLeafCone(node, leaf_out_.data() + 7 * leaf_slot_[node]);
     } else {
       RefitParent(node);
     }
@@ -776,16 +858,18 @@ void SelfBvh::RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const 
   node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);
   node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
   if (!normal_cones_) return;
+  double out[7];
+  SelfLeafConePortable(t, x0, x1, out);
+  TakeLeafCone(node, out);
+}
+
+void SelfBvh::TakeLeafCone(int32_t node, const double* out) {
   Cone& cone = cone_[node];
-  if (still_) {
-    SelfStillTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], &cone.axis, &cone.cos_half, &fat_[node].h2,
-                          &fat_[node].move2);
-  } else {
-    SelfTriangleCone(x0[t[0]], x0[t[1]], x0[t[2]], x1[t[0]], x1[t[1]], x1[t[2]], &cone.axis,
-                     &cone.cos_half, &fat_[node].h2, &fat_[node].move2);
-  }
-  cone.sin_half =
-      cone.cos_half > 1e-9 ? std::sqrt(std::max(0.0, 1.0 - cone.cos_half * cone.cos_half)) : 1;
+  cone.axis = Vec3(out[0], out[1], out[2]);
+  cone.cos_half = out[3];
+  cone.sin_half = out[4];
+  fat_[node].h2 = out[5];
+  fat_[node].move2 = out[6];
 }
 
 // A parent's box from its children's and, with normal cones, its cone around the bisector of

@@ -183,6 +183,14 @@ class SelfBvh final : public SelfBroadPhase {
   int32_t cone_culled() const { return cone_culled_; }
   /// Pairs of nodes skipped by the normal-cone test of their union in the last FindCandidates.
   int32_t union_culled() const { return union_culled_; }
+  /// With normal cones, node `node`'s cone and fat bound of the last broad phase: axis x, y, z,
+  /// cos and sin of the half-angle, least squared altitude bound [m^2], largest squared corner
+  /// move [m^2] (for tests: every SIMD level must give the same bits).
+  std::array<double, 7> ConeOf(int32_t node) const {
+    const Cone& c = cone_[node];
+    return {c.axis.x(), c.axis.y(),    c.axis.z(),      c.cos_half,
+            c.sin_half, fat_[node].h2, fat_[node].move2};
+  }
   /// Carries the last FindCandidates (or UpdateCandidates) of the step x0 -> x1' over to the step
   /// x0 -> x1, where x1 equals x1' except at the vertices p with moved[p] != 0 (x0 and
   /// thickness_m [m] the same as there): the candidates of two triangles none of whose vertices
@@ -234,6 +242,8 @@ class SelfBvh final : public SelfBroadPhase {
                  double start_pad);
   void RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const Vec3> x1);
   void RefitParent(int32_t node);
+  // A leaf's cone and fat bound from out[0 .. 6] (axis x, y, z, cos_half, sin_half, h2, move2).
+  void TakeLeafCone(int32_t node, const double* out);
   std::vector<int32_t> left_;         ///< [nodes] left child, -1 for a leaf
   std::vector<int32_t> right_;        ///< [nodes] right child, or the triangle of a leaf
   std::vector<Vec3> node_lo_;         ///< [nodes] swept box low corner [m]
@@ -257,6 +267,9 @@ class SelfBvh final : public SelfBroadPhase {
   /// what keeps a certificate from hiding pairs within the detection's thickness (SelfFat).
   std::vector<FatBound> fat_;
   double certify_m_ = 0.0;                       ///< the thickness the step is traversed for [m]
+  std::vector<int32_t> leaf_tri_;                ///< the leaves' triangles, in the refit's order
+  std::vector<int32_t> leaf_slot_;  ///< [nodes] a leaf's index in leaf_tri_ (-1: a parent)
+  std::vector<double> leaf_out_;    ///< [7 leaves] the batched cones (axis, cos, sin, h2, move2)
   std::vector<int32_t> center_;                  ///< [nodes] center triangle, -1: never skipped
   std::vector<int32_t> contour_begin_;           ///< [nodes + 1]
   std::vector<std::array<int32_t, 2>> contour_;  ///< directed contour edges (region on the left)

@@ -8,13 +8,16 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 #include <random>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "base/simd.h"
 #include "collision/ccd_all_pairs.h"
 #include "collision/self_broadphase.h"
 #include "tests/collision/collision_test_util.h"
@@ -356,6 +359,51 @@ TEST(SelfNormalCones, InPlaneCompressionMissesNothingAgainstAllPairs) {
     reference_hits += hits;
   }
   EXPECT_GT(reference_hits, 0u);
+}
+
+// The leaves' cones are computed four at a time with AVX2 (SelfLeafConesAvx2) and one at a time
+// at the portable level and in the incremental refit (RefitLeaf): every level must give every
+// node's cone and fat bound bit for bit, moving and at rest, on grids whose leaf counts are and
+// are not multiples of four.
+TEST(SelfNormalCones, LeafConesGiveThePortableBitsAtEveryLevel) {
+  std::mt19937_64 rng(77);
+  for (int32_t c : {0, 3}) {
+    MotionCase m = Waves(c, &rng);
+    for (const int32_t rows : {20, 7}) {
+      const int32_t w = 20;
+      const size_t n = static_cast<size_t>(w * rows);
+      const std::vector<Triangle> tris = MakeGridTriangles(w, rows);
+      const std::vector<Vec3> rest(m.rest.begin(), m.rest.begin() + n);
+      const std::vector<Vec3> x0(m.x0.begin(), m.x0.begin() + n);
+      const std::vector<Vec3> x1(m.x1.begin(), m.x1.begin() + n);
+      SelfBroadPhaseOptions options;
+      options.normal_cones = true;
+      SelfBvh bvh(tris, rest, options);
+      const auto cones_at = [&](SimdLevel level, bool still) {
+        LimitSimdLevel(level);
+        bvh.FindCandidates(x0, still ? std::span<const Vec3>(x0) : std::span<const Vec3>(x1),
+                           m.thickness);
+        LimitSimdLevel(kWidestSimdLevel);
+        std::vector<double> all;
+        for (int32_t node = 0; node < bvh.num_nodes(); ++node) {
+          const std::array<double, 7> cone = bvh.ConeOf(node);
+          all.insert(all.end(), cone.begin(), cone.end());
+        }
+        return all;
+      };
+      for (const bool still : {false, true}) {
+        const std::vector<double> portable = cones_at(SimdLevel::kPortable, still);
+        for (SimdLevel level : {SimdLevel::kAvx2, SimdLevel::kAvx512}) {
+          if (level > CpuSimdLevel()) continue;
+          const std::vector<double> got = cones_at(level, still);
+          ASSERT_EQ(got.size(), portable.size());
+          EXPECT_EQ(std::memcmp(got.data(), portable.data(), got.size() * sizeof(double)), 0)
+              << "waves " << c << ", " << rows << " rows, still " << still << ", level "
+              << static_cast<int>(level);
+        }
+      }
+    }
+  }
 }
 
 }  // namespace
