@@ -469,6 +469,20 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
   // Pre-order reversed: children before parents.
   refit_order_.resize(left_.size());
   std::iota(refit_order_.rbegin(), refit_order_.rend(), 0);
+  // The parents deepest level first (children before parents too): in reversed pre-order each
+  // parent comes right after its left child, so every merge waits for the one before it (a chain
+  // of square roots); within a level none depends on another.
+  std::vector<int32_t> depth(left_.size(), 0);
+  for (size_t node = 0; node < left_.size(); ++node) {
+    if (left_[node] < 0) continue;
+    depth[static_cast<size_t>(left_[node])] = depth[node] + 1;
+    depth[static_cast<size_t>(right_[node])] = depth[node] + 1;
+  }
+  for (int32_t node : refit_order_) {
+    if (left_[node] >= 0) parent_order_.push_back(node);
+  }
+  std::stable_sort(parent_order_.begin(), parent_order_.end(),
+                   [&](int32_t a, int32_t b) { return depth[a] > depth[b]; });
   normal_cones_ = options.normal_cones;
   if (normal_cones_) {
     BuildContours(x, order, range);
@@ -831,15 +845,13 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
         {x0, x1, triangles_.data(), leaf_tri_.data(), leaf_tri_.size(), leaf_out_.data()});
   }
   for (int32_t node : refit_order_) {
-    if (left_[node] < 0) {
-      const Triangle& t = triangles_[right_[node]];
-      node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);
-      node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
-      if (normal_cones_) TakeLeafCone(node, leaf_out_.data() + 7 * leaf_slot_[node]);
-    } else {
-      RefitParent(node);
-    }
+    if (left_[node] >= 0) continue;
+    const Triangle& t = triangles_[right_[node]];
+    node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);
+    node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
+    if (normal_cones_) TakeLeafCone(node, leaf_out_.data() + 7 * leaf_slot_[node]);
   }
+  for (int32_t node : parent_order_) RefitParent(node);
   cone_culled_ = 0;
   union_culled_ = 0;
   step_x0_ = x0;

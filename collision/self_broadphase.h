@@ -249,6 +249,7 @@ class SelfBvh final : public SelfBroadPhase {
   std::vector<Vec3> node_lo_;         ///< [nodes] swept box low corner [m]
   std::vector<Vec3> node_hi_;         ///< [nodes] swept box high corner [m]
   std::vector<int32_t> refit_order_;  ///< nodes, children before parents
+  std::vector<int32_t> parent_order_;  ///< the parents, deepest level first (FindCandidates)
   std::vector<Vec3> vertex_lo_;       ///< [vertices] swept, padded vertex box [m]
   std::vector<Vec3> vertex_hi_;
   std::vector<Vec3> edge_lo_;  ///< [edges] swept, padded edge box [m]
