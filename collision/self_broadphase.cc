@@ -483,6 +483,12 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
   }
   std::stable_sort(parent_order_.begin(), parent_order_.end(),
                    [&](int32_t a, int32_t b) { return depth[a] > depth[b]; });
+  for (size_t i = 0; i < parent_order_.size(); ++i) {
+    if (i == 0 || depth[parent_order_[i]] != depth[parent_order_[i - 1]]) {
+      level_start_.push_back(static_cast<int32_t>(i));
+    }
+  }
+  level_start_.push_back(static_cast<int32_t>(parent_order_.size()));
   normal_cones_ = options.normal_cones;
   if (normal_cones_) {
     BuildContours(x, order, range);
@@ -494,6 +500,8 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
       leaf_tri_.push_back(right_[node]);
     }
     leaf_out_.assign(7 * leaf_tri_.size(), 0.0);
+    merge_in_.assign(10 * parent_order_.size(), 0.0);
+    merge_out_.assign(5 * parent_order_.size(), 0.0);
   }
 }
 
@@ -679,8 +687,46 @@ void SelfLeafConesAvx2(const SelfLeafConeBatch& b) {
     SelfLeafConePortable(b.triangles[b.leaf_tri[i]], b.x0, b.x1, b.out + 7 * i);
   }
 }
+
+// SelfMergeConeLanes for four parents at a time: in 10 doubles per parent, out 5 (SelfBvh::
+// RefitParents), the rest one by one.
+void SelfMergeConesAvx2(const double* in, double* out, size_t count) {
+  size_t i = 0;
+  for (; i + 4 <= count; i += 4) {
+    __m256d lanes_in[10], lanes_out[5];
+    for (int32_t k = 0; k < 10; ++k) {
+      lanes_in[k] = _mm256_setr_pd(in[10 * i + k], in[10 * (i + 1) + k], in[10 * (i + 2) + k],
+                                   in[10 * (i + 3) + k]);
+    }
+    self_avx2::SelfMergeConeLanes<__m256d, SelfAvx2Lanes>(lanes_in, lanes_out);
+    alignas(32) double res[5][4];
+    for (int32_t k = 0; k < 5; ++k) _mm256_store_pd(res[k], lanes_out[k]);
+    for (int32_t l = 0; l < 4; ++l) {
+      for (int32_t k = 0; k < 5; ++k) out[5 * (i + l) + k] = res[k][l];
+    }
+  }
+  for (; i < count; ++i) {
+    self_portable::SelfMergeConeLanes<double, SelfScalarLanes>(in + 10 * i, out + 5 * i);
+  }
+}
 #endif
 #pragma GCC pop_options
+
+// Every parent one by one (the portable level).
+void SelfMergeConesPortable(const double* in, double* out, size_t count) {
+  for (size_t i = 0; i < count; ++i) {
+    self_portable::SelfMergeConeLanes<double, SelfScalarLanes>(in + 10 * i, out + 5 * i);
+  }
+}
+
+using SelfMergeConesKernel = void (*)(const double*, double*, size_t);
+#if defined(__x86_64__)
+constexpr SimdTable<SelfMergeConesKernel> kSelfMergeConesKernels{
+    SelfMergeConesPortable, SelfMergeConesAvx2, SelfMergeConesAvx2};
+#else
+constexpr SimdTable<SelfMergeConesKernel> kSelfMergeConesKernels{
+    SelfMergeConesPortable, SelfMergeConesPortable, SelfMergeConesPortable};
+#endif
 
 // Every leaf one by one (the portable level).
 void SelfLeafConesPortable(const SelfLeafConeBatch& b) {
@@ -778,24 +824,51 @@ bool SelfBvh::SelfFat(const Cone& cone, const FatBound& fat) const {
 }
 
 SelfBvh::Cone SelfBvh::MergeCones(const Cone& l, const Cone& r) {
+  const double in[10] = {l.axis.x(), l.axis.y(), l.axis.z(), l.cos_half, l.sin_half,
+                         r.axis.x(), r.axis.y(), r.axis.z(), r.cos_half, r.sin_half};
+  double out[5];
+  self_portable::SelfMergeConeLanes<double, SelfScalarLanes>(in, out);
   Cone cone;
-  if (l.cos_half > 1e-9 && r.cos_half > 1e-9) {
-    const Vec3 s = l.axis + r.axis;
-    const double ls = s.norm();
-    if (ls > 1e-6) {
-      cone.axis = s / ls;
-      double c = 2.0;
-      for (const Cone* child : {&l, &r}) {
-        const double ca = std::clamp(cone.axis.dot(child->axis), -1.0, 1.0);
-        const double sa = std::sqrt(std::max(0.0, 1.0 - ca * ca));
-        c = std::min(c, ca * child->cos_half - sa * child->sin_half);
+  cone.axis = Vec3(out[0], out[1], out[2]);
+  cone.cos_half = out[3];
+  cone.sin_half = out[4];
+  return cone;
+}
+
+void SelfBvh::RefitParents() {
+  const auto merge = PickSimd(kSelfMergeConesKernels);
+  for (size_t level = 0; level + 1 < level_start_.size(); ++level) {
+    const int32_t first = level_start_[level], last = level_start_[level + 1];
+    for (int32_t i = first; i < last; ++i) {
+      const int32_t node = parent_order_[i], l = left_[node], r = right_[node];
+      node_lo_[node] = node_lo_[l].cwiseMin(node_lo_[r]);
+      node_hi_[node] = node_hi_[l].cwiseMax(node_hi_[r]);
+      if (!normal_cones_) continue;
+      fat_[node].h2 = std::min(fat_[l].h2, fat_[r].h2);
+      fat_[node].move2 = std::max(fat_[l].move2, fat_[r].move2);
+      double* in = merge_in_.data() + 10 * i;
+      for (const int32_t child : {l, r}) {
+        const Cone& c = cone_[child];
+        in[0] = c.axis.x();
+        in[1] = c.axis.y();
+        in[2] = c.axis.z();
+        in[3] = c.cos_half;
+        in[4] = c.sin_half;
+        in += 5;
       }
-      cone.cos_half = c - 1e-12;
+    }
+    if (!normal_cones_) continue;
+    // One level's merges at once (four a step with AVX2; MergeCones' bits).
+    merge(merge_in_.data() + 10 * first, merge_out_.data() + 5 * first,
+          static_cast<size_t>(last - first));
+    for (int32_t i = first; i < last; ++i) {
+      const double* out = merge_out_.data() + 5 * i;
+      Cone& c = cone_[parent_order_[i]];
+      c.axis = Vec3(out[0], out[1], out[2]);
+      c.cos_half = out[3];
+      c.sin_half = out[4];
     }
   }
-  cone.sin_half =
-      cone.cos_half > 1e-9 ? std::sqrt(std::max(0.0, 1.0 - cone.cos_half * cone.cos_half)) : 1.0;
-  return cone;
 }
 
 bool SelfBvh::Overlap(int32_t a, int32_t b) const {
@@ -851,7 +924,7 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
     node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
     if (normal_cones_) TakeLeafCone(node, leaf_out_.data() + 7 * leaf_slot_[node]);
   }
-  for (int32_t node : parent_order_) RefitParent(node);
+  RefitParents();
   cone_culled_ = 0;
   union_culled_ = 0;
   step_x0_ = x0;

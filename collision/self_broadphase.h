@@ -242,6 +242,8 @@ class SelfBvh final : public SelfBroadPhase {
                  double start_pad);
   void RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const Vec3> x1);
   void RefitParent(int32_t node);
+  // Every parent, a level at a time from the deepest, its cones merged a level at once.
+  void RefitParents();
   // A leaf's cone and fat bound from out[0 .. 6] (axis x, y, z, cos_half, sin_half, h2, move2).
   void TakeLeafCone(int32_t node, const double* out);
   std::vector<int32_t> left_;         ///< [nodes] left child, -1 for a leaf
@@ -250,6 +252,9 @@ class SelfBvh final : public SelfBroadPhase {
   std::vector<Vec3> node_hi_;         ///< [nodes] swept box high corner [m]
   std::vector<int32_t> refit_order_;  ///< nodes, children before parents
   std::vector<int32_t> parent_order_;  ///< the parents, deepest level first (FindCandidates)
+  std::vector<int32_t> level_start_;   ///< parent_order_'s levels: [level_start_[k], [k + 1])
+  std::vector<double> merge_in_;       ///< [10 parents] the children's cones (RefitParents)
+  std::vector<double> merge_out_;      ///< [5 parents] the merged cones
   std::vector<Vec3> vertex_lo_;       ///< [vertices] swept, padded vertex box [m]
   std::vector<Vec3> vertex_hi_;
   std::vector<Vec3> edge_lo_;  ///< [edges] swept, padded edge box [m]
