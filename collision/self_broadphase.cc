@@ -937,7 +937,7 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
 }
 
 // A leaf's swept box from its triangle's vertex boxes and, with normal cones, its triangle's
-// cone over the step x0 -> x1 (SelfTriangleCone; cos_half <= 1e-9: no cone below pi/2).
+// cone over the step x0 -> x1 (SelfLeafConeLanes; cos_half <= 1e-9: no cone below pi/2).
 void SelfBvh::RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const Vec3> x1) {
   const Triangle& t = triangles_[right_[node]];
   node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);

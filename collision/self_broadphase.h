@@ -221,7 +221,7 @@ class SelfBvh final : public SelfBroadPhase {
     double sin_half = 0.0;
   };
   // What bounds a patch's corners' distances to their opposite edges from below over a step,
-  // squared (self_broadphase.cc, SelfTriangleCone): the least squared altitude bound h^2 at the
+  // squared (self_broadphase.cc, SelfLeafConeLanes): the least squared altitude bound h^2 at the
   // step's ends [m^2] and the largest squared move of a corner over the step [m^2]; every corner
   // stays at least sqrt(h2) - sqrt(move2) from its opposite edge.
   struct FatBound {
