@@ -618,27 +618,55 @@ struct SelfScalarLanes {
   static double Select(bool m, double a, double b) { return m ? a : b; }
 };
 
-// The leaves of one refit: leaf i's triangle leaf_tri[i], its cone and fat bound into
-// out[7 i .. 7 i + 6] (SelfLeafConeLanes' order).
-struct SelfLeafConeBatch {
+// Triangle t's corners at the step's ends as SelfLeafConeLanes reads them, input k into
+// in[k stride], k < 18.
+void SelfGatherLeaf(const Triangle& t, std::span<const Vec3> x0, std::span<const Vec3> x1,
+                    double* in, size_t stride) {
+  for (int32_t k = 0; k < 3; ++k) {
+    for (int32_t a = 0; a < 3; ++a) {
+      in[(3 * k + a) * stride] = x0[t[k]][a];
+      in[(9 + 3 * k + a) * stride] = x1[t[k]][a];
+    }
+  }
+}
+
+// The leaves of one refit: leaf i's triangle triangles[leaf_tri[i]] over x0 -> x1.
+struct SelfLeafInputs {
   std::span<const Vec3> x0, x1;
   const Triangle* triangles = nullptr;
   const int32_t* leaf_tri = nullptr;
-  size_t count = 0;
-  double* out = nullptr;
 };
 
-// One leaf's cone and fat bound from its triangle t over x0 -> x1, into out[0 .. 6].
-void SelfLeafConePortable(const Triangle& t, std::span<const Vec3> x0, std::span<const Vec3> x1,
-                          double* out) {
-  double in[18];
-  for (int32_t k = 0; k < 3; ++k) {
-    for (int32_t a = 0; a < 3; ++a) {
-      in[3 * k + a] = x0[t[k]][a];
-      in[9 + 3 * k + a] = x1[t[k]][a];
-    }
-  }
+// Item i's input k into in[k stride]: a leaf's corners (SelfLeafInputs), or a parent's
+// children's cones, 10 doubles each in a flat array.
+void SelfLoadLeaf(const void* ctx, size_t i, double* in, size_t stride) {
+  const auto& leaves = *static_cast<const SelfLeafInputs*>(ctx);
+  SelfGatherLeaf(leaves.triangles[leaves.leaf_tri[i]], leaves.x0, leaves.x1, in, stride);
+}
+void SelfLoadMerge(const void* ctx, size_t i, double* in, size_t stride) {
+  const double* flat = static_cast<const double*>(ctx) + 10 * i;
+  for (int32_t k = 0; k < 10; ++k) in[k * stride] = flat[k];
+}
+
+// One leaf, one parent: SelfLeafConeLanes (18 in, 7 out) and SelfMergeConeLanes (10 in, 5 out)
+// on one double.
+void SelfLeafConeOne(const double* in, double* out) {
   self_portable::SelfLeafConeLanes<double, SelfScalarLanes>(in, out);
+}
+void SelfMergeConeOne(const double* in, double* out) {
+  self_portable::SelfMergeConeLanes<double, SelfScalarLanes>(in, out);
+}
+
+// `count` items one by one: item i's NIn inputs from Load(ctx, i), its NOut outputs to
+// out[NOut i].
+template <int NIn, int NOut, void (*Load)(const void*, size_t, double*, size_t),
+          void (*One)(const double*, double*)>
+void SelfBatchPortable(const void* ctx, double* out, size_t count) {
+  double in[NIn];
+  for (size_t i = 0; i < count; ++i) {
+    Load(ctx, i, in, 1);
+    One(in, out + NOut * i);
+  }
 }
 
 #if defined(__x86_64__)
@@ -659,89 +687,61 @@ struct SelfAvx2Lanes {
   static __m256d Select(__m256d m, __m256d a, __m256d b) { return _mm256_blendv_pd(b, a, m); }
 };
 
-// SelfLeafConePortable for four leaves at a time (leaf_tri[0 .. count), out 7 doubles per leaf),
-// the rest one by one.
-void SelfLeafConesAvx2(const SelfLeafConeBatch& b) {
-  size_t i = 0;
-  for (; i + 4 <= b.count; i += 4) {
-    alignas(32) double lanes[18][4];
-    for (int32_t l = 0; l < 4; ++l) {
-      const Triangle& t = b.triangles[b.leaf_tri[i + l]];
-      for (int32_t k = 0; k < 3; ++k) {
-        for (int32_t a = 0; a < 3; ++a) {
-          lanes[3 * k + a][l] = b.x0[t[k]][a];
-          lanes[9 + 3 * k + a][l] = b.x1[t[k]][a];
-        }
-      }
-    }
-    __m256d in[18], out[7];
-    for (int32_t k = 0; k < 18; ++k) in[k] = _mm256_load_pd(lanes[k]);
-    self_avx2::SelfLeafConeLanes<__m256d, SelfAvx2Lanes>(in, out);
-    alignas(32) double res[7][4];
-    for (int32_t k = 0; k < 7; ++k) _mm256_store_pd(res[k], out[k]);
-    for (int32_t l = 0; l < 4; ++l) {
-      for (int32_t k = 0; k < 7; ++k) b.out[7 * (i + l) + k] = res[k][l];
-    }
-  }
-  for (; i < b.count; ++i) {
-    SelfLeafConePortable(b.triangles[b.leaf_tri[i]], b.x0, b.x1, b.out + 7 * i);
-  }
+void SelfLeafConeFour(const __m256d* in, __m256d* out) {
+  self_avx2::SelfLeafConeLanes<__m256d, SelfAvx2Lanes>(in, out);
+}
+void SelfMergeConeFour(const __m256d* in, __m256d* out) {
+  self_avx2::SelfMergeConeLanes<__m256d, SelfAvx2Lanes>(in, out);
 }
 
-// SelfMergeConeLanes for four parents at a time: in 10 doubles per parent, out 5 (SelfBvh::
-// RefitParents), the rest one by one.
-void SelfMergeConesAvx2(const double* in, double* out, size_t count) {
+// SelfBatchPortable four items at a time (Four on their inputs as lanes, the same bits as One),
+// the rest one by one.
+template <int NIn, int NOut, void (*Load)(const void*, size_t, double*, size_t),
+          void (*Four)(const __m256d*, __m256d*), void (*One)(const double*, double*)>
+void SelfBatchAvx2(const void* ctx, double* out, size_t count) {
   size_t i = 0;
   for (; i + 4 <= count; i += 4) {
-    __m256d lanes_in[10], lanes_out[5];
-    for (int32_t k = 0; k < 10; ++k) {
-      lanes_in[k] = _mm256_setr_pd(in[10 * i + k], in[10 * (i + 1) + k], in[10 * (i + 2) + k],
-                                   in[10 * (i + 3) + k]);
-    }
-    self_avx2::SelfMergeConeLanes<__m256d, SelfAvx2Lanes>(lanes_in, lanes_out);
-    alignas(32) double res[5][4];
-    for (int32_t k = 0; k < 5; ++k) _mm256_store_pd(res[k], lanes_out[k]);
+    alignas(32) double lanes[NIn][4];
+    for (int32_t l = 0; l < 4; ++l) Load(ctx, i + l, &lanes[0][l], 4);
+    __m256d lanes_in[NIn], lanes_out[NOut];
+    for (int32_t k = 0; k < NIn; ++k) lanes_in[k] = _mm256_load_pd(lanes[k]);
+    Four(lanes_in, lanes_out);
+    alignas(32) double res[NOut][4];
+    for (int32_t k = 0; k < NOut; ++k) _mm256_store_pd(res[k], lanes_out[k]);
     for (int32_t l = 0; l < 4; ++l) {
-      for (int32_t k = 0; k < 5; ++k) out[5 * (i + l) + k] = res[k][l];
+      for (int32_t k = 0; k < NOut; ++k) out[NOut * (i + l) + k] = res[k][l];
     }
   }
+  double row[NIn];
   for (; i < count; ++i) {
-    self_portable::SelfMergeConeLanes<double, SelfScalarLanes>(in + 10 * i, out + 5 * i);
+    Load(ctx, i, row, 1);
+    One(row, out + NOut * i);
   }
 }
 #endif
 #pragma GCC pop_options
 
-// Every parent one by one (the portable level).
-void SelfMergeConesPortable(const double* in, double* out, size_t count) {
-  for (size_t i = 0; i < count; ++i) {
-    self_portable::SelfMergeConeLanes<double, SelfScalarLanes>(in + 10 * i, out + 5 * i);
-  }
-}
-
-using SelfMergeConesKernel = void (*)(const double*, double*, size_t);
+// The batched cones of one refit (inputs, out, count), per SIMD level: the leaves'
+// (SelfLeafInputs) and the parents' (the flat merge inputs).
+using SelfConeBatchKernel = void (*)(const void*, double*, size_t);
 #if defined(__x86_64__)
-constexpr SimdTable<SelfMergeConesKernel> kSelfMergeConesKernels{
-    SelfMergeConesPortable, SelfMergeConesAvx2, SelfMergeConesAvx2};
+constexpr SimdTable<SelfConeBatchKernel> kSelfLeafConesKernels{
+    SelfBatchPortable<18, 7, SelfLoadLeaf, SelfLeafConeOne>,
+    SelfBatchAvx2<18, 7, SelfLoadLeaf, SelfLeafConeFour, SelfLeafConeOne>,
+    SelfBatchAvx2<18, 7, SelfLoadLeaf, SelfLeafConeFour, SelfLeafConeOne>};
+constexpr SimdTable<SelfConeBatchKernel> kSelfMergeConesKernels{
+    SelfBatchPortable<10, 5, SelfLoadMerge, SelfMergeConeOne>,
+    SelfBatchAvx2<10, 5, SelfLoadMerge, SelfMergeConeFour, SelfMergeConeOne>,
+    SelfBatchAvx2<10, 5, SelfLoadMerge, SelfMergeConeFour, SelfMergeConeOne>};
 #else
-constexpr SimdTable<SelfMergeConesKernel> kSelfMergeConesKernels{
-    SelfMergeConesPortable, SelfMergeConesPortable, SelfMergeConesPortable};
-#endif
-
-// Every leaf one by one (the portable level).
-void SelfLeafConesPortable(const SelfLeafConeBatch& b) {
-  for (size_t i = 0; i < b.count; ++i) {
-    SelfLeafConePortable(b.triangles[b.leaf_tri[i]], b.x0, b.x1, b.out + 7 * i);
-  }
-}
-
-using SelfLeafConesKernel = void (*)(const SelfLeafConeBatch&);
-#if defined(__x86_64__)
-constexpr SimdTable<SelfLeafConesKernel> kSelfLeafConesKernels{
-    SelfLeafConesPortable, SelfLeafConesAvx2, SelfLeafConesAvx2};
-#else
-constexpr SimdTable<SelfLeafConesKernel> kSelfLeafConesKernels{
-    SelfLeafConesPortable, SelfLeafConesPortable, SelfLeafConesPortable};
+constexpr SimdTable<SelfConeBatchKernel> kSelfLeafConesKernels{
+    SelfBatchPortable<18, 7, SelfLoadLeaf, SelfLeafConeOne>,
+    SelfBatchPortable<18, 7, SelfLoadLeaf, SelfLeafConeOne>,
+    SelfBatchPortable<18, 7, SelfLoadLeaf, SelfLeafConeOne>};
+constexpr SimdTable<SelfConeBatchKernel> kSelfMergeConesKernels{
+    SelfBatchPortable<10, 5, SelfLoadMerge, SelfMergeConeOne>,
+    SelfBatchPortable<10, 5, SelfLoadMerge, SelfMergeConeOne>,
+    SelfBatchPortable<10, 5, SelfLoadMerge, SelfMergeConeOne>};
 #endif
 
 }  // namespace
@@ -819,7 +819,7 @@ bool SelfBvh::SelfContactFree(int32_t a, int32_t b, const Cone& cone) const {
 
 bool SelfBvh::SelfFat(const Cone& cone, const FatBound& fat) const {
   // Every corner of the patch stays at least min(h0, h1) - m from its opposite edge over the step
-  // (SelfFatBound); projected along the cone's axis, at least cos(half-angle) times that.
+  // (FatBound); projected along the cone's axis, at least cos(half-angle) times that.
   return cone.cos_half * (std::sqrt(fat.h2) - std::sqrt(fat.move2)) >= 2.0 * certify_m_;
 }
 
@@ -827,7 +827,7 @@ SelfBvh::Cone SelfBvh::MergeCones(const Cone& l, const Cone& r) {
   const double in[10] = {l.axis.x(), l.axis.y(), l.axis.z(), l.cos_half, l.sin_half,
                          r.axis.x(), r.axis.y(), r.axis.z(), r.cos_half, r.sin_half};
   double out[5];
-  self_portable::SelfMergeConeLanes<double, SelfScalarLanes>(in, out);
+  SelfMergeConeOne(in, out);
   Cone cone;
   cone.axis = Vec3(out[0], out[1], out[2]);
   cone.cos_half = out[3];
@@ -835,19 +835,29 @@ SelfBvh::Cone SelfBvh::MergeCones(const Cone& l, const Cone& r) {
   return cone;
 }
 
+SelfBvh::FatBound SelfBvh::MergeFat(const FatBound& l, const FatBound& r) {
+  return {std::min(l.h2, r.h2), std::max(l.move2, r.move2)};
+}
+
+void SelfBvh::RefitParentBounds(int32_t node) {
+  const int32_t l = left_[node], r = right_[node];
+  node_lo_[node] = node_lo_[l].cwiseMin(node_lo_[r]);
+  node_hi_[node] = node_hi_[l].cwiseMax(node_hi_[r]);
+  if (normal_cones_) fat_[node] = MergeFat(fat_[l], fat_[r]);
+}
+
 void SelfBvh::RefitParents() {
+  for (int32_t node : parent_order_) RefitParentBounds(node);
+  if (!normal_cones_) return;
+  // The cones a level at a time from the deepest (children before parents), each level's merges
+  // at once (four a step with AVX2; MergeCones' bits).
   const auto merge = PickSimd(kSelfMergeConesKernels);
   for (size_t level = 0; level + 1 < level_start_.size(); ++level) {
     const int32_t first = level_start_[level], last = level_start_[level + 1];
     for (int32_t i = first; i < last; ++i) {
-      const int32_t node = parent_order_[i], l = left_[node], r = right_[node];
-      node_lo_[node] = node_lo_[l].cwiseMin(node_lo_[r]);
-      node_hi_[node] = node_hi_[l].cwiseMax(node_hi_[r]);
-      if (!normal_cones_) continue;
-      fat_[node].h2 = std::min(fat_[l].h2, fat_[r].h2);
-      fat_[node].move2 = std::max(fat_[l].move2, fat_[r].move2);
+      const int32_t node = parent_order_[i];
       double* in = merge_in_.data() + 10 * i;
-      for (const int32_t child : {l, r}) {
+      for (const int32_t child : {left_[node], right_[node]}) {
         const Cone& c = cone_[child];
         in[0] = c.axis.x();
         in[1] = c.axis.y();
@@ -857,8 +867,6 @@ void SelfBvh::RefitParents() {
         in += 5;
       }
     }
-    if (!normal_cones_) continue;
-    // One level's merges at once (four a step with AVX2; MergeCones' bits).
     merge(merge_in_.data() + 10 * first, merge_out_.data() + 5 * first,
           static_cast<size_t>(last - first));
     for (int32_t i = first; i < last; ++i) {
@@ -914,14 +922,12 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
   // parent's from its children. The leaves' cones first, all at once (four a step with AVX2;
   // the same bits as RefitLeaf's), in the refit's order.
   if (normal_cones_) {
-    PickSimd(kSelfLeafConesKernels)(
-        {x0, x1, triangles_.data(), leaf_tri_.data(), leaf_tri_.size(), leaf_out_.data()});
+    const SelfLeafInputs leaves{x0, x1, triangles_.data(), leaf_tri_.data()};
+    PickSimd(kSelfLeafConesKernels)(&leaves, leaf_out_.data(), leaf_tri_.size());
   }
   for (int32_t node : refit_order_) {
     if (left_[node] >= 0) continue;
-    const Triangle& t = triangles_[right_[node]];
-    node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);
-    node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
+    LeafBox(node);
     if (normal_cones_) TakeLeafCone(node, leaf_out_.data() + 7 * leaf_slot_[node]);
   }
   RefitParents();
@@ -939,13 +945,18 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
 // A leaf's swept box from its triangle's vertex boxes and, with normal cones, its triangle's
 // cone over the step x0 -> x1 (SelfLeafConeLanes; cos_half <= 1e-9: no cone below pi/2).
 void SelfBvh::RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const Vec3> x1) {
+  LeafBox(node);
+  if (!normal_cones_) return;
+  double in[18], out[7];
+  SelfGatherLeaf(triangles_[right_[node]], x0, x1, in, 1);
+  SelfLeafConeOne(in, out);
+  TakeLeafCone(node, out);
+}
+
+void SelfBvh::LeafBox(int32_t node) {
   const Triangle& t = triangles_[right_[node]];
   node_lo_[node] = vertex_lo_[t[0]].cwiseMin(vertex_lo_[t[1]]).cwiseMin(vertex_lo_[t[2]]);
   node_hi_[node] = vertex_hi_[t[0]].cwiseMax(vertex_hi_[t[1]]).cwiseMax(vertex_hi_[t[2]]);
-  if (!normal_cones_) return;
-  double out[7];
-  SelfLeafConePortable(t, x0, x1, out);
-  TakeLeafCone(node, out);
 }
 
 void SelfBvh::TakeLeafCone(int32_t node, const double* out) {
@@ -962,13 +973,8 @@ void SelfBvh::TakeLeafCone(int32_t node, const double* out) {
 // half-angle), by cos(x + y) = cos x cos y - sin x sin y; 1e-12 kept back per level for
 // rounding).
 void SelfBvh::RefitParent(int32_t node) {
-  node_lo_[node] = node_lo_[left_[node]].cwiseMin(node_lo_[right_[node]]);
-  node_hi_[node] = node_hi_[left_[node]].cwiseMax(node_hi_[right_[node]]);
-  if (normal_cones_) {
-    cone_[node] = MergeCones(cone_[left_[node]], cone_[right_[node]]);
-    fat_[node].h2 = std::min(fat_[left_[node]].h2, fat_[right_[node]].h2);
-    fat_[node].move2 = std::max(fat_[left_[node]].move2, fat_[right_[node]].move2);
-  }
+  RefitParentBounds(node);
+  if (normal_cones_) cone_[node] = MergeCones(cone_[left_[node]], cone_[right_[node]]);
 }
 
 SelfBroadPhaseStats SelfBvh::UpdateCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
@@ -1073,8 +1079,7 @@ void SelfBvh::Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats) {
       contour_begin_[a + 1] - contour_begin_[a] + contour_begin_[b + 1] - contour_begin_[b] >=
           kSelfUnionMinContour) {
     const Cone both = MergeCones(cone_[a], cone_[b]);
-    if (both.cos_half > 1e-9 &&
-        SelfFat(both, {std::min(fat_[a].h2, fat_[b].h2), std::max(fat_[a].move2, fat_[b].move2)}) &&
+    if (both.cos_half > 1e-9 && SelfFat(both, MergeFat(fat_[a], fat_[b])) &&
         SelfContactFree(a, b, both)) {
       ++union_culled_;
       return;

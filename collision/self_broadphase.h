@@ -235,6 +235,8 @@ class SelfBvh final : public SelfBroadPhase {
   // True when the patch's corners stay far enough from their opposite edges that the cone's
   // certificate also holds at the step's thickness (SelfContactFree's comment).
   bool SelfFat(const Cone& cone, const FatBound& fat) const;
+  // The bound of two patches together: the least h2, the largest move2.
+  static FatBound MergeFat(const FatBound& l, const FatBound& r);
   void Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats);
   void LeafPair(int32_t ta, int32_t tb, SelfBroadPhaseStats* stats);
   bool Overlap(int32_t a, int32_t b) const;
@@ -242,6 +244,10 @@ class SelfBvh final : public SelfBroadPhase {
                  double start_pad);
   void RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const Vec3> x1);
   void RefitParent(int32_t node);
+  // A leaf's box from its triangle's vertex boxes.
+  void LeafBox(int32_t node);
+  // A parent's box and fat bound from its children's (not its cone).
+  void RefitParentBounds(int32_t node);
   // Every parent, a level at a time from the deepest, its cones merged a level at once.
   void RefitParents();
   // A leaf's cone and fat bound from out[0 .. 6] (axis x, y, z, cos_half, sin_half, h2, move2).
