@@ -101,6 +101,12 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   if (settings.passes_per_frame < 1) {
     throw std::invalid_argument("self_collision.passes_per_frame: < 1");
   }
+  if (settings.min_passes_per_frame < 1) {
+    throw std::invalid_argument("self_collision.min_passes_per_frame: < 1");
+  }
+  if (!(settings.slow_pass_motion >= 0.0) || !std::isfinite(settings.slow_pass_motion)) {
+    throw std::invalid_argument("self_collision.slow_pass_motion: must be >= 0");
+  }
   if (!(settings.max_pass_motion >= 0.0) || !std::isfinite(settings.max_pass_motion)) {
     throw std::invalid_argument("self_collision.max_pass_motion: must be >= 0");
   }

@@ -81,6 +81,16 @@ struct SelfCollisionSettings {
   /// (docs/self_collision.md). A pass per substep for basic Verlet, whose velocity comes from
   /// the last substep's positions (sim_loop/cloth_self_collision.cc: SelfPassSubsteps). >= 1.
   int32_t passes_per_frame = 8;
+  /// Slow frames take fewer, longer passes, down to this many (1 <= it; at most
+  /// passes_per_frame turns it off): a pass covers up to ceil(substeps / min_passes_per_frame)
+  /// substeps while the fastest particle, at its frame-start speed plus gravity's gain over the
+  /// frame, moves at most slow_pass_motion thicknesses over it
+  /// (sim_loop/cloth_self_collision.cc: SelfPassSubsteps). Fast frames keep passes_per_frame.
+  /// Measured on the 64 x 64 curtain (docs/self_collision.md, "Fewer passes in slow frames").
+  int32_t min_passes_per_frame = 3;
+  /// The most a slow frame's pass may move its fastest particle, in thicknesses (>= 0; 0 turns
+  /// the lengthening off).
+  double slow_pass_motion = 4.0;
   /// A pass's length is also capped so that the fastest particle at the frame's start moves at
   /// most this many thicknesses over it (substeps per pass <= max_pass_motion * thickness_m /
   /// (max |v| h), at least 1; sim_loop/cloth_self_collision.cc: SelfPassSubsteps). With the

@@ -41,6 +41,9 @@ struct ClothState::Scratch {
   std::vector<double> stream_rows;
   /// Self-collision response (collision/self_response.h), built only with [self_collision].
   std::optional<SelfCollisionResponse> self_collision;
+  /// The last frame's self-collision found no contact (no pair within the thickness, no
+  /// collision): this frame may take fewer, longer passes (SelfPassSubsteps).
+  bool self_quiet = false;
   /// [12 SoaStride(n)] structure-of-arrays work space of the force kernel: x, y, z, vx, vy, vz,
   /// then the force fx, fy, fz, then one spring family's forces (cloth_forces.cc).
   std::vector<double> soa;
@@ -216,10 +219,14 @@ void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* sta
 /// Substeps covered by one self-collision pass of a frame cut into `substeps`:
 /// ceil(substeps / SelfCollisionSettings::passes_per_frame), and with the particles' velocities
 /// v [m/s] and the substep h_s [s] at most max_pass_motion * thickness / (max |v| h_s) (at least
-/// 1); always 1 for basic Verlet, whose velocity comes from the last substep's positions, so a
-/// correction spread over a longer step would be amplified. Real-time safe.
+/// 1); with `quiet` (the last frame found no contact and no hand acts) up to
+/// ceil(substeps / min_passes_per_frame) while the fastest particle, at max |v| plus |g| times
+/// the frame, moves at most slow_pass_motion thicknesses per pass; always 1 for basic Verlet, whose
+/// velocity comes from the last substep's positions, so a correction spread over a longer step
+/// would be amplified. Real-time safe.
 int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& self,
-                         int32_t substeps, std::span<const Vec3> v = {}, double h_s = 0.0);
+                         int32_t substeps, std::span<const Vec3> v = {}, double h_s = 0.0,
+                         bool quiet = false);
 
 /// The exact count of intersecting non-adjacent triangle pairs at the frame's end into
 /// result->self_intersections and counters.self_intersections_max (O(T^2); opt-in diagnostic).

@@ -35,16 +35,32 @@ void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* sta
 }
 
 int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& self,
-                         int32_t substeps, std::span<const Vec3> v, double h_s) {
+                         int32_t substeps, std::span<const Vec3> v, double h_s, bool quiet) {
   if (model.integrator == IntegratorKind::kBasicVerlet) return 1;
   const SelfCollisionSettings& settings = self.settings();
   const int32_t passes = std::max(1, settings.passes_per_frame);
   int32_t every = std::max(1, (substeps + passes - 1) / passes);
-  if (settings.max_pass_motion > 0.0 && h_s > 0.0) {
+  if (v.empty() || !(h_s > 0.0)) return every;  // no speeds: the count alone
+  const bool lengthen =
+      quiet && settings.slow_pass_motion > 0.0 && settings.min_passes_per_frame < passes;
+  if (!lengthen && !(settings.max_pass_motion > 0.0)) return every;
+  double v2 = 0.0;
+  for (const Vec3& vi : v) v2 = std::max(v2, vi.squaredNorm());
+  const double speed = std::sqrt(v2);
+  if (lengthen) {
+    // Slow frame: the fastest particle, with gravity's gain over the whole frame, moves at most
+    // slow_pass_motion thicknesses in a pass of up to ceil(substeps / min_passes_per_frame).
+    const double gain = model.gravity_m_per_s2.norm() * h_s * substeps;
+    const double step_m = (speed + gain) * h_s;
+    const int32_t longest =
+        std::max(1, (substeps + settings.min_passes_per_frame - 1) / settings.min_passes_per_frame);
+    const double fit = step_m > 0.0 ? settings.slow_pass_motion * settings.thickness_m / step_m
+                                    : static_cast<double>(longest);
+    every = std::max(every, static_cast<int32_t>(std::min<double>(longest, fit)));
+  }
+  if (settings.max_pass_motion > 0.0) {
     // The pass's motion in thicknesses at the fastest particle's speed.
-    double v2 = 0.0;
-    for (const Vec3& vi : v) v2 = std::max(v2, vi.squaredNorm());
-    const double step_m = std::sqrt(v2) * h_s;
+    const double step_m = speed * h_s;
     if (step_m > 0.0) {
       const double cap = settings.max_pass_motion * settings.thickness_m / step_m;
       if (cap < every) every = std::max(1, static_cast<int32_t>(cap));

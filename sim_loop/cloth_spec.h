@@ -220,6 +220,14 @@ struct SelfCollisionSpec {
   /// Count intersecting triangle pairs at the end of every frame with the exact O(T^2) test
   /// (collision/self_intersection.h): a diagnostic for tests and small scenes, off by default.
   bool count_intersections = false;
+  /// Most self-collision passes per frame, >= 1 (SelfCollisionSettings::passes_per_frame).
+  int32_t passes_per_frame = 8;
+  /// Fewest passes of a slow frame after one without contact or hand, >= 1
+  /// (SelfCollisionSettings::min_passes_per_frame; >= passes_per_frame: never fewer).
+  int32_t min_passes_per_frame = 3;
+  /// A slow frame's pass moves the fastest particle at most this many thicknesses, >= 0
+  /// (SelfCollisionSettings::slow_pass_motion; 0: fewer passes never).
+  double slow_pass_motion = 4.0;
 };
 
 /// Everything the 60 Hz simulation needs from a scene.

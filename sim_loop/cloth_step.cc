@@ -73,8 +73,11 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   const double t0 = state->time_s;
   SelfCollisionResponse* self = s.self_collision ? &*s.self_collision : nullptr;
   // Self-collision passes cover several substeps (a few per frame; Bridson et al. 2002's
-  // collision step): self_h is the time since the pass's BeginStep.
-  const int32_t self_every = self ? SelfPassSubsteps(model, *self, substeps, state->v, h) : 1;
+  // collision step): self_h is the time since the pass's BeginStep. Fewer, longer passes only
+  // after a frame without contact and with no hand on the cloth (its pull is not in the speeds).
+  const bool self_quiet = s.self_quiet && external.empty();
+  const int32_t self_every =
+      self ? SelfPassSubsteps(model, *self, substeps, state->v, h, self_quiet) : 1;
   double self_h = 0.0;
   for (int32_t k = 0; k < substeps; ++k) {
     if (self && self_h == 0.0) self->BeginStep(state->x);  // the pass's start positions
@@ -96,6 +99,7 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
     }
   }
   state->time_s = t0 + dt;
+  if (self) s.self_quiet = result.self_proximity_pairs == 0 && result.self_ccd_hits == 0;
 
   // Non-finite values never stay: restore the last good frame (MuJoCo-style count and warn once).
   if (AllFinite(*state)) {
@@ -115,6 +119,7 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
     std::copy(s.good_v.begin(), s.good_v.end(), state->v.begin());
     state->time_s = s.good_time_s;
     s.history_valid = false;
+    s.self_quiet = false;
     result.recovered = true;
   }
   if (self && model.self_collision_count_intersections) {

@@ -269,6 +269,62 @@ TEST(SelfCollisionScene, PassLengthIsCappedByTheFastestParticle) {
   EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h), 1);
 }
 
+// A quiet frame (the last one found no contact, no hand acts) takes longer passes, up to
+// ceil(substeps / min_passes_per_frame), while the fastest particle, with gravity's gain over the
+// frame, moves at most slow_pass_motion thicknesses per pass; never shorter than the count's.
+TEST(SelfCollisionScene, QuietSlowFramesTakeFewerPasses) {
+  ClothModel model = BuildClothModel(SelfCollisionSceneSpec("self_fold_drop.toml"));
+  model.gravity_m_per_s2 = Vec3::Zero();
+  ClothState state = MakeClothState(model);
+  const SelfCollisionResponse& self = *state.scratch->self_collision;
+  const SelfCollisionSettings& set = self.settings();
+  ASSERT_EQ(set.passes_per_frame, 8);
+  ASSERT_EQ(set.min_passes_per_frame, 3);
+  const int32_t substeps = 24;  // 3 substeps per pass by the count, 8 at the fewest passes
+  const double h = 1e-4;
+  std::vector<Vec3> v(state.x.size(), Vec3::Zero());
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h, /*quiet=*/true), 8);  // at rest
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h, /*quiet=*/false), 3);
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, {}, h, /*quiet=*/true), 3);  // no speeds
+  // 5.5 substeps' worth of the allowed motion per pass: 5 substeps.
+  v[7] = Vec3(set.slow_pass_motion * set.thickness_m / (5.5 * h), 0.0, 0.0);
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h, true), 5);
+  v[7] *= 10.0;  // fast: the count's length, never shorter
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h, true), 3);
+  // Gravity's gain over the frame counts as speed: |g| h substeps = 5.5 substeps' worth.
+  v[7].setZero();
+  model.gravity_m_per_s2 =
+      Vec3(0.0, -set.slow_pass_motion * set.thickness_m / (5.5 * h) / (h * substeps), 0.0);
+  EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h, true), 5);
+}
+
+// The shipped curtain with self-collision, released from rest: contact-free frames take fewer
+// passes than the count's 8 (issue 22's 64 x 64 frame target; docs/self_collision.md, "Fewer
+// passes in quiet frames"), and a hand on the cloth gives every frame the count's passes.
+TEST(SelfCollisionScene, TheCurtainTakesFewerPassesUntilAHandActs) {
+  SimSpec spec = SelfCollisionSceneSpec("curtain.toml");
+  spec.self_collision = SelfCollisionSpec{};
+  ClothModel model = BuildClothModel(spec);
+  ClothState state = MakeClothState(model);
+  const SelfCollisionResponse& self = *state.scratch->self_collision;
+  const int32_t frames = 20;
+  for (int32_t f = 0; f < frames; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
+  const int64_t quiet_passes = self.totals().passes;
+  const int32_t every = (model.substeps + 7) / 8;                     // substeps per pass, 8 passes
+  const int32_t count_passes = (model.substeps + every - 1) / every;  // passes per frame
+  ASSERT_GT(count_passes, 3);
+  EXPECT_LT(quiet_passes, int64_t{count_passes} * frames);
+  EXPECT_GE(quiet_passes, int64_t{3} * frames);  // never fewer than min_passes_per_frame
+  // A hand: a small force on one triangle, every frame.
+  ExternalForce hand;
+  hand.triangle = static_cast<int32_t>(model.triangles.size() / 6);
+  hand.force_N = Vec3(0.0, 0.0, 0.01);
+  for (int32_t f = 0; f < frames; ++f) {
+    StepFrame(model, std::span<const ExternalForce>(&hand, 1), 1.0 / 60.0, &state);
+  }
+  EXPECT_EQ(self.totals().passes - quiet_passes, int64_t{count_passes} * frames);
+}
+
 // Issue 22's other hard cases (scenes/self_fall_10ms.toml, self_tablecloth_pull.toml,
 // self_rail_twist.toml, self_fold_press.toml): zero intersecting non-adjacent triangle pairs at the
 // end of every frame by the exact test, no collision left unresolved, none frozen; and each scene,
@@ -339,7 +395,8 @@ std::string SelfSceneError(const std::string& section) {
 TEST(SelfCollisionSection, ParsesAndValidates) {
   const SimSpec spec = ParseSimSpec(ParseSceneText(
       "[cloth]\nwidth = 4\nheight = 4\n[self_collision]\nthickness_m = 0.003\nmethod = \"bvh\"\n"
-      "iterations = 2\nfriction = 0.4\nfail_safe = false\n",
+      "iterations = 2\nfriction = 0.4\nfail_safe = false\npasses_per_frame = 6\n"
+      "min_passes_per_frame = 2\nslow_pass_motion = 3\n",
       "ok.toml"));
   ASSERT_TRUE(spec.self_collision.has_value());
   EXPECT_EQ(spec.self_collision->thickness_m, 0.003);
@@ -347,6 +404,10 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_EQ(spec.self_collision->iterations, 2);
   EXPECT_EQ(spec.self_collision->friction, 0.4);
   EXPECT_FALSE(spec.self_collision->fail_safe);
+  EXPECT_EQ(spec.self_collision->passes_per_frame, 6);
+  EXPECT_EQ(spec.self_collision->min_passes_per_frame, 2);
+  EXPECT_EQ(spec.self_collision->slow_pass_motion, 3.0);
+  EXPECT_EQ(BuildClothModel(spec).self_collision.min_passes_per_frame, 2);
   EXPECT_FALSE(ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n", "x.toml")).self_collision);
   const SimSpec defaults =
       ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n[self_collision]\n", "d.toml"));
@@ -365,6 +426,12 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_NE(e.find("self_collision.iterations"), std::string::npos) << e;
   e = SelfSceneError("[self_collision]\nfriction = -0.1\n");
   EXPECT_NE(e.find("self_collision.friction"), std::string::npos) << e;
+  e = SelfSceneError("[self_collision]\npasses_per_frame = 0\n");
+  EXPECT_NE(e.find("self_collision.passes_per_frame"), std::string::npos) << e;
+  e = SelfSceneError("[self_collision]\nmin_passes_per_frame = 0\n");
+  EXPECT_NE(e.find("self_collision.min_passes_per_frame"), std::string::npos) << e;
+  e = SelfSceneError("[self_collision]\nslow_pass_motion = -1\n");
+  EXPECT_NE(e.find("self_collision.slow_pass_motion"), std::string::npos) << e;
   e = SelfSceneError("[self_collision]\nthicknes_m = 0.001\n");
   EXPECT_NE(e.find("thickness_m"), std::string::npos) << e;  // did you mean
 }
