@@ -52,7 +52,7 @@ struct Args {
   int32_t passes_per_frame = 8;              // SelfCollisionSettings::passes_per_frame
   double broad_inflation = 1.0;              // SelfCollisionSettings::broad_inflation
   double max_pass_motion = 0.0;              // SelfCollisionSettings::max_pass_motion (shipped: 0)
-  int32_t min_passes_per_frame = 3;          // SelfCollisionSettings::min_passes_per_frame
+  int32_t min_passes_per_frame = 2;          // SelfCollisionSettings::min_passes_per_frame
   double slow_pass_motion = 4.0;             // SelfCollisionSettings::slow_pass_motion
   std::string methods = "spatial_hash,bvh,bvh_cones";  // culling methods of the response rows
   std::string detect_methods = "bvh_cones";            // culling methods of the detection row
@@ -271,7 +271,7 @@ std::string SelfCommand(const Args& args) {
   }
   if (args.broad_inflation != 1.0) cmd += " --broad-inflation " + Sig(args.broad_inflation, 3);
   if (args.max_pass_motion != 0.0) cmd += " --max-pass-motion " + Sig(args.max_pass_motion, 3);
-  if (args.min_passes_per_frame != 3) {
+  if (args.min_passes_per_frame != 2) {
     cmd += " --min-passes-per-frame " + std::to_string(args.min_passes_per_frame);
   }
   if (args.slow_pass_motion != 4.0) cmd += " --slow-pass-motion " + Sig(args.slow_pass_motion, 3);
@@ -462,7 +462,7 @@ int Run(Args args) {
       "max_pass_motion thicknesses with --max-pass-motion; the scenes' default, and this "
       "bench's, is no cap), or up to ceil(substeps / min_passes_per_frame) substeps in a frame "
       "after one without contact and without a hand, while the fastest particle moves at most "
-      "slow_pass_motion thicknesses per pass (defaults 3 and 4): `passes_per_frame`, the mean. "
+      "slow_pass_motion thicknesses per pass (defaults 2 and 4): `passes_per_frame`, the mean. "
       "`detect_ms`: wall "
       "time per frame in detection (broad phases, box filter, continuous pair tests of every "
       "CCD and impact-zone round; SelfCollisionStats::detect_s), median and p99 over frames; "

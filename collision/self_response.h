@@ -86,8 +86,8 @@ struct SelfCollisionSettings {
   /// substeps while the fastest particle, at its frame-start speed plus gravity's gain over the
   /// frame, moves at most slow_pass_motion thicknesses over it
   /// (sim_loop/cloth_self_collision.cc: SelfPassSubsteps). Fast frames keep passes_per_frame.
-  /// Measured on the 64 x 64 curtain (docs/self_collision.md, "Fewer passes in slow frames").
-  int32_t min_passes_per_frame = 3;
+  /// Measured on the 64 x 64 curtain (docs/self_collision.md, "Fewer passes in quiet frames").
+  int32_t min_passes_per_frame = 2;
   /// The most a slow frame's pass may move its fastest particle, in thicknesses (>= 0; 0 turns
   /// the lengthening off).
   double slow_pass_motion = 4.0;

@@ -224,7 +224,7 @@ struct SelfCollisionSpec {
   int32_t passes_per_frame = 8;
   /// Fewest passes of a slow frame after one without contact or hand, >= 1
   /// (SelfCollisionSettings::min_passes_per_frame; >= passes_per_frame: never fewer).
-  int32_t min_passes_per_frame = 3;
+  int32_t min_passes_per_frame = 2;
   /// A slow frame's pass moves the fastest particle at most this many thicknesses, >= 0
   /// (SelfCollisionSettings::slow_pass_motion; 0: fewer passes never).
   double slow_pass_motion = 4.0;
