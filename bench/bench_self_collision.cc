@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "app/command.h"
+#include "base/gnuplot.h"
 #include "base/json.h"
 #include "bench/bench_util.h"
 #include "collision/ccd_all_pairs.h"
@@ -57,6 +58,8 @@ struct Args {
   std::string methods = "spatial_hash,bvh,bvh_cones";  // culling methods of the response rows
   std::string detect_methods = "bvh_cones";            // culling methods of the detection row
   bool reference = true;  // compare with AllPairsCcd (off: for profiling the response alone)
+  bool plot = true;       // gnuplot on gnuplot_script: <out>/self_collision.png
+  std::string gnuplot_script = "bench/self_collision.gp";
 };
 
 struct Row {
@@ -92,6 +95,8 @@ struct Row {
   int64_t reference_hits = 0;       // pairs the reference reported, summed over those frames
   int64_t missed_vs_reference = 0;  // of those, not found by the culled detection
   int64_t extra_vs_reference = 0;   // found by the culled detection, not by the reference
+  std::vector<double> frame_ms;     // each frame's wall time, ms (the plot over the animation)
+  std::vector<double> detect_ms;    // each frame's detection time, ms (empty for "off")
 };
 
 // Compares the culled first CCD detection of the response's last pass with AllPairsCcd on the
@@ -216,6 +221,8 @@ Row RunSelfBench(const Args& args, int32_t grid, const std::string& method, int3
   row.response_ms_median = Median(per_substep_ms);
   row.response_ms_p99 = Percentile(per_substep_ms, 99);
   row.frame_ms_median = Median(frame_ms);
+  row.frame_ms = frame_ms;
+  row.detect_ms = detect_ms;
   row.pairs_per_frame = pairs / frames;
   row.impulses_per_frame = impulses / frames;
   row.zones_per_frame = zones / frames;
@@ -488,6 +495,31 @@ int Run(Args args) {
   const std::string json_path = args.json.empty() ? args.out + "/self_collision.json" : args.json;
   WriteTextFile(json_path, JsonText(top));
   std::printf("wrote %s/self_collision.{md,csv}, %s\n", args.out.c_str(), json_path.c_str());
+  // The cost of every frame over the animation (002's figures): one CSV row per run and frame,
+  // then the plot of it.
+  std::string host = machine.cpu_model;
+  std::replace(host.begin(), host.end(), ',', ' ');
+  std::string frames_csv = "kind,method,grid,frame,frame_ms,detect_ms,case,host\n";
+  for (const Row& r : rows) {
+    for (size_t f = 0; f < r.frame_ms.size(); ++f) {
+      frames_csv += r.kind + "," + r.method + "," + std::to_string(r.grid) + "," +
+                    std::to_string(f) + "," + Sig(r.frame_ms[f], 4) + "," +
+                    (f < r.detect_ms.size() ? Sig(r.detect_ms[f], 4) : std::string("NaN")) + "," +
+                    args.case_name + "," + host + "\n";
+    }
+  }
+  const std::string frames_path = args.out + "/self_collision_frames.csv";
+  WriteTextFile(frames_path, frames_csv);
+  std::printf("wrote %s\n", frames_path.c_str());
+  if (args.plot) {
+    const std::string png = args.out + "/self_collision.png";
+    const std::string command =
+        "gnuplot -e \"csv='" + frames_path + "'; png='" + png + "'\" " + args.gnuplot_script;
+    if (report::RunGnuplot("felt bench self-collision", command, png) ==
+        report::GnuplotOutcome::kFailed) {
+      return 1;
+    }
+  }
   return 0;
 }
 
@@ -534,6 +566,9 @@ app::CommandRun SelfSetup(CLI::App& cmd) {
       ->capture_default_str();
   cmd.add_flag("!--no-reference", args->reference,
                "skip the all-pairs reference (profiling; missed_vs_reference is not measured)");
+  cmd.add_flag("!--no-plot", args->plot, "do not run gnuplot (the frames' CSV is still written)");
+  cmd.add_option("--gnuplot-script", args->gnuplot_script, "the plot's gnuplot script")
+      ->capture_default_str();
   cmd.add_flag("--quick", args->quick, "grid 16, 20 frames (seconds; for CI): not a result");
   return [args, scene]() {
     if (scene->count() == 0) args->scene = DefaultSelfScene(args->case_name);

@@ -223,13 +223,22 @@ TEST(BenchSmoke, SelfCollisionQuickWritesItsFiles) {
   const std::string dir = FreshDir("felt_bench_self_collision");
   const std::string json = dir + "/self_collision.json";
   const Outcome outcome = RunFelt("bench self-collision --quick --out " + dir + " --json " + json +
-                                  " --scene " + kSource + "/scenes/self_fold_drop.toml");
+                                  " --scene " + kSource + "/scenes/self_fold_drop.toml" +
+                                  " --gnuplot-script " + kSource + "/bench/self_collision.gp");
   ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
   ExpectKeys(ReadFile(json), {"command", "machine", "rows", "method", "case", "triangles",
                               "frame_ms_median", "intersections_end_of_frame"});
   const std::string md = ReadFile(dir + "/self_collision.md");
   EXPECT_NE(md.find("| bvh | 16 |"), std::string::npos) << md;
   EXPECT_EQ(ReadFile(dir + "/self_collision.csv").rfind("# felt bench self-collision", 0), 0u);
+  // The cost of every frame over the animation, and its plot.
+  const std::string frames = ReadFile(dir + "/self_collision_frames.csv");
+  EXPECT_EQ(frames.rfind("kind,method,grid,frame,frame_ms,detect_ms,case,host\n", 0), 0u);
+  EXPECT_NE(frames.find("\nresponse,off,16,0,"), std::string::npos) << frames;
+  EXPECT_NE(frames.find("\nresponse,bvh_cones,16,19,"), std::string::npos) << frames;
+  if (std::system("command -v gnuplot > /dev/null 2>&1") == 0) {
+    EXPECT_TRUE(std::filesystem::exists(dir + "/self_collision.png")) << outcome.output;
+  }
 }
 
 }  // namespace
