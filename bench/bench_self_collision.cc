@@ -50,11 +50,12 @@ struct Args {
   std::string case_name = "fold_drop";
   int32_t detect_grid = 150;                 // the ~45k-triangle detection row (0: none)
   int32_t detect_frames = 60;                // its frames
-  int32_t passes_per_frame = 8;              // SelfCollisionSettings::passes_per_frame
-  double broad_inflation = 1.0;              // SelfCollisionSettings::broad_inflation
-  double max_pass_motion = 0.0;              // SelfCollisionSettings::max_pass_motion (shipped: 0)
-  int32_t min_passes_per_frame = 2;          // SelfCollisionSettings::min_passes_per_frame
-  double slow_pass_motion = 4.0;             // SelfCollisionSettings::slow_pass_motion
+  // The response's pass and padding settings, the shipped defaults unless given.
+  int32_t passes_per_frame = SelfCollisionSettings{}.passes_per_frame;
+  double broad_inflation = SelfCollisionSettings{}.broad_inflation;
+  double max_pass_motion = SelfCollisionSettings{}.max_pass_motion;
+  int32_t min_passes_per_frame = SelfCollisionSettings{}.min_passes_per_frame;
+  double slow_pass_motion = SelfCollisionSettings{}.slow_pass_motion;
   std::string methods = "spatial_hash,bvh,bvh_cones";  // culling methods of the response rows
   std::string detect_methods = "bvh_cones";            // culling methods of the detection row
   bool reference = true;  // compare with AllPairsCcd (off: for profiling the response alone)
@@ -273,15 +274,19 @@ std::string SelfCommand(const Args& args) {
   if (args.out != "bench/results") cmd += " --out " + args.out;
   if (args.detect_grid != 150) cmd += " --detect-grid " + std::to_string(args.detect_grid);
   if (args.detect_frames != 60) cmd += " --detect-frames " + std::to_string(args.detect_frames);
-  if (args.passes_per_frame != 8) {
+  const Args defaults;
+  if (args.passes_per_frame != defaults.passes_per_frame) {
     cmd += " --passes-per-frame " + std::to_string(args.passes_per_frame);
   }
-  if (args.broad_inflation != 1.0) cmd += " --broad-inflation " + Sig(args.broad_inflation, 3);
-  if (args.max_pass_motion != 0.0) cmd += " --max-pass-motion " + Sig(args.max_pass_motion, 3);
-  if (args.min_passes_per_frame != 2) {
+  if (args.broad_inflation != defaults.broad_inflation)
+    cmd += " --broad-inflation " + Sig(args.broad_inflation, 3);
+  if (args.max_pass_motion != defaults.max_pass_motion)
+    cmd += " --max-pass-motion " + Sig(args.max_pass_motion, 3);
+  if (args.min_passes_per_frame != defaults.min_passes_per_frame) {
     cmd += " --min-passes-per-frame " + std::to_string(args.min_passes_per_frame);
   }
-  if (args.slow_pass_motion != 4.0) cmd += " --slow-pass-motion " + Sig(args.slow_pass_motion, 3);
+  if (args.slow_pass_motion != defaults.slow_pass_motion)
+    cmd += " --slow-pass-motion " + Sig(args.slow_pass_motion, 3);
   if (args.methods != "spatial_hash,bvh,bvh_cones") cmd += " --methods " + args.methods;
   if (args.detect_methods != "bvh_cones") cmd += " --detect-methods " + args.detect_methods;
   if (!args.reference) cmd += " --no-reference";

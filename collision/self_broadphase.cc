@@ -823,16 +823,28 @@ bool SelfBvh::SelfFat(const Cone& cone, const FatBound& fat) const {
   return cone.cos_half * (std::sqrt(fat.h2) - std::sqrt(fat.move2)) >= 2.0 * certify_m_;
 }
 
-SelfBvh::Cone SelfBvh::MergeCones(const Cone& l, const Cone& r) {
-  const double in[10] = {l.axis.x(), l.axis.y(), l.axis.z(), l.cos_half, l.sin_half,
-                         r.axis.x(), r.axis.y(), r.axis.z(), r.cos_half, r.sin_half};
-  double out[5];
-  SelfMergeConeOne(in, out);
+void SelfBvh::PackCone(const Cone& cone, double* out) {
+  out[0] = cone.axis.x();
+  out[1] = cone.axis.y();
+  out[2] = cone.axis.z();
+  out[3] = cone.cos_half;
+  out[4] = cone.sin_half;
+}
+
+SelfBvh::Cone SelfBvh::UnpackCone(const double* in) {
   Cone cone;
-  cone.axis = Vec3(out[0], out[1], out[2]);
-  cone.cos_half = out[3];
-  cone.sin_half = out[4];
+  cone.axis = Vec3(in[0], in[1], in[2]);
+  cone.cos_half = in[3];
+  cone.sin_half = in[4];
   return cone;
+}
+
+SelfBvh::Cone SelfBvh::MergeCones(const Cone& l, const Cone& r) {
+  double in[10], out[5];
+  PackCone(l, in);
+  PackCone(r, in + 5);
+  SelfMergeConeOne(in, out);
+  return UnpackCone(out);
 }
 
 SelfBvh::FatBound SelfBvh::MergeFat(const FatBound& l, const FatBound& r) {
@@ -856,25 +868,13 @@ void SelfBvh::RefitParents() {
     const int32_t first = level_start_[level], last = level_start_[level + 1];
     for (int32_t i = first; i < last; ++i) {
       const int32_t node = parent_order_[i];
-      double* in = merge_in_.data() + 10 * i;
-      for (const int32_t child : {left_[node], right_[node]}) {
-        const Cone& c = cone_[child];
-        in[0] = c.axis.x();
-        in[1] = c.axis.y();
-        in[2] = c.axis.z();
-        in[3] = c.cos_half;
-        in[4] = c.sin_half;
-        in += 5;
-      }
+      PackCone(cone_[left_[node]], merge_in_.data() + 10 * i);
+      PackCone(cone_[right_[node]], merge_in_.data() + 10 * i + 5);
     }
     merge(merge_in_.data() + 10 * first, merge_out_.data() + 5 * first,
           static_cast<size_t>(last - first));
     for (int32_t i = first; i < last; ++i) {
-      const double* out = merge_out_.data() + 5 * i;
-      Cone& c = cone_[parent_order_[i]];
-      c.axis = Vec3(out[0], out[1], out[2]);
-      c.cos_half = out[3];
-      c.sin_half = out[4];
+      cone_[parent_order_[i]] = UnpackCone(merge_out_.data() + 5 * i);
     }
   }
 }
@@ -960,10 +960,7 @@ void SelfBvh::LeafBox(int32_t node) {
 }
 
 void SelfBvh::TakeLeafCone(int32_t node, const double* out) {
-  Cone& cone = cone_[node];
-  cone.axis = Vec3(out[0], out[1], out[2]);
-  cone.cos_half = out[3];
-  cone.sin_half = out[4];
+  cone_[node] = UnpackCone(out);
   fat_[node].h2 = out[5];
   fat_[node].move2 = out[6];
 }

@@ -232,6 +232,10 @@ class SelfBvh final : public SelfBroadPhase {
                      const std::vector<std::array<int32_t, 2>>& range);
   bool SelfContactFree(int32_t a, int32_t b, const Cone& cone) const;
   static Cone MergeCones(const Cone& l, const Cone& r);
+  // A cone as the lane kernels read and write it (self_leaf_cone.inc): axis x, y, z, cos_half,
+  // sin_half into out[0 .. 4], and back.
+  static void PackCone(const Cone& cone, double* out);
+  static Cone UnpackCone(const double* in);
   // True when the patch's corners stay far enough from their opposite edges that the cone's
   // certificate also holds at the step's thickness (SelfContactFree's comment).
   bool SelfFat(const Cone& cone, const FatBound& fat) const;

@@ -221,13 +221,13 @@ struct SelfCollisionSpec {
   /// (collision/self_intersection.h): a diagnostic for tests and small scenes, off by default.
   bool count_intersections = false;
   /// Most self-collision passes per frame, >= 1 (SelfCollisionSettings::passes_per_frame).
-  int32_t passes_per_frame = 8;
+  int32_t passes_per_frame = SelfCollisionSettings{}.passes_per_frame;
   /// Fewest passes of a slow frame after one without contact or hand, >= 1
   /// (SelfCollisionSettings::min_passes_per_frame; >= passes_per_frame: never fewer).
-  int32_t min_passes_per_frame = 2;
+  int32_t min_passes_per_frame = SelfCollisionSettings{}.min_passes_per_frame;
   /// A slow frame's pass moves the fastest particle at most this many thicknesses, >= 0
   /// (SelfCollisionSettings::slow_pass_motion; 0: fewer passes never).
-  double slow_pass_motion = 4.0;
+  double slow_pass_motion = SelfCollisionSettings{}.slow_pass_motion;
 };
 
 /// Everything the 60 Hz simulation needs from a scene.
