@@ -56,6 +56,7 @@ struct Args {
   double max_pass_motion = SelfCollisionSettings{}.max_pass_motion;
   int32_t min_passes_per_frame = SelfCollisionSettings{}.min_passes_per_frame;
   double slow_pass_motion = SelfCollisionSettings{}.slow_pass_motion;
+  double hand_pass_motion = SelfCollisionSettings{}.hand_pass_motion;
   std::string methods = "spatial_hash,bvh,bvh_cones";  // culling methods of the response rows
   std::string detect_methods = "bvh_cones";            // culling methods of the detection row
   bool reference = true;  // compare with AllPairsCcd (off: for profiling the response alone)
@@ -169,6 +170,7 @@ Row RunSelfBench(const Args& args, int32_t grid, const std::string& method, int3
   model.self_collision.max_pass_motion = args.max_pass_motion;
   model.self_collision.min_passes_per_frame = args.min_passes_per_frame;
   model.self_collision.slow_pass_motion = args.slow_pass_motion;
+  model.self_collision.hand_pass_motion = args.hand_pass_motion;
   ClothState state = MakeClothState(model);
   SelfCollisionResponse* response =
       state.scratch->self_collision ? &*state.scratch->self_collision : nullptr;
@@ -287,6 +289,8 @@ std::string SelfCommand(const Args& args) {
   }
   if (args.slow_pass_motion != defaults.slow_pass_motion)
     cmd += " --slow-pass-motion " + Sig(args.slow_pass_motion, 3);
+  if (args.hand_pass_motion != defaults.hand_pass_motion)
+    cmd += " --hand-pass-motion " + Sig(args.hand_pass_motion, 3);
   if (args.methods != "spatial_hash,bvh,bvh_cones") cmd += " --methods " + args.methods;
   if (args.detect_methods != "bvh_cones") cmd += " --detect-methods " + args.detect_methods;
   if (!args.reference) cmd += " --no-reference";
@@ -473,8 +477,10 @@ int Run(Args args) {
       "ceil(substeps / passes) substeps or fewer (a pass moves the fastest particle at most "
       "max_pass_motion thicknesses with --max-pass-motion; the scenes' default, and this "
       "bench's, is no cap), or up to ceil(substeps / min_passes_per_frame) substeps in a frame "
-      "after one without contact and without a hand, while the fastest particle moves at most "
-      "slow_pass_motion thicknesses per pass (defaults 2 and 4): `passes_per_frame`, the mean. "
+      "after one without contact, while the fastest particle moves at most slow_pass_motion "
+      "thicknesses per pass (defaults 2 and 4; foretold from the frame-start speeds, then "
+      "measured substep by substep; hand_pass_motion with a hand, which these cases do not "
+      "have): `passes_per_frame`, the mean. "
       "`detect_ms`: wall "
       "time per frame in detection (broad phases, box filter, continuous pair tests of every "
       "CCD and impact-zone round; SelfCollisionStats::detect_s), median and p99 over frames; "
@@ -561,6 +567,10 @@ app::CommandRun SelfSetup(CLI::App& cmd) {
   cmd.add_option("--slow-pass-motion", args->slow_pass_motion,
                  "a quiet frame's longer passes move the fastest particle at most this many "
                  "thicknesses (0: off)")
+      ->check(CLI::Range(0.0, 1000.0));
+  cmd.add_option("--hand-pass-motion", args->hand_pass_motion,
+                 "with a hand on a quiet cloth, a pass moves the fastest particle at most this "
+                 "many thicknesses (0: the count's passes; the bench's cases have no hand)")
       ->check(CLI::Range(0.0, 1000.0));
   cmd.add_option("--broad-inflation", args->broad_inflation,
                  "extra broad-phase padding, in thicknesses (0: a broad phase every pass)")

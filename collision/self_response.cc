@@ -107,6 +107,9 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   if (!(settings.slow_pass_motion >= 0.0) || !std::isfinite(settings.slow_pass_motion)) {
     throw std::invalid_argument("self_collision.slow_pass_motion: must be >= 0");
   }
+  if (!(settings.hand_pass_motion >= 0.0) || !std::isfinite(settings.hand_pass_motion)) {
+    throw std::invalid_argument("self_collision.hand_pass_motion: must be >= 0");
+  }
   if (!(settings.max_pass_motion >= 0.0) || !std::isfinite(settings.max_pass_motion)) {
     throw std::invalid_argument("self_collision.max_pass_motion: must be >= 0");
   }

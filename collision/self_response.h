@@ -91,6 +91,17 @@ struct SelfCollisionSettings {
   /// The most a slow frame's pass may move its fastest particle, in thicknesses (>= 0; 0 turns
   /// the lengthening off).
   double slow_pass_motion = 4.0;
+  /// The most a pass may move its fastest particle, in thicknesses, in a frame after one without
+  /// contact while a hand acts on the cloth (>= 0; 0: such frames keep passes_per_frame). The
+  /// pass goes on past the count's length substep by substep while the measured motion since
+  /// it began, plus one more substep at the present speed, stays within it (a hand's pull is
+  /// not in the frame-start speeds; sim_loop/cloth_self_collision.cc: SelfPassMayGoOn). 0.45 =
+  /// (1 - ccd_thickness_fraction) / 2: two features close at most 0.9 thickness in a pass, so a
+  /// pair coming into contact is first met by the proximity repulsion at a pass's start, as in
+  /// the count's passes, never only by the CCD; with 1 or 4 the flap of
+  /// LayeredCloth.AFoldNeverClosesOnTheProxy landed differently and closed on the proxy
+  /// (docs/self_collision.md, "A hand on a quiet cloth").
+  double hand_pass_motion = 0.45;
   /// A pass's length is also capped so that the fastest particle at the frame's start moves at
   /// most this many thicknesses over it (substeps per pass <= max_pass_motion * thickness_m /
   /// (max |v| h), at least 1; sim_loop/cloth_self_collision.cc: SelfPassSubsteps). With the

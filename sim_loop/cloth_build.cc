@@ -635,6 +635,7 @@ ClothModel BuildClothModel(const SimSpec& spec) {
     set.passes_per_frame = sc.passes_per_frame;
     set.min_passes_per_frame = sc.min_passes_per_frame;
     set.slow_pass_motion = sc.slow_pass_motion;
+    set.hand_pass_motion = sc.hand_pass_motion;
     // Bridson et al. 2002 §7.2 take the repulsion spring's k from the cloth's stretch stiffness.
     set.repulsion_stiffness_N_per_m = sc.repulsion_stiffness_N_per_m.value_or(
         cs.structural ? cs.structural->stiffness_N_per_m : 1.0);

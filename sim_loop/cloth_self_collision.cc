@@ -69,6 +69,43 @@ int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& s
   return every;
 }
 
+int32_t SelfPassLongest(const ClothModel& model, const SelfCollisionResponse& self,
+                        int32_t substeps, int32_t planned) {
+  const SelfCollisionSettings& settings = self.settings();
+  if (model.integrator == IntegratorKind::kBasicVerlet || !(settings.slow_pass_motion > 0.0) ||
+      settings.min_passes_per_frame >= settings.passes_per_frame) {
+    return planned;
+  }
+  const int32_t fewest = std::max(1, settings.min_passes_per_frame);
+  return std::max(planned, (substeps + fewest - 1) / fewest);
+}
+
+bool SelfPassMayGoOn(const SelfCollisionResponse& self, std::span<const Vec3> x,
+                     std::span<const Vec3> v, double h_s, bool hand) {
+  const SelfCollisionSettings& settings = self.settings();
+  const std::span<const Vec3> x0 = self.x_before();
+  // The pass's budget in thicknesses: slow_pass_motion, hand_pass_motion's when a hand acts,
+  // max_pass_motion's when that cap is set.
+  double budget = settings.slow_pass_motion;
+  if (hand) budget = std::min(budget, settings.hand_pass_motion);
+  if (settings.max_pass_motion > 0.0) budget = std::min(budget, settings.max_pass_motion);
+  if (!(budget > 0.0) || x0.size() != x.size() || v.size() != x.size()) return false;
+  double d2 = 0.0;     // the farthest any particle has moved since the pass began [m^2]
+  double v2 = 0.0;     // the fastest particle now [m^2/s^2]
+  double probe = 0.0;  // 0 unless a value is NaN or infinite (std::max drops a NaN)
+  for (size_t i = 0; i < x.size(); ++i) {
+    const double di = (x[i] - x0[i]).squaredNorm();
+    const double vi = v[i].squaredNorm();
+    d2 = std::max(d2, di);
+    v2 = std::max(v2, vi);
+    probe += (di + vi) * 0.0;
+  }
+  if (probe != 0.0) return false;
+  // One more substep at the fastest particle's present speed must stay within the budget.
+  const double moved_m = std::sqrt(d2) + std::sqrt(v2) * h_s;
+  return moved_m <= budget * settings.thickness_m;  // NaN: false
+}
+
 void CountFrameIntersections(const ClothModel& model, ClothState* state, FrameResult* result) {
   const int64_t count = CountSelfIntersections(state->x, model.triangles);
   result->self_intersections = count;

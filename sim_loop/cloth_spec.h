@@ -228,6 +228,9 @@ struct SelfCollisionSpec {
   /// A slow frame's pass moves the fastest particle at most this many thicknesses, >= 0
   /// (SelfCollisionSettings::slow_pass_motion; 0: fewer passes never).
   double slow_pass_motion = SelfCollisionSettings{}.slow_pass_motion;
+  /// With a hand on a quiet cloth, a pass moves the fastest particle at most this many
+  /// thicknesses, >= 0 (SelfCollisionSettings::hand_pass_motion; 0: the count's passes).
+  double hand_pass_motion = SelfCollisionSettings{}.hand_pass_motion;
 };
 
 /// Everything the 60 Hz simulation needs from a scene.

@@ -298,31 +298,82 @@ TEST(SelfCollisionScene, QuietSlowFramesTakeFewerPasses) {
   EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h, true), 5);
 }
 
-// The shipped curtain with self-collision, released from rest: contact-free frames take fewer
+// The measured rule: a pass may take one more substep while the farthest any particle has
+// moved since its start, plus one more substep at the fastest present speed, stays within the
+// budget: slow_pass_motion thicknesses, hand_pass_motion with a hand, max_pass_motion when set.
+TEST(SelfCollisionScene, APassGoesOnWhileItsMeasuredMotionAllows) {
+  ClothModel model = BuildClothModel(SelfCollisionSceneSpec("self_fold_drop.toml"));
+  ClothState state = MakeClothState(model);
+  SelfCollisionResponse& self = *state.scratch->self_collision;
+  const SelfCollisionSettings& set = self.settings();
+  ASSERT_EQ(set.slow_pass_motion, 4.0);
+  ASSERT_EQ(set.hand_pass_motion, 0.45);
+  const double t = set.thickness_m;
+  const double h = 1e-4;
+  std::vector<Vec3> x = state.x;
+  std::vector<Vec3> v(x.size(), Vec3::Zero());
+  self.BeginStep(x);
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h, false));  // nothing moved
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h, true));
+  // Moved 3 thicknesses, 0.9 more in the next substep: within 4, not within 0.45.
+  x[11] += Vec3(3.0 * t, 0.0, 0.0);
+  v[11] = Vec3(0.0, 0.9 * t / h, 0.0);
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h, false));
+  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h, true));
+  v[11] *= 1.2;  // 3 + 1.08 > 4
+  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h, false));
+  // A hand's budget: 0.2 moved and 0.2 to come fit in 0.45; the speed of another particle counts.
+  x = state.x;
+  v.assign(x.size(), Vec3::Zero());
+  x[3] += Vec3(0.0, 0.0, 0.2 * t);
+  v[40] = Vec3(0.2 * t / h, 0.0, 0.0);
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h, true));
+  v[40] *= 1.5;
+  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h, true));
+  v[40].setZero();
+  x[3].z() = std::numeric_limits<double>::quiet_NaN();  // a NaN never lengthens a pass
+  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h, false));
+}
+
+// The shipped curtain with self-collision: released from rest, its contact-free frames take fewer
 // passes than the count's 8 (issue 22's 64 x 64 frame target; docs/self_collision.md, "Fewer
-// passes in quiet frames"), and a hand on the cloth gives every frame the count's passes.
-TEST(SelfCollisionScene, TheCurtainTakesFewerPassesUntilAHandActs) {
+// passes in quiet frames"). A hand on a cloth at rest: a light touch also takes fewer passes (the
+// measured motion stays within hand_pass_motion; "A hand on a quiet cloth"), a hard push the
+// count's passes, and so does the light touch with hand_pass_motion = 0.
+TEST(SelfCollisionScene, TheCurtainTakesFewerPassesWhileItsMotionAllows) {
   SimSpec spec = SelfCollisionSceneSpec("curtain.toml");
   spec.self_collision = SelfCollisionSpec{};
   ClothModel model = BuildClothModel(spec);
-  ClothState state = MakeClothState(model);
-  const SelfCollisionResponse& self = *state.scratch->self_collision;
   const int32_t frames = 20;
-  for (int32_t f = 0; f < frames; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
-  const int64_t quiet_passes = self.totals().passes;
   const int32_t every = (model.substeps + 7) / 8;                     // substeps per pass, 8 passes
   const int32_t count_passes = (model.substeps + every - 1) / every;  // passes per frame
   ASSERT_GT(count_passes, 3);
-  EXPECT_LT(quiet_passes, int64_t{count_passes} * frames);
-  EXPECT_GE(quiet_passes, int64_t{2} * frames);  // never fewer than min_passes_per_frame
-  // A hand: a small force on one triangle, every frame.
-  ExternalForce hand;
-  hand.triangle = static_cast<int32_t>(model.triangles.size() / 6);
-  hand.force_N = Vec3(0.0, 0.0, 0.01);
-  for (int32_t f = 0; f < frames; ++f) {
-    StepFrame(model, std::span<const ExternalForce>(&hand, 1), 1.0 / 60.0, &state);
+  {
+    ClothState state = MakeClothState(model);
+    for (int32_t f = 0; f < frames; ++f) StepFrame(model, {}, 1.0 / 60.0, &state);
+    const int64_t passes = state.scratch->self_collision->totals().passes;
+    EXPECT_LT(passes, int64_t{count_passes} * frames);
+    EXPECT_GE(passes, int64_t{2} * frames);  // never fewer than min_passes_per_frame
   }
-  EXPECT_EQ(self.totals().passes - quiet_passes, int64_t{count_passes} * frames);
+  // A cloth at rest, without gravity, a hand on one triangle every frame; the first frame takes
+  // the count's passes (no frame before it was found quiet).
+  model.gravity_m_per_s2 = Vec3::Zero();
+  const auto passes_with_hand = [&](const ClothModel& m, double force_N) {
+    ClothState state = MakeClothState(m);
+    ExternalForce hand;
+    hand.triangle = static_cast<int32_t>(m.triangles.size() / 2);
+    hand.force_N = Vec3(0.0, 0.0, force_N);
+    for (int32_t f = 0; f < frames; ++f) {
+      StepFrame(m, std::span<const ExternalForce>(&hand, 1), 1.0 / 60.0, &state);
+    }
+    return state.scratch->self_collision->totals().passes;
+  };
+  const int64_t light = passes_with_hand(model, 1e-5);
+  EXPECT_LE(light, count_passes + int64_t{2} * (frames - 1));
+  EXPECT_EQ(passes_with_hand(model, 1.0), int64_t{count_passes} * frames);
+  ClothModel no_lengthening = model;
+  no_lengthening.self_collision.hand_pass_motion = 0.0;
+  EXPECT_EQ(passes_with_hand(no_lengthening, 1e-5), int64_t{count_passes} * frames);
 }
 
 // Issue 22's other hard cases (scenes/self_fall_10ms.toml, self_tablecloth_pull.toml,
@@ -396,7 +447,7 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   const SimSpec spec = ParseSimSpec(ParseSceneText(
       "[cloth]\nwidth = 4\nheight = 4\n[self_collision]\nthickness_m = 0.003\nmethod = \"bvh\"\n"
       "iterations = 2\nfriction = 0.4\nfail_safe = false\npasses_per_frame = 6\n"
-      "min_passes_per_frame = 2\nslow_pass_motion = 3\n",
+      "min_passes_per_frame = 2\nslow_pass_motion = 3\nhand_pass_motion = 0.3\n",
       "ok.toml"));
   ASSERT_TRUE(spec.self_collision.has_value());
   EXPECT_EQ(spec.self_collision->thickness_m, 0.003);
@@ -407,6 +458,8 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_EQ(spec.self_collision->passes_per_frame, 6);
   EXPECT_EQ(spec.self_collision->min_passes_per_frame, 2);
   EXPECT_EQ(spec.self_collision->slow_pass_motion, 3.0);
+  EXPECT_EQ(spec.self_collision->hand_pass_motion, 0.3);
+  EXPECT_EQ(BuildClothModel(spec).self_collision.hand_pass_motion, 0.3);
   EXPECT_EQ(BuildClothModel(spec).self_collision.min_passes_per_frame, 2);
   EXPECT_FALSE(ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n", "x.toml")).self_collision);
   const SimSpec defaults =
@@ -432,6 +485,8 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_NE(e.find("self_collision.min_passes_per_frame"), std::string::npos) << e;
   e = SelfSceneError("[self_collision]\nslow_pass_motion = -1\n");
   EXPECT_NE(e.find("self_collision.slow_pass_motion"), std::string::npos) << e;
+  e = SelfSceneError("[self_collision]\nhand_pass_motion = -0.1\n");
+  EXPECT_NE(e.find("self_collision.hand_pass_motion"), std::string::npos) << e;
   e = SelfSceneError("[self_collision]\nthicknes_m = 0.001\n");
   EXPECT_NE(e.find("thickness_m"), std::string::npos) << e;  // did you mean
 }
