@@ -88,8 +88,8 @@ struct SelfCollisionSettings {
   /// (sim_loop/cloth_self_collision.cc: SelfPassSubsteps). Fast frames keep passes_per_frame.
   /// Measured on the 64 x 64 curtain (docs/self_collision.md, "Fewer passes in quiet frames").
   int32_t min_passes_per_frame = 2;
-  /// The most a slow frame's pass may move its fastest particle, in thicknesses (>= 0; 0 turns
-  /// the lengthening off).
+  /// The most a slow frame's pass may move its fastest particle, in thicknesses, with no hand on
+  /// the cloth (>= 0; 0 turns that lengthening off).
   double slow_pass_motion = 4.0;
   /// The most a pass may move its fastest particle, in thicknesses, in a frame after one without
   /// contact while a hand acts on the cloth (>= 0; 0: such frames keep passes_per_frame). The

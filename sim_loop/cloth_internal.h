@@ -228,20 +228,21 @@ int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& s
                          int32_t substeps, std::span<const Vec3> v = {}, double h_s = 0.0,
                          bool quiet = false);
 
-/// The most substeps a self-collision pass may cover after a frame without contact, when its
-/// measured motion allows (SelfPassMayGoOn): ceil(substeps / min_passes_per_frame), never fewer
-/// than `planned` (SelfPassSubsteps); `planned` when lengthening is off or for basic Verlet.
-/// Real-time safe.
+/// The most substeps a self-collision pass may cover in a frame with a hand on the cloth after
+/// one without contact, when its measured motion allows (SelfPassMayGoOn):
+/// ceil(substeps / min_passes_per_frame), never fewer than `planned` (SelfPassSubsteps);
+/// `planned` when hand_pass_motion is 0, min_passes_per_frame >= passes_per_frame, or for basic
+/// Verlet. Real-time safe.
 int32_t SelfPassLongest(const ClothModel& model, const SelfCollisionResponse& self,
                         int32_t substeps, int32_t planned);
 
-/// True if a self-collision pass begun at self.x_before() may take one more substep of h_s [s]:
-/// the farthest any particle has moved since, max |x - x_before| [m], plus max |v| h_s [m/s]
-/// stays within slow_pass_motion thicknesses, or hand_pass_motion with `hand` (a hand acts on
-/// the cloth: its pull is not in the frame-start speeds), and within max_pass_motion when set
-/// (the measured motion; StepFrame). Real-time safe.
+/// True if a self-collision pass begun at self.x_before() may take one more substep of h_s [s]
+/// (a hand acts: its pull is not in the frame-start speeds, so the motion is measured): the
+/// farthest any particle has moved since, max |x - x_before| [m], plus max |v| h_s [m/s] stays
+/// within hand_pass_motion thicknesses, and within max_pass_motion when set; false on a NaN.
+/// Real-time safe.
 bool SelfPassMayGoOn(const SelfCollisionResponse& self, std::span<const Vec3> x,
-                     std::span<const Vec3> v, double h_s, bool hand);
+                     std::span<const Vec3> v, double h_s);
 
 /// The exact count of intersecting non-adjacent triangle pairs at the frame's end into
 /// result->self_intersections and counters.self_intersections_max (O(T^2); opt-in diagnostic).

@@ -72,7 +72,7 @@ int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& s
 int32_t SelfPassLongest(const ClothModel& model, const SelfCollisionResponse& self,
                         int32_t substeps, int32_t planned) {
   const SelfCollisionSettings& settings = self.settings();
-  if (model.integrator == IntegratorKind::kBasicVerlet || !(settings.slow_pass_motion > 0.0) ||
+  if (model.integrator == IntegratorKind::kBasicVerlet || !(settings.hand_pass_motion > 0.0) ||
       settings.min_passes_per_frame >= settings.passes_per_frame) {
     return planned;
   }
@@ -81,13 +81,11 @@ int32_t SelfPassLongest(const ClothModel& model, const SelfCollisionResponse& se
 }
 
 bool SelfPassMayGoOn(const SelfCollisionResponse& self, std::span<const Vec3> x,
-                     std::span<const Vec3> v, double h_s, bool hand) {
+                     std::span<const Vec3> v, double h_s) {
   const SelfCollisionSettings& settings = self.settings();
   const std::span<const Vec3> x0 = self.x_before();
-  // The pass's budget in thicknesses: slow_pass_motion, hand_pass_motion's when a hand acts,
-  // max_pass_motion's when that cap is set.
-  double budget = settings.slow_pass_motion;
-  if (hand) budget = std::min(budget, settings.hand_pass_motion);
+  // The pass's budget in thicknesses: hand_pass_motion, max_pass_motion's when that cap is set.
+  double budget = settings.hand_pass_motion;
   if (settings.max_pass_motion > 0.0) budget = std::min(budget, settings.max_pass_motion);
   if (!(budget > 0.0) || x0.size() != x.size() || v.size() != x.size()) return false;
   double d2 = 0.0;     // the farthest any particle has moved since the pass began [m^2]

@@ -74,14 +74,15 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   SelfCollisionResponse* self = s.self_collision ? &*s.self_collision : nullptr;
   // Self-collision passes cover several substeps (a few per frame; Bridson et al. 2002's
   // collision step): self_h is the time since the pass's BeginStep. After a frame without
-  // contact, fewer, longer passes: planned from the frame-start speeds when no hand acts (a
-  // hand's pull is not in the speeds), and in any such frame a pass goes on past its plan,
-  // substep by substep, while its measured motion allows (SelfPassMayGoOn), up to self_longest.
-  const bool self_quiet = s.self_quiet && external.empty();
+  // contact, fewer, longer passes: planned from the frame-start speeds when no hand acts; with a
+  // hand (its pull is not in the speeds) a pass goes on past the count's length, substep by
+  // substep, while its measured motion allows (SelfPassMayGoOn), up to self_longest.
+  const bool hand = !external.empty();
   const int32_t self_every =
-      self ? SelfPassSubsteps(model, *self, substeps, state->v, h, self_quiet) : 1;
-  const int32_t self_longest =
-      self && s.self_quiet ? SelfPassLongest(model, *self, substeps, self_every) : self_every;
+      self ? SelfPassSubsteps(model, *self, substeps, state->v, h, s.self_quiet && !hand) : 1;
+  const int32_t self_longest = self && s.self_quiet && hand
+                                   ? SelfPassLongest(model, *self, substeps, self_every)
+                                   : self_every;
   double self_h = 0.0;
   int32_t self_in_pass = 0;  // substeps since the pass's BeginStep
   for (int32_t k = 0; k < substeps; ++k) {
@@ -100,8 +101,7 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
       ++self_in_pass;
       bool end = k + 1 == substeps;
       if (!end && self_in_pass >= self_every) {
-        end = self_in_pass >= self_longest ||
-              !SelfPassMayGoOn(*self, state->x, state->v, h, !external.empty());
+        end = self_in_pass >= self_longest || !SelfPassMayGoOn(*self, state->x, state->v, h);
       }
       if (end) {
         ApplySelfCollision(self_h, self, state, &result);

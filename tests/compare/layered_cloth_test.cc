@@ -211,7 +211,8 @@ TEST(LayeredCloth, DISABLED_AFoldNeverClosesOnTheProxyInBlendForces) {
 
 // The flap landing on the hand elsewhere: the hand at x = -51 to -39 mm, 2 mm apart, instead of
 // the scene's -45 mm, in the modes AFoldNeverClosesOnTheProxy asserts there. Measured (release,
-// 2026-11-27): patch fails at -41 and -39 mm, newest at -49, -47, -43 and -41 mm, extrapolate at
+// 2026-11-27; patch re-measured at b13175f and after: also -49 and -47 mm): patch fails at -49,
+// -47, -41 and -39 mm, newest at -49, -47, -43 and -41 mm, extrapolate at
 // -51 and -47 mm (the flap under the proxy, or the proxy reaching into it); interpolate meets the
 // target at all seven. Nothing in the sim keeps another layer out of the proxy (its contact
 // spring acts on the 3 x 3 cells around the contact only), so where the flap lands decides it; a

@@ -298,41 +298,45 @@ TEST(SelfCollisionScene, QuietSlowFramesTakeFewerPasses) {
   EXPECT_EQ(SelfPassSubsteps(model, self, substeps, v, h, true), 5);
 }
 
-// The measured rule: a pass may take one more substep while the farthest any particle has
-// moved since its start, plus one more substep at the fastest present speed, stays within the
-// budget: slow_pass_motion thicknesses, hand_pass_motion with a hand, max_pass_motion when set.
+// The measured rule of a frame with a hand: a pass may take one more substep while the farthest
+// any particle has moved since its start, plus one more substep at the fastest present speed,
+// stays within hand_pass_motion thicknesses (and max_pass_motion when set).
 TEST(SelfCollisionScene, APassGoesOnWhileItsMeasuredMotionAllows) {
   ClothModel model = BuildClothModel(SelfCollisionSceneSpec("self_fold_drop.toml"));
   ClothState state = MakeClothState(model);
   SelfCollisionResponse& self = *state.scratch->self_collision;
   const SelfCollisionSettings& set = self.settings();
-  ASSERT_EQ(set.slow_pass_motion, 4.0);
   ASSERT_EQ(set.hand_pass_motion, 0.45);
   const double t = set.thickness_m;
   const double h = 1e-4;
   std::vector<Vec3> x = state.x;
   std::vector<Vec3> v(x.size(), Vec3::Zero());
   self.BeginStep(x);
-  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h, false));  // nothing moved
-  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h, true));
-  // Moved 3 thicknesses, 0.9 more in the next substep: within 4, not within 0.45.
-  x[11] += Vec3(3.0 * t, 0.0, 0.0);
-  v[11] = Vec3(0.0, 0.9 * t / h, 0.0);
-  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h, false));
-  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h, true));
-  v[11] *= 1.2;  // 3 + 1.08 > 4
-  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h, false));
-  // A hand's budget: 0.2 moved and 0.2 to come fit in 0.45; the speed of another particle counts.
-  x = state.x;
-  v.assign(x.size(), Vec3::Zero());
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h));  // nothing moved
+  // 0.2 thickness moved and 0.2 to come in the next substep fit in 0.45; 0.2 and 0.3 do not.
   x[3] += Vec3(0.0, 0.0, 0.2 * t);
-  v[40] = Vec3(0.2 * t / h, 0.0, 0.0);
-  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h, true));
+  v[40] = Vec3(0.2 * t / h, 0.0, 0.0);  // the speed of another particle counts
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h));
   v[40] *= 1.5;
-  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h, true));
+  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h));
   v[40].setZero();
+  x[3] += Vec3(0.0, 0.3 * t, 0.0);  // moved sqrt(0.2^2 + 0.3^2) = 0.36
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h));
+  x[3] += Vec3(0.0, 0.1 * t, 0.0);  // sqrt(0.2^2 + 0.4^2) = 0.447
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h));
+  x[3] += Vec3(0.0, 0.01 * t, 0.0);  // 0.456
+  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h));
+  // max_pass_motion, when set, caps the budget.
+  x = state.x;
+  x[5] += Vec3(0.3 * t, 0.0, 0.0);
+  EXPECT_TRUE(SelfPassMayGoOn(self, x, v, h));
+  SelfCollisionSettings capped = set;
+  capped.max_pass_motion = 0.25;
+  SelfCollisionResponse tight(model.triangles, state.x, model.inv_mass_per_kg, capped);
+  tight.BeginStep(state.x);
+  EXPECT_FALSE(SelfPassMayGoOn(tight, x, v, h));
   x[3].z() = std::numeric_limits<double>::quiet_NaN();  // a NaN never lengthens a pass
-  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h, false));
+  EXPECT_FALSE(SelfPassMayGoOn(self, x, v, h));
 }
 
 // The shipped curtain with self-collision: released from rest, its contact-free frames take fewer
