@@ -85,7 +85,8 @@ struct SelfCollisionSettings {
   /// passes_per_frame turns it off): a pass covers up to ceil(substeps / min_passes_per_frame)
   /// substeps while the fastest particle, at its frame-start speed plus gravity's gain over the
   /// frame, moves at most slow_pass_motion thicknesses over it
-  /// (sim_loop/cloth_self_collision.cc: SelfPassSubsteps). Fast frames keep passes_per_frame.
+  /// (sim_loop/cloth_self_collision.cc: SelfPassSubsteps; with a hand on the cloth, while its
+  /// measured motion stays within hand_pass_motion). Fast frames keep passes_per_frame.
   /// Measured on the 64 x 64 curtain (docs/self_collision.md, "Fewer passes in quiet frames").
   int32_t min_passes_per_frame = 2;
   /// The most a slow frame's pass may move its fastest particle, in thicknesses, with no hand on
