@@ -372,6 +372,7 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
   vertex_hi_.resize(x.size());
   edge_lo_.resize(edges_.size());
   edge_hi_.resize(edges_.size());
+  edge_stamp_.assign(edges_.size(), 0);
   if (nt == 0) return;
 
   // Top-down median split of the centroids along the longest axis of their box; nodes in
@@ -879,6 +880,13 @@ void SelfBvh::RefitParents() {
   }
 }
 
+void SelfBvh::NewBoxStamp() {
+  if (++box_stamp_ == 0) {  // wrapped: no edge may keep a stale stamp
+    std::fill(edge_stamp_.begin(), edge_stamp_.end(), 0u);
+    box_stamp_ = 1;
+  }
+}
+
 bool SelfBvh::Overlap(int32_t a, int32_t b) const {
   return SelfBoxesOverlap(node_lo_[a], node_hi_[a], node_lo_[b], node_hi_[b]);
 }
@@ -911,13 +919,10 @@ SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<
 
   // A broad phase at rest (x1 is x0, the proximity pass's): cheaper cones and star tests.
   still_ = x0.data() == x1.data();
-  // Swept, padded boxes of the vertices and edges.
+  // Swept, padded boxes of the vertices (an edge's box is made from its ends' where a leaf pair
+  // first needs it: EdgeBox).
   for (int32_t v = 0; v < num_vertices_; ++v) VertexBox(v, x0, x1, pad, start_pad);
-  for (size_t i = 0; i < edges_.size(); ++i) {
-    const MeshEdge& e = edges_[i];
-    edge_lo_[i] = vertex_lo_[e[0]].cwiseMin(vertex_lo_[e[1]]);
-    edge_hi_[i] = vertex_hi_[e[0]].cwiseMax(vertex_hi_[e[1]]);
-  }
+  NewBoxStamp();
   // Bottom-up refit (children before parents): a leaf's box (and cone) from its triangle, a
   // parent's from its children. The leaves' cones first, all at once (four a step with AVX2;
   // the same bits as RefitLeaf's), in the refit's order.
@@ -988,16 +993,12 @@ SelfBroadPhaseStats SelfBvh::UpdateCandidates(std::span<const Vec3> x0, std::spa
   }
   const double pad = SelfBroadPadding(thickness_m);
   const double start_pad = start_thickness_m > 0.0 ? SelfBroadPadding(start_thickness_m) : 0.0;
-  // The moved vertices' boxes, and the edges and triangles holding one.
+  // The moved vertices' boxes (every edge's box made again where needed: EdgeBox), and the
+  // triangles holding one.
   for (int32_t v = 0; v < num_vertices_; ++v) {
     if (moved[v]) VertexBox(v, x0, x1, pad, start_pad);
   }
-  for (size_t i = 0; i < edges_.size(); ++i) {
-    const MeshEdge& e = edges_[i];
-    if (!(moved[e[0]] | moved[e[1]])) continue;
-    edge_lo_[i] = vertex_lo_[e[0]].cwiseMin(vertex_lo_[e[1]]);
-    edge_hi_[i] = vertex_hi_[e[0]].cwiseMax(vertex_hi_[e[1]]);
-  }
+  NewBoxStamp();
   for (size_t ti = 0; ti < triangles_.size(); ++ti) {
     const Triangle& t = triangles_[ti];
     triangle_dirty_[ti] = moved[t[0]] | moved[t[1]] | moved[t[2]];
@@ -1099,6 +1100,14 @@ void SelfBvh::Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats) {
   }
 }
 
+void SelfBvh::EdgeBox(int32_t e) {
+  if (edge_stamp_[e] == box_stamp_) return;
+  edge_stamp_[e] = box_stamp_;
+  const MeshEdge& m = edges_[e];
+  edge_lo_[e] = vertex_lo_[m[0]].cwiseMin(vertex_lo_[m[1]]);
+  edge_hi_[e] = vertex_hi_[m[0]].cwiseMax(vertex_hi_[m[1]]);
+}
+
 void SelfBvh::LeafPair(int32_t na, int32_t nb, SelfBroadPhaseStats* stats) {
   using Kind = CcdPairHit::Kind;
   const int32_t ta = right_[na], tb = right_[nb];
@@ -1116,12 +1125,15 @@ void SelfBvh::LeafPair(int32_t na, int32_t nb, SelfBroadPhaseStats* stats) {
       }
     }
   }
-  // Edges owned by one against edges owned by the other.
+  // Edges owned by one against edges owned by the other (EdgeBox: each edge's swept box made
+  // once a broad phase, when a leaf pair first needs it; most edges are in none).
   for (int32_t e : owned_edges_[ta]) {
     if (e < 0) break;
+    EdgeBox(e);
     for (int32_t f : owned_edges_[tb]) {
       if (f < 0) break;
       if (SelfEdgesTouch(edges_[e], edges_[f])) continue;
+      EdgeBox(f);
       if (SelfBoxesOverlap(edge_lo_[e], edge_hi_[e], edge_lo_[f], edge_hi_[f])) {
         Emit(Kind::kEdgeEdge, std::min(e, f), std::max(e, f), stats);
       }

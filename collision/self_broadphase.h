@@ -243,6 +243,10 @@ class SelfBvh final : public SelfBroadPhase {
   static FatBound MergeFat(const FatBound& l, const FatBound& r);
   void Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats);
   void LeafPair(int32_t ta, int32_t tb, SelfBroadPhaseStats* stats);
+  // Edge e's swept box from its ends' vertex boxes, made once per box stamp.
+  void EdgeBox(int32_t e);
+  // New vertex boxes: every edge box is stale (made again by EdgeBox when needed).
+  void NewBoxStamp();
   bool Overlap(int32_t a, int32_t b) const;
   void VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1, double pad,
                  double start_pad);
@@ -267,8 +271,10 @@ class SelfBvh final : public SelfBroadPhase {
   std::vector<double> merge_out_;      ///< [5 parents] the merged cones
   std::vector<Vec3> vertex_lo_;       ///< [vertices] swept, padded vertex box [m]
   std::vector<Vec3> vertex_hi_;
-  std::vector<Vec3> edge_lo_;  ///< [edges] swept, padded edge box [m]
+  std::vector<Vec3> edge_lo_;  ///< [edges] swept, padded edge box [m], valid when stamped
   std::vector<Vec3> edge_hi_;
+  std::vector<uint32_t> edge_stamp_;  ///< [edges] box_stamp_ when the edge's box was made
+  uint32_t box_stamp_ = 0;            ///< this broad phase's vertex boxes (NewBoxStamp)
   std::vector<std::array<int32_t, 3>> owned_vertices_;  ///< [triangles] owned vertices, -1 pad
   std::vector<std::array<int32_t, 3>> owned_edges_;     ///< [triangles] owned edges, -1 pad
   // Normal cones (options.normal_cones; Volino & Magnenat-Thalmann 1994, Provot 1997, with the
