@@ -34,6 +34,14 @@ void ApplySelfCollision(double h_s, SelfCollisionResponse* self, ClothState* sta
   result->self_unresolved += st.unresolved;
 }
 
+namespace {
+// The longest pass a quiet frame may take: ceil(substeps / min_passes_per_frame), at least 1.
+int32_t SelfQuietPassLength(const SelfCollisionSettings& settings, int32_t substeps) {
+  const int32_t fewest = std::max(1, settings.min_passes_per_frame);
+  return std::max(1, (substeps + fewest - 1) / fewest);
+}
+}  // namespace
+
 int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& self,
                          int32_t substeps, std::span<const Vec3> v, double h_s, bool quiet) {
   if (model.integrator == IntegratorKind::kBasicVerlet) return 1;
@@ -52,8 +60,7 @@ int32_t SelfPassSubsteps(const ClothModel& model, const SelfCollisionResponse& s
     // slow_pass_motion thicknesses in a pass of up to ceil(substeps / min_passes_per_frame).
     const double gain = model.gravity_m_per_s2.norm() * h_s * substeps;
     const double step_m = (speed + gain) * h_s;
-    const int32_t longest =
-        std::max(1, (substeps + settings.min_passes_per_frame - 1) / settings.min_passes_per_frame);
+    const int32_t longest = SelfQuietPassLength(settings, substeps);
     const double fit = step_m > 0.0 ? settings.slow_pass_motion * settings.thickness_m / step_m
                                     : static_cast<double>(longest);
     every = std::max(every, static_cast<int32_t>(std::min<double>(longest, fit)));
@@ -76,8 +83,7 @@ int32_t SelfPassLongest(const ClothModel& model, const SelfCollisionResponse& se
       settings.min_passes_per_frame >= settings.passes_per_frame) {
     return planned;
   }
-  const int32_t fewest = std::max(1, settings.min_passes_per_frame);
-  return std::max(planned, (substeps + fewest - 1) / fewest);
+  return std::max(planned, SelfQuietPassLength(settings, substeps));
 }
 
 bool SelfPassMayGoOn(const SelfCollisionResponse& self, std::span<const Vec3> x,

@@ -222,7 +222,8 @@ struct SelfCollisionSpec {
   bool count_intersections = false;
   /// Most self-collision passes per frame, >= 1 (SelfCollisionSettings::passes_per_frame).
   int32_t passes_per_frame = SelfCollisionSettings{}.passes_per_frame;
-  /// Fewest passes of a slow frame after one without contact or hand, >= 1
+  /// Fewest passes of a slow frame after one without contact (with a hand: while its measured
+  /// motion allows), >= 1
   /// (SelfCollisionSettings::min_passes_per_frame; >= passes_per_frame: never fewer).
   int32_t min_passes_per_frame = SelfCollisionSettings{}.min_passes_per_frame;
   /// A slow frame's pass moves the fastest particle at most this many thicknesses, >= 0
