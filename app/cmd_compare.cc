@@ -117,7 +117,7 @@ int Compare(const CompareArgs& args) {
   const report::MachineInfo machine = report::ReadMachineInfo();
   const Trace trace = ReadAnyTrace(args.trace, args.topic);
   const SceneDocument scene = LoadSceneDocument(args.scene);
-  ParseServerSpec(scene);  // the scene as written must be valid (errors with line and column)
+  CheckWholeScene(scene);  // the scene as written must be valid (errors with line and column)
   const std::vector<LockstepVariant> variants = ParseVariantList(args.variants);
   LockstepOptions options;
   options.max_duration_s = args.duration_s;

@@ -29,6 +29,7 @@
 #include "collision/self_intersection.h"
 #include "rt/loop_runner.h"
 #include "scene/scene_file.h"
+#include "server/server_spec.h"
 #include "sim_loop/cloth.h"
 #include "sim_loop/cloth_scene.h"
 #include "sim_loop/integrator_names.h"
@@ -262,7 +263,7 @@ CommandRun SetupRun(CLI::App& cmd) {
     // Everything is read and validated before anything starts: a bad scene throws (exit 2).
     const SceneDocument doc = LoadSceneDocument(args->scene);
     const SceneInfo info = ParseSceneInfo(doc);
-    const SimSpec spec = ParseSimSpec(doc);
+    const SimSpec spec = CheckWholeScene(doc).sim;  // the sections run does not use checked too
     const double duration_s = args->duration_s.value_or(info.duration_s);
     if (!(duration_s > 0.0 && duration_s <= kMaxDuration_s)) {
       throw std::invalid_argument("--duration must be in (0, " + FormatSceneNumber(kMaxDuration_s) +

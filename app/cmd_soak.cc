@@ -224,7 +224,7 @@ SoakPlan PlanSoak(const SoakArgs& args) {
     throw std::invalid_argument(
         fmt::format("--minutes must be in (0, 1440], got {}", args.minutes));
   }
-  const ServerSpec spec = ParseServerSpec(LoadSceneDocument(args.scene));
+  const ServerSpec spec = CheckWholeScene(LoadSceneDocument(args.scene));
   if (spec.devices.empty()) throw std::invalid_argument(args.scene + ": the scene has no device");
   (void)ReadTrace(args.trace);  // a bad trace is refused here, before a child starts
   SoakPlan plan;

@@ -38,7 +38,7 @@ struct ViewArgs {
 int Play(const ViewArgs& args) {
   ServerSpec spec;
   try {
-    spec = ParseServerSpec(LoadSceneDocument(args.scene));
+    spec = CheckWholeScene(LoadSceneDocument(args.scene));
   } catch (const SceneError& e) {
     std::fprintf(stderr, "felt view: %s\n", e.what());
     return 2;

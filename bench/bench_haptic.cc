@@ -137,7 +137,7 @@ std::string CommandLine(const Args& a) {
 // (bench/bench_util.h's ResizedCurtain rule) unless grid is 0.
 SceneDocument BenchScene(const Args& args) {
   SceneDocument doc = LoadSceneDocument(args.scene);
-  ParseServerSpec(doc);  // the scene as written must be valid (errors with line and column)
+  CheckWholeScene(doc);  // the scene as written must be valid (errors with line and column)
   if (args.grid == 0) return doc;
   const SimSpec resized = ResizedCurtain(args.scene, args.grid);
   toml::table* cloth = doc.root["cloth"].as_table();

@@ -4,6 +4,7 @@
 #include "proxy/proxy_scene.h"
 #include "server/server_spec.h"
 #include "sim_loop/cloth_scene.h"
+#include "transport/transport_scene.h"
 
 namespace felt {
 
@@ -32,6 +33,12 @@ ServerSpec ParseServerSpec(const SceneDocument& doc) {
         ->Fail("tick_device",
                "'" + spec.haptic.tick_device + "' is not a device of this scene (" + ids + ")");
   }
+  return spec;
+}
+
+ServerSpec CheckWholeScene(const SceneDocument& doc) {
+  ServerSpec spec = ParseServerSpec(doc);
+  (void)transport::ParseTransportConfig(doc, spec.devices);
   return spec;
 }
 

@@ -22,6 +22,11 @@ struct ServerSpec {
 /// Reads everything the server needs from a loaded scene. Throws SceneError.
 ServerSpec ParseServerSpec(const SceneDocument& doc);
 
+/// Checks every section of a loaded scene as `felt serve` reads it ([transport] included), so that
+/// a command using only part of the scene (`felt run`: the cloth) still refuses a typo anywhere in
+/// the file; returns what ParseServerSpec returns. Throws SceneError naming file, line and field.
+ServerSpec CheckWholeScene(const SceneDocument& doc);
+
 /// The index in spec.devices of the device whose arrivals trigger the haptic tick
 /// (haptic.tick_device, "" = 0), or -1 when no device has that id.
 int TickDeviceIndex(const ServerSpec& spec);

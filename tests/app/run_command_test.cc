@@ -59,6 +59,23 @@ TEST(RunCommand, UnknownKeyExitsTwo) {
   std::filesystem::remove(path);
 }
 
+// `felt run` steps the cloth only, but a typo in a section it does not use ([device], [proxy],
+// [haptic], [transport]) is still refused: the file is checked as `felt serve` reads it.
+TEST(RunCommand, ATypoInASectionRunDoesNotUseExitsTwo) {
+  const std::string device = WriteTemp("felt_run_test_device.toml",
+                                       std::string(kSmallScene) + "[device]\nmax_force = 3\n");
+  ExpectFeltError("run --scene " + device + " --fast",
+                  device +
+                      ":15:1: device.max_force: unknown key 'max_force' in [device] (did you "
+                      "mean 'max_force_N'?)");
+  std::filesystem::remove(device);
+  const std::string transport = WriteTemp("felt_run_test_transport.toml",
+                                          std::string(kSmallScene) + "[transport]\ndomain = 999\n");
+  ExpectFeltError("run --scene " + transport + " --fast",
+                  transport + ":15:1: transport.domain: must be in [0, 230], got 999");
+  std::filesystem::remove(transport);
+}
+
 TEST(RunCommand, MissingSceneFileExitsTwo) {
   ExpectFeltError("run --scene /nonexistent/felt_no_scene.toml",
                   "/nonexistent/felt_no_scene.toml: cannot read scene file: No such file or "
