@@ -166,6 +166,9 @@ struct ClothModel {
   bool self_collision_enabled = false;              ///< the scene declared [self_collision]
   SelfCollisionSettings self_collision;             ///< its settings (k resolved)
   bool self_collision_count_intersections = false;  ///< exact end-of-frame count (O(T^2))
+  /// With [self_collision]: the proxy's sphere keeps the cloth's other layers out
+  /// (SelfCollisionSpec::guard_proxy; ApplySphereGuards).
+  bool self_collision_guard_proxy = false;
 
   // Derived constants (filled by BuildClothModel; read by the kernels and the benchmarks).
   double particle_mass_kg = 0.0;      ///< mass of every particle (pinned ones included)
@@ -224,6 +227,9 @@ struct ClothCounters {
   uint64_t self_frozen_substeps = 0;      ///< substeps whose zones were frozen at x_before
   uint64_t self_unresolved_substeps = 0;  ///< substeps that ended with a collision left
   uint64_t self_overflows = 0;            ///< detections whose buffers overflowed
+  uint64_t guard_pushes =
+      0;  ///< triangles the proxy's sphere guard pushed out (summed over substeps)
+  uint64_t guard_dropped_cells = 0;  ///< grid cells past the guard's capacity, not tested
   // The stretch limiter's finishing worklist (ProvotSpec::finish), summed over substeps.
   uint64_t limiter_initial = 0;      ///< pairs over their limit when the worklist started
   uint64_t limiter_projections = 0;  ///< projections the worklist made

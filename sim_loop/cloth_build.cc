@@ -626,6 +626,7 @@ ClothModel BuildClothModel(const SimSpec& spec) {
     }
     model.self_collision_enabled = true;
     model.self_collision_count_intersections = sc.count_intersections;
+    model.self_collision_guard_proxy = sc.guard_proxy;
     SelfCollisionSettings& set = model.self_collision;
     set.thickness_m = sc.thickness_m;
     set.method = sc.method;

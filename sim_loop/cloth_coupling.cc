@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include "base/check.h"
 #include "collision/geometry.h"
@@ -293,6 +294,61 @@ void AddCouplingSpring(const ClothModel& model, const ExternalForce& e, double h
     cs.reduced_this_frame = true;
     ++counters->coupling_reduced_frames;
   }
+}
+
+CouplingSphere CouplingSphereAt(const ClothModel& model, const CouplingSpring& s,
+                                std::span<const Vec3> x) {
+  CouplingSphere out;
+  if (!(s.radius_m > 0.0)) return out;
+  if (s.num_candidates <= 0) return out;
+  // The exact nearest candidate (the first of equal ones, as Contact's): goal = c + signed n, so
+  // the sphere resting on the cloth is at c + max(signed, r) n.
+  FacePoint fp;
+  int32_t nearest = -1;
+  for (int32_t i = 0; i < s.num_candidates; ++i) {
+    const FacePoint face = NearestOnFace(s, s.candidates[i], x);
+    if (nearest < 0 || face.distance_m < fp.distance_m) {
+      fp = face;
+      nearest = i;
+    }
+  }
+  const Triangle& t = s.candidates[nearest];
+  out.centre_m = s.goal_m + std::max(0.0, s.radius_m - fp.signed_m) * fp.n;
+  out.radius_m = s.radius_m;
+  out.up = fp.n;
+  int32_t corner = 0;
+  fp.barycentric.maxCoeff(&corner);
+  out.contact_col = t[corner] % model.width;
+  out.contact_row = t[corner] / model.width;
+  out.excluded_cells = GuardExcludedCells(model, s.radius_m);
+  out.valid = out.centre_m.allFinite();
+  return out;
+}
+
+int32_t GuardExcludedCells(const ClothModel& model, double radius_m) {
+  const double cells = std::ceil(std::numbers::pi * radius_m / model.spacing_m);
+  return 1 + static_cast<int32_t>(std::min(cells, 1e6));
+}
+
+SphereGuardResult ApplySphereGuards(const ClothModel& model, double h_s, ClothState* state) {
+  SphereGuardResult out;
+  const CouplingSprings& springs = state->scratch->coupling;
+  std::array<int32_t, kMaxGuardCells> cells;
+  const GuardRect all[1] = {{0, 0, model.width - 1, model.height - 1}};
+  for (int32_t k = 0; k < springs.count; ++k) {
+    const CouplingSphere sphere = CouplingSphereAt(model, springs.springs[k], state->x);
+    if (!sphere.valid) continue;
+    const int32_t count = GuardCellsNear(
+        model, sphere, std::span<const GuardRect>(all),
+        [&](int32_t p) -> const Vec3& { return state->x[p]; }, &cells, &out.dropped_cells);
+    for (int32_t i = 0; i < count; ++i) {
+      out.triangles += GuardSphereCell(
+          model, sphere, cells[i], state->scratch->x_start, state->x, state->v,
+          [&](int32_t p) { return model.inv_mass_per_kg[p] > 0.0; },
+          [&](int32_t p) { SyncVerletHistory(model, p, h_s, state); });
+    }
+  }
+  return out;
 }
 
 void AdvanceCouplingSprings(double t_s, CouplingSprings* springs) {

@@ -493,7 +493,10 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
     : model_(model),
       radius_(radius),
       recentre_(follow),
-      springs_(std::make_unique<CouplingSprings>()) {
+      springs_(std::make_unique<CouplingSprings>()),
+      spheres_(kMaxCouplingSprings),
+      guard_cells_(kMaxCouplingSprings),
+      guard_count_(kMaxCouplingSprings, 0) {
   if (radius < kMinPatchRadius || radius > kMaxPatchRadius) {
     throw std::invalid_argument("proxy.patch_radius: must be in [" +
                                 std::to_string(kMinPatchRadius) + ", " +
@@ -968,6 +971,67 @@ void ClothPatch::ApplyObstaclesToWindows() {
   }
 }
 
+static_assert(kMaxGuardCells == 256, "ClothPatch::guard_cells_ holds kMaxGuardCells a sphere");
+
+void ClothPatch::GatherGuardCells() {
+  // Each spring's sphere and the cells near it at the step's start (x_before_: every window
+  // particle), the reach grown by one spacing for the step's motion (a particle moving a spacing
+  // within a haptic tick, 8 m/s at 64 x 64, is past any hand; the sim's guard still holds then).
+  const auto at_start = [&](int32_t p) -> const Vec3& { return x_before_[p]; };
+  for (int32_t k = 0; k < springs_->count; ++k) {
+    spheres_[k] = CouplingSphereAt(model_, springs_->springs[k], x_before_);
+    guard_count_[k] = 0;
+    if (!spheres_[k].valid) continue;
+    int32_t dropped = 0;
+    std::array<int32_t, kMaxGuardCells>& cells = guard_cells_[k];
+    const int32_t count = GuardCellsNear(model_, spheres_[k], windows(), at_start, &cells, &dropped,
+                                         model_.spacing_m);
+    counters_.guard_dropped_cells += static_cast<uint64_t>(dropped);
+    // Only cells whose four corners are in a window: the others' triangles are not the patch's.
+    const int32_t w = model_.width;
+    int32_t kept = 0;
+    for (int32_t i = 0; i < count; ++i) {
+      const int32_t cell = cells[i], p00 = cell / (w - 1) * w + cell % (w - 1);
+      if (local_[p00] >= 0 && local_[p00 + 1] >= 0 && local_[p00 + w] >= 0 &&
+          local_[p00 + w + 1] >= 0) {
+        cells[kept++] = cell;
+      }
+    }
+    guard_count_[k] = kept;
+  }
+}
+
+void ClothPatch::ApplySphereGuardsToWindows() {
+  // The sim's guard (ApplySphereGuards) on the cells GatherGuardCells found, read from the dense
+  // state: their corners are copied to x_ and v_ first, the free ones movable; what it moved goes
+  // back to the dense state, leapfrog restarting from its velocity. The spheres are the step's
+  // (the proxy moves little within a haptic tick).
+  const auto load = [&](int32_t p) {
+    const int32_t l = local_[p];
+    x_[p] = Vec3(D(kX)[l], D(kX + 1)[l], D(kX + 2)[l]);
+    v_[p] = Vec3(D(kV)[l], D(kV + 1)[l], D(kV + 2)[l]);
+  };
+  const int32_t w = model_.width;
+  for (int32_t k = 0; k < springs_->count; ++k) {
+    const CouplingSphere& sphere = spheres_[k];
+    for (int32_t i = 0; i < guard_count_[k]; ++i) {
+      const int32_t cell = guard_cells_[k][i], p00 = cell / (w - 1) * w + cell % (w - 1);
+      for (const int32_t p : {p00, p00 + 1, p00 + w, p00 + w + 1}) load(p);
+      counters_.guard_pushes += static_cast<uint64_t>(GuardSphereCell(
+          model_, sphere, cell, x_before_, x_, v_,
+          [&](int32_t p) { return role_[p] == PatchRole::kFree; },
+          [&](int32_t p) {
+            const int32_t l = local_[p];
+            for (int32_t a = 0; a < 3; ++a) {
+              D(kX + a)[l] = x_[p][a];
+              D(kV + a)[l] = v_[p][a];
+            }
+            D(kRestart)[l] = 1.0;
+          }));
+    }
+  }
+}
+
 bool ClothPatch::AllFinite() const {
   int64_t bad = 0;
   const PatchKernels& kernels = PickSimd(kPatchKernels);
@@ -1026,6 +1090,9 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   double max2 = kernels.max_distance2(locals_, D(kX), D(kX + 1), D(kX + 2), D(kDriveX),
                                       D(kDriveX + 1), D(kDriveX + 2));
   const bool provot = model_.provot_enabled && !level1_.empty();
+  const bool guard =
+      model_.self_collision_enabled && model_.self_collision_guard_proxy && springs_->count > 0;
+  if (guard) GatherGuardCells();
   IntegrateArgs args;
   for (int32_t a = 0; a < 3; ++a) {
     args.x[a] = D(kX + a);
@@ -1061,6 +1128,7 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
     h_last_s_ = h;
     if (provot) ApplyProvotToWindows(h);
     if (!model_.obstacles.empty()) ApplyObstaclesToWindows();
+    if (guard) ApplySphereGuardsToWindows();
   }
   if (!AllFinite()) {
     ++counters_.nan_events;

@@ -40,6 +40,7 @@
 // cloth's size, written back every step for the proxy. Sized once; Place and Step are real-time
 // safe.
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -51,6 +52,7 @@
 namespace felt {
 
 struct CouplingSprings;  // sim_loop/cloth_coupling.h (internal to sim_loop)
+struct CouplingSphere;   // sim_loop/cloth_coupling.h
 struct WindowPasses;     // sim_loop/cloth_patch.cc
 struct PatchAttachment;  // sim_loop/cloth_patch.cc
 
@@ -100,6 +102,8 @@ struct PatchCounters {
   uint64_t nan_events = 0;             ///< steps that restarted from the drive
   uint64_t springs_outside = 0;        ///< contact springs too near a window's edge, not applied
   ClothCounters coupling;              ///< AddCouplingSpring's counts (invalid, reduced, dropped)
+  uint64_t guard_pushes = 0;           ///< triangles the sphere guard pushed (ApplySphereGuards)
+  uint64_t guard_dropped_cells = 0;    ///< cells past the guard's capacity, not tested
 };
 
 /// The local patch (file comment). Owned by the haptic thread.
@@ -179,6 +183,8 @@ class ClothPatch {
   void ApplyProvotToWindows(double h);
   void BuildAttachments();
   void ApplyObstaclesToWindows();
+  void GatherGuardCells();
+  void ApplySphereGuardsToWindows();
   bool AllFinite() const;
   void RestartFromDrive(double tau_s);
   template <typename Visit>
@@ -228,6 +234,11 @@ class ClothPatch {
   double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
   double drive_distance_m_ = 0.0;             // DistanceFromDrive
   std::unique_ptr<CouplingSprings> springs_;  // the contact springs of the step
+  // Their spheres at the step's start (the sphere guard; ApplySphereGuardsToWindows).
+  std::vector<CouplingSphere> spheres_;  // [kMaxCouplingSprings]
+  // Each sphere's cells to guard in the step (GatherGuardCells): guard_cells_[k][0, count).
+  std::vector<std::array<int32_t, 256>> guard_cells_;  // [kMaxCouplingSprings] (kMaxGuardCells)
+  std::vector<int32_t> guard_count_;                   // [kMaxCouplingSprings]
   PatchCounters counters_;
 };
 

@@ -260,7 +260,7 @@ ProvotSpec ParseProvot(const SceneTable& table) {
 SelfCollisionSpec ParseSelfCollision(const SceneTable& table, const ClothSpec& cloth) {
   table.ExpectKeys({"thickness_m", "method", "iterations", "friction", "fail_safe",
                     "repulsion_stiffness_N_per_m", "count_intersections", "passes_per_frame",
-                    "min_passes_per_frame", "slow_pass_motion", "hand_pass_motion"});
+                    "min_passes_per_frame", "slow_pass_motion", "hand_pass_motion", "guard_proxy"});
   SelfCollisionSpec spec;
   spec.thickness_m = table.Number("thickness_m", spec.thickness_m, Positive());
   // Thicker than half the spacing, a flat cloth's own non-adjacent primitives would repel.
@@ -288,6 +288,7 @@ SelfCollisionSpec ParseSelfCollision(const SceneTable& table, const ClothSpec& c
       table.Integer("min_passes_per_frame", spec.min_passes_per_frame, InRange(1, 1000));
   spec.slow_pass_motion = table.Number("slow_pass_motion", spec.slow_pass_motion, AtLeast(0.0));
   spec.hand_pass_motion = table.Number("hand_pass_motion", spec.hand_pass_motion, AtLeast(0.0));
+  spec.guard_proxy = table.Bool("guard_proxy", spec.guard_proxy);
   return spec;
 }
 

@@ -232,6 +232,9 @@ struct SelfCollisionSpec {
   /// With a hand on a quiet cloth, a pass moves the fastest particle at most this many
   /// thicknesses, >= 0 (SelfCollisionSettings::hand_pass_motion; 0: the count's passes).
   double hand_pass_motion = SelfCollisionSettings{}.hand_pass_motion;
+  /// The proxy's sphere keeps the cloth's other layers out, in the sim and the local patch
+  /// (ApplySphereGuards; docs/proxy.md, "Layered cloth").
+  bool guard_proxy = true;
 };
 
 /// Everything the 60 Hz simulation needs from a scene.

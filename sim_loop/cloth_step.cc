@@ -72,6 +72,7 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   const bool provot = model.provot_enabled && !model.provot_families.empty();
   const double t0 = state->time_s;
   SelfCollisionResponse* self = s.self_collision ? &*s.self_collision : nullptr;
+  const bool guard = self != nullptr && model.self_collision_guard_proxy;
   // Self-collision passes cover several substeps (a few per frame; Bridson et al. 2002's
   // collision step): self_h is the time since the pass's BeginStep. After a frame without
   // contact, fewer, longer passes: planned from the frame-start speeds when no hand acts; with a
@@ -88,11 +89,17 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   for (int32_t k = 0; k < substeps; ++k) {
     if (self && self_h == 0.0) self->BeginStep(state->x);  // the pass's start positions
     // Integrate, then constrain: Provot (000 slide 9), obstacles, pins at the substep's end time.
-    if (obstacles) std::copy(state->x.begin(), state->x.end(), s.x_start.begin());
+    if (obstacles || guard) std::copy(state->x.begin(), state->x.end(), s.x_start.begin());
     if (k > 0) AdvanceCouplingSprings(k * h, &s.coupling);  // predicted hands (zero: held)
     if (!IntegrateSubstep(model, h, state)) ++state->counters.cg_not_converged;
     if (provot) ApplyProvot(model, h, state);
     if (obstacles) ApplyObstacles(model, h, state);
+    // The proxy's sphere keeps the cloth's other layers out (issue 22; sim_loop/cloth_coupling.h).
+    if (guard && s.coupling.count > 0) {
+      const SphereGuardResult g = ApplySphereGuards(model, h, state);
+      state->counters.guard_pushes += static_cast<uint64_t>(g.triangles);
+      state->counters.guard_dropped_cells += static_cast<uint64_t>(g.dropped_cells);
+    }
     ApplyPins(model, t0 + (k + 1) * h, state);
     // Self-collision (issue 22) on the pass's whole motion x_before -> x, after every other
     // constraint (collision/self_response.h; sim_loop/cloth_self_collision.cc).

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numbers>
 #include <random>
 #include <vector>
 
@@ -372,6 +373,137 @@ TEST(ClothCouplingTest, BadRadiusIsRefusedAndCounted) {
     EXPECT_EQ(std::memcmp(state.x.data(), untouched.x.data(), state.x.size() * sizeof(Vec3)), 0)
         << radius;
   }
+}
+
+// The sphere guard (issue 22: the proxy's sphere keeps the cloth's other layers out): a layer
+// inside the sphere is moved out to its surface on the side it came from, its nearest point's
+// velocity toward the sphere removed; pinned corners never move; cells near the contact particle
+// (the layer the proxy rests on) are left to the contact spring.
+TEST(ClothCouplingTest, TheSphereGuardMovesAnotherLayerOutToTheSurface) {
+  const ClothModel model = FlatSheet(IntegratorKind::kLeapfrogVerlet);  // x-z plane, normal +y
+  const int32_t w = model.width;
+  const int32_t cell = 6 * (w - 1) + 6;  // cell (6, 6): corners (6..7, 6..7)
+  const Triangle& t = model.triangles[2 * cell];
+  const std::vector<Vec3>& rest = model.rest_position_m;  // where the step started
+  std::vector<Vec3> x = model.rest_position_m;
+  std::vector<Vec3> v(x.size(), Vec3(0.0, 0.3, 0.0));  // rising toward the sphere above
+  // The sphere 5 mm above the first triangle's centroid, radius 12 mm: 7 mm inside it.
+  const Vec3 foot = (x[t[0]] + x[t[1]] + x[t[2]]) / 3.0;
+  CouplingSphere sphere;
+  sphere.centre_m = foot + Vec3(0.0, 0.005, 0.0);
+  sphere.radius_m = 0.012;
+  sphere.contact_col = 0;
+  sphere.contact_row = 0;
+  sphere.excluded_cells = 2;
+  sphere.up = Vec3(0.0, -1.0, 0.0);  // the proxy rests on a layer above: its free side is below
+  sphere.valid = true;
+  std::vector<int32_t> moved;
+  const auto all_free = [&](int32_t p) { return model.inv_mass_per_kg[p] > 0.0; };
+  const auto record = [&](int32_t p) { moved.push_back(p); };
+  EXPECT_EQ(GuardSphereCell(model, sphere, cell, rest, x, v, all_free, record), 1);
+  // The first triangle: its nearest point straight below the centre, now one radius away, and
+  // its velocity toward the centre (+y) gone; every corner moved by b_i dx / sum b^2 = dx
+  // (b = 1/3 each: 1/3 / (3/9) = 1).
+  const TrianglePoint after = ClosestPointOnTriangle(sphere.centre_m, x[t[0]], x[t[1]], x[t[2]]);
+  EXPECT_NEAR(std::sqrt(after.distance_sq), sphere.radius_m, 1e-12);
+  for (int j = 0; j < 3; ++j) {
+    EXPECT_NEAR(x[t[j]].y(), model.rest_position_m[t[j]].y() - 0.007, 1e-12);
+    EXPECT_NEAR(v[t[j]].y(), 0.0, 1e-12);
+  }
+  EXPECT_EQ(moved.size(), 3u);
+  // The second triangle of the cell was then outside the sphere: not pushed.
+  const Triangle& t2 = model.triangles[2 * cell + 1];
+  EXPECT_GE(ClosestPointOnTriangle(sphere.centre_m, x[t2[0]], x[t2[1]], x[t2[2]]).distance_sq,
+            sphere.radius_m * sphere.radius_m - 1e-15);
+
+  // A pinned corner stays: the others carry the whole move of the nearest point.
+  x = model.rest_position_m;
+  v.assign(x.size(), Vec3::Zero());
+  const auto pinned_first = [&](int32_t p) { return p != t[0]; };
+  EXPECT_EQ(GuardSphereCell(model, sphere, cell, rest, x, v, pinned_first, [](int32_t) {}), 1);
+  EXPECT_EQ(x[t[0]], model.rest_position_m[t[0]]);
+  const TrianglePoint held = ClosestPointOnTriangle(sphere.centre_m, x[t[0]], x[t[1]], x[t[2]]);
+  EXPECT_GT(std::sqrt(held.distance_sq), sphere.radius_m - 2e-3);  // pushed most of the way
+  EXPECT_NEAR((x[t[1]] - model.rest_position_m[t[1]]).norm(),
+              (x[t[2]] - model.rest_position_m[t[2]]).norm(), 1e-15);
+
+  // Below the sphere's equator (the free side turned up) the sheet is what the proxy presses on:
+  // left alone.
+  x = model.rest_position_m;
+  sphere.up = Vec3::UnitY();
+  EXPECT_EQ(GuardSphereCell(model, sphere, cell, rest, x, v, all_free, [](int32_t) {}), 0);
+  EXPECT_EQ(x, model.rest_position_m);
+  sphere.up = -Vec3::UnitY();
+
+  // The contact's own layer: a cell within excluded_cells of the contact particle is not touched,
+  // and a cell one farther is.
+  x = model.rest_position_m;
+  sphere.contact_col = 6 + 1 + 2;  // the cell's nearer corner (7) two columns away
+  sphere.contact_row = 6;
+  EXPECT_EQ(GuardSphereCell(model, sphere, cell, rest, x, v, all_free, [](int32_t) {}), 0);
+  EXPECT_EQ(x, model.rest_position_m);
+  sphere.contact_col = 6 + 1 + 3;
+  EXPECT_EQ(GuardSphereCell(model, sphere, cell, rest, x, v, all_free, [](int32_t) {}), 1);
+  // Out on the side it came from: a triangle that started 4 cm along +x (its nearest point to
+  // the centre then on its edge, up and to the side) and now lies over the centre, 6 mm above
+  // it (radius 9 mm), is moved along the direction of that start point, not straight up.
+  sphere.contact_col = 0;
+  sphere.contact_row = 0;
+  sphere.centre_m = foot - Vec3(0.0, 0.006, 0.0);
+  sphere.radius_m = 0.009;  // the cell's other triangle stays outside
+  sphere.up = Vec3::UnitY();
+  std::vector<Vec3> start = model.rest_position_m;
+  for (int32_t p : t) start[p] += Vec3(0.04, 0.0, 0.0);
+  const TrianglePoint came =
+      ClosestPointOnTriangle(sphere.centre_m, start[t[0]], start[t[1]], start[t[2]]);
+  const Vec3 u = (came.point - sphere.centre_m).normalized();
+  ASSERT_GT(u.x(), 0.5);  // from the side
+  x = model.rest_position_m;
+  v.assign(x.size(), Vec3::Zero());
+  EXPECT_EQ(GuardSphereCell(model, sphere, cell, start, x, v, all_free, [](int32_t) {}), 1);
+  const Vec3 dx = x[t[0]] - model.rest_position_m[t[0]];
+  EXPECT_NEAR(dx.normalized().dot(u), 1.0, 1e-12);  // along the start direction
+  EXPECT_NEAR((foot + dx - sphere.centre_m).norm(), sphere.radius_m, 1e-12);  // q on the surface
+  for (int j = 1; j < 3; ++j) {
+    EXPECT_NEAR((x[t[j]] - model.rest_position_m[t[j]] - dx).norm(), 0.0, 1e-15);
+  }
+  EXPECT_EQ(GuardExcludedCells(model, 0.012),
+            1 + static_cast<int32_t>(std::ceil(std::numbers::pi * 0.012 / model.spacing_m)));
+}
+
+// GuardCellsNear gathers every cell with a corner within the sphere's reach and not next to the
+// contact particle, sorted, once each.
+TEST(ClothCouplingTest, TheSphereGuardGathersTheCellsWithinReach) {
+  const ClothModel model = FlatSheet(IntegratorKind::kLeapfrogVerlet);
+  const std::vector<Vec3>& x = model.rest_position_m;
+  CouplingSphere sphere;
+  sphere.centre_m = x[GridIndex(model.width, 5, 5)];
+  sphere.radius_m = 0.1 * model.spacing_m;
+  sphere.contact_col = 4;  // particles within one column or row of (4, 7) are left out
+  sphere.contact_row = 7;
+  sphere.excluded_cells = 1;
+  const GuardRect all[1] = {{0, 0, model.width - 1, model.height - 1}};
+  std::array<int32_t, kMaxGuardCells> cells;
+  int32_t dropped = 0;
+  const int32_t count = GuardCellsNear(
+      model, sphere, std::span<const GuardRect>(all),
+      [&](int32_t p) -> const Vec3& { return x[p]; }, &cells, &dropped);
+  // The reference: cells with a corner within radius + 2 spacings, by brute force.
+  const double reach = sphere.radius_m + 2.0 * model.spacing_m;
+  std::vector<int32_t> expected;
+  const int32_t w = model.width;
+  for (int32_t r = 0; r + 1 < model.height; ++r) {
+    for (int32_t c = 0; c + 1 < w; ++c) {
+      bool near = false;
+      for (int32_t p : {r * w + c, r * w + c + 1, (r + 1) * w + c, (r + 1) * w + c + 1}) {
+        const bool left_out = std::abs(p % w - 4) <= 1 && std::abs(p / w - 7) <= 1;
+        near = near || (!left_out && (x[p] - sphere.centre_m).norm() <= reach);
+      }
+      if (near) expected.push_back(r * (w - 1) + c);
+    }
+  }
+  EXPECT_EQ(std::vector<int32_t>(cells.begin(), cells.begin() + count), expected);
+  EXPECT_EQ(dropped, 0);
 }
 
 TEST(ClothCouplingTest, StepFrameWithSpringsDoesNotAllocateAndCountsOverflow) {

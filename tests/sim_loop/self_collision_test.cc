@@ -451,7 +451,8 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   const SimSpec spec = ParseSimSpec(ParseSceneText(
       "[cloth]\nwidth = 4\nheight = 4\n[self_collision]\nthickness_m = 0.003\nmethod = \"bvh\"\n"
       "iterations = 2\nfriction = 0.4\nfail_safe = false\npasses_per_frame = 6\n"
-      "min_passes_per_frame = 2\nslow_pass_motion = 3\nhand_pass_motion = 0.3\n",
+      "min_passes_per_frame = 2\nslow_pass_motion = 3\nhand_pass_motion = 0.3\n"
+      "guard_proxy = false\n",
       "ok.toml"));
   ASSERT_TRUE(spec.self_collision.has_value());
   EXPECT_EQ(spec.self_collision->thickness_m, 0.003);
@@ -465,6 +466,8 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_EQ(spec.self_collision->hand_pass_motion, 0.3);
   EXPECT_EQ(BuildClothModel(spec).self_collision.hand_pass_motion, 0.3);
   EXPECT_EQ(BuildClothModel(spec).self_collision.min_passes_per_frame, 2);
+  EXPECT_FALSE(spec.self_collision->guard_proxy);
+  EXPECT_FALSE(BuildClothModel(spec).self_collision_guard_proxy);
   EXPECT_FALSE(ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n", "x.toml")).self_collision);
   const SimSpec defaults =
       ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n[self_collision]\n", "d.toml"));
@@ -472,6 +475,8 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_EQ(defaults.self_collision->method, SelfCullingMethod::kBvhCones);  // measured cheapest
   EXPECT_EQ(defaults.self_collision->thickness_m, 0.002);
   EXPECT_TRUE(defaults.self_collision->fail_safe);
+  EXPECT_TRUE(defaults.self_collision->guard_proxy);
+  EXPECT_TRUE(BuildClothModel(defaults).self_collision_guard_proxy);
 
   std::string e = SelfSceneError("[self_collision]\nthickness_m = 0.01\n");
   EXPECT_NE(e.find("test.toml:6"), std::string::npos) << e;
@@ -491,6 +496,8 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_NE(e.find("self_collision.slow_pass_motion"), std::string::npos) << e;
   e = SelfSceneError("[self_collision]\nhand_pass_motion = -0.1\n");
   EXPECT_NE(e.find("self_collision.hand_pass_motion"), std::string::npos) << e;
+  e = SelfSceneError("[self_collision]\nguard_proxy = 1\n");
+  EXPECT_NE(e.find("self_collision.guard_proxy"), std::string::npos) << e;
   e = SelfSceneError("[self_collision]\nthicknes_m = 0.001\n");
   EXPECT_NE(e.find("thickness_m"), std::string::npos) << e;  // did you mean
 }
