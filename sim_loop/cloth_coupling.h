@@ -180,22 +180,19 @@ CouplingSphere CouplingSphereAt(const ClothModel& model, const CouplingSpring& s
 /// (the layer the proxy rests on): those within this Chebyshev distance, 1 + ceil(pi radius /
 /// spacing). Cloth that reaches the sphere's far side from the contact went around it, over at
 /// least half its circumference (pi radius of cloth); nearer cloth is the contact's own layer,
-/// dented around the sphere, and is the spring's. (2 radius instead of pi radius: the same
-/// closing folds kept off the proxy, pressing a fold shut in mode interpolate ended on one layer at
-/// one more of seven hand positions; docs/proxy.md, "Layered cloth".)
+/// dented around the sphere, and is the spring's (docs/proxy.md, "Layered cloth").
 int32_t GuardExcludedCells(const ClothModel& model, double radius_m);
 
 /// The sphere guard on one grid cell (cell = row (width - 1) + col; its two triangles, in
 /// MakeGridTriangles' order) unless it lies within sphere.excluded_cells of the contact particle:
 /// each triangle whose nearest point q to the centre lies inside the sphere, on its free side
-/// ((q - centre) . up > 0: above its equator), is moved out to its
-/// surface along u, the direction from the centre to the triangle's nearest point at `x_start`
-/// (the side it came from; q - centre when that is undefined), its corners by the weights of a
-/// point on a triangle against an
+/// ((q - centre) . up > 0: above its equator), is moved out to its surface along u, the direction
+/// from the centre to the triangle's nearest point at `x_start` (the side it came from; q - centre
+/// when that is undefined), its corners by the weights of a point on a triangle against an
 /// immovable body (x_i += b_i dx / sum_j b_j^2 over the movable corners: Bridson, Fedkiw & Anderson
-/// 2002 §7.1's weighting, so that q moves by dx), and q's velocity toward the centre removed the
-/// same way (inelastic). movable(p): whether particle p may move; moved(p) is called for every
-/// particle moved. Returns the triangles pushed. Real-time safe.
+/// 2002 §7.1's weighting, so that q moves by dx), and q's velocity toward the centre along u
+/// removed the same way (inelastic). movable(p): whether particle p may move; moved(p) is called
+/// for every particle moved. Returns the triangles pushed. Real-time safe.
 template <typename Movable, typename Moved>
 int32_t GuardSphereCell(const ClothModel& model, const CouplingSphere& sphere, int32_t cell,
                         std::span<const Vec3> x_start, std::span<Vec3> x, std::span<Vec3> v,
@@ -274,11 +271,10 @@ struct GuardRect {
 
 /// Gathers into `cells` (sorted, no repeats; at most kMaxGuardCells) the grid cells with a corner
 /// in one of `rects` within radius + 2 spacings + extra_m [m] of the sphere's centre (position(p):
-/// particle p's
-/// position [m, world]) and not within excluded_cells of the contact particle (whose cells
-/// GuardSphereCell leaves out, so they are not looked at): the cells a triangle inside the sphere
-/// can be in while its edges stay under 2 spacings (a cell's diagonal stretched 41 %). Returns the
-/// cells gathered; *dropped counts those past the capacity. Real-time safe.
+/// particle p's position [m, world]) and not within excluded_cells of the contact particle (whose
+/// cells GuardSphereCell leaves out, so they are not looked at): the cells a triangle inside the
+/// sphere can be in while its edges stay under 2 spacings (a cell's diagonal stretched 41 %).
+/// Returns the cells gathered; *dropped counts those past the capacity. Real-time safe.
 template <typename Rect, typename Position>
 int32_t GuardCellsNear(const ClothModel& model, const CouplingSphere& sphere,
                        std::span<const Rect> rects, Position&& position,
