@@ -16,6 +16,7 @@
 #include "collision/self_intersection.h"
 #include "scene/scene_file.h"
 #include "sim_loop/cloth.h"
+#include "sim_loop/cloth_coupling.h"
 #include "sim_loop/cloth_internal.h"
 #include "sim_loop/cloth_scene.h"
 #include "tests/alloc_counter.h"
@@ -435,6 +436,63 @@ TEST(SelfCollisionHardCase, FoldForTheHand) {
 // The right ring passes the middle one at t = 0.97 s (frame 58).
 TEST(SelfCollisionHardCase, RailCurtainTwisted) {
   ExpectHardCaseClean({"self_rail_twist.toml", 180, 75, 5.0, 1.5});
+}
+
+// The sphere guard in the 60 Hz step (sim_loop/cloth_coupling.h, ApplySphereGuards): on the
+// fold-press scene a contact spring holds a 4 mm sphere on the lower layer at x = -45 mm, z = 0
+// (where tests/compare/layered_cloth_test.cc's hand rests) while the fold's flap lands over it.
+// With guard_proxy the flap is pushed out of the sphere and at the end of every frame no triangle
+// of it (more than the excluded cells from the contact) has its nearest point inside the sphere's
+// upper half; without it, the flap ends inside. Nothing is pushed without [self_collision].
+TEST(SelfCollisionScene, TheProxysSphereKeepsTheFlapOut) {
+  const auto run = [](bool guard, bool self, int64_t* inside_frames) {
+    SimSpec spec = SelfCollisionSceneSpec("self_fold_press.toml");
+    spec.self_collision->guard_proxy = guard;
+    if (!self) spec.self_collision.reset();
+    const ClothModel model = BuildClothModel(spec);
+    ClothState state = MakeClothState(model);
+    const int32_t w = model.width;
+    ExternalForce e;
+    e.triangle = 2 * (4 * (w - 1) + 5);  // cell (5, 4): x = -50 to -40 mm, z = -10 to 0 mm
+    e.barycentric = Vec3(1.0 / 3, 1.0 / 3, 1.0 / 3);
+    e.stiffness_N_per_m = 400.0;
+    e.anchor_m = Vec3(-0.045, 0.001, 0.0);  // the hand, pressing lightly on the cloth on the table
+    e.normal = Vec3::UnitY();
+    e.max_force_N = 3.3;
+    e.radius_m = 0.004;
+    *inside_frames = 0;
+    for (int32_t f = 0; f < 90; ++f) {
+      StepFrame(model, std::span<const ExternalForce>(&e, 1), 1.0 / 60.0, &state);
+      // The sphere where the guard sees it, and the flap's triangles inside its upper half.
+      CouplingSprings springs;
+      BeginCouplingFrame(&springs);
+      ClothCounters counters;
+      AddCouplingSpring(model, e, 1e-3, state.x, &springs, &counters);
+      const CouplingSphere sphere = CouplingSphereAt(model, springs.springs[0], state.x);
+      bool inside = false;
+      for (int32_t cell = 0; cell < (w - 1) * (model.height - 1); ++cell) {
+        const int32_t col = cell % (w - 1), row = cell / (w - 1);
+        const int32_t dc = std::max({0, sphere.contact_col - col - 1, col - sphere.contact_col});
+        const int32_t dr = std::max({0, sphere.contact_row - row - 1, row - sphere.contact_row});
+        if (std::max(dc, dr) <= sphere.excluded_cells) continue;
+        for (int32_t k = 0; k < 2; ++k) {
+          const Triangle& t = model.triangles[2 * cell + k];
+          const TrianglePoint tp =
+              ClosestPointOnTriangle(sphere.centre_m, state.x[t[0]], state.x[t[1]], state.x[t[2]]);
+          inside = inside || (tp.distance_sq < 0.98 * sphere.radius_m * sphere.radius_m &&
+                              (tp.point - sphere.centre_m).dot(sphere.up) > 0.0);
+        }
+      }
+      *inside_frames += inside ? 1 : 0;
+    }
+    return state.counters.guard_pushes;
+  };
+  int64_t inside_with = 0, inside_without = 0, inside_no_self = 0;
+  EXPECT_GT(run(true, true, &inside_with), 0u);
+  EXPECT_EQ(inside_with, 0);
+  EXPECT_EQ(run(false, true, &inside_without), 0u);
+  EXPECT_GT(inside_without, 0) << "the flap never came into the sphere: the case is not tested";
+  EXPECT_EQ(run(true, false, &inside_no_self), 0u);
 }
 
 std::string SelfSceneError(const std::string& section) {
