@@ -1003,9 +1003,11 @@ void ClothPatch::GatherGuardCells() {
 
 void ClothPatch::ApplySphereGuardsToWindows() {
   // The sim's guard (ApplySphereGuards) on the cells GatherGuardCells found, read from the dense
-  // state: their corners are copied to x_ and v_ first, the free ones movable; what it moved goes
-  // back to the dense state, leapfrog restarting from its velocity. The spheres are the step's
-  // (the proxy moves little within a haptic tick).
+  // state: their corners are copied to x_ and v_ first; every particle but a pinned one is
+  // movable, the driven rings too (left to their drive, the flap at x = -35 mm of
+  // LayeredCloth.DISABLED_AFoldNeverClosesOnTheProxyFartherAfield closed through the proxy in
+  // the patch); what it moved goes back to the dense state, leapfrog restarting from its velocity.
+  // The spheres are the step's (the proxy moves little within a haptic tick).
   const auto load = [&](int32_t p) {
     const int32_t l = local_[p];
     x_[p] = Vec3(D(kX)[l], D(kX + 1)[l], D(kX + 2)[l]);
@@ -1019,7 +1021,7 @@ void ClothPatch::ApplySphereGuardsToWindows() {
       for (const int32_t p : {p00, p00 + 1, p00 + w, p00 + w + 1}) load(p);
       counters_.guard_pushes += static_cast<uint64_t>(GuardSphereCell(
           model_, sphere, cell, x_before_, x_, v_,
-          [&](int32_t p) { return role_[p] == PatchRole::kFree; },
+          [&](int32_t p) { return model_.inv_mass_per_kg[p] > 0.0; },
           [&](int32_t p) {
             const int32_t l = local_[p];
             for (int32_t a = 0; a < 3; ++a) {

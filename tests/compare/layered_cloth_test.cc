@@ -218,7 +218,7 @@ TEST(LayeredCloth, AFoldNeverClosesOnTheProxyWhereverItLands) {
 
 // Known failures (issue 22, left open; docs/proxy.md, "Layered cloth"), kept compiled and runnable
 // with --gtest_also_run_disabled_tests. Measured (release, 2026-11-28, this scene): pressing the
-// fold shut, mode patch has a layer above the proxy on 115 ticks and reaches 3.5 mm into the cloth
+// fold shut, mode patch has a layer above the proxy on 49 ticks and reaches 3.6 mm into the cloth
 // (40 ticks and no reach without the sphere guard), and is never on two layers at the clamp (the
 // local patch has no self-collision: the loop's top goes through the lower layer there);
 // extrapolate has a layer above it on 59 ticks (between layers it did not enter through), and
@@ -247,9 +247,10 @@ TEST(LayeredCloth, DISABLED_PressingAFoldShutWhereverTheHandComes) {
 }
 
 // The flap landing on the hand farther afield: x = -57 to -33 mm, 2 mm apart, every mode.
-// Measured (release, 2026-11-28): 63 of 65 meet the target; patch fails at -57 mm (the proxy
-// reaches 0.83 mm into the cloth) and -35 mm (two layers under the proxy on 18 ticks, reach
-// 3.9 mm). Without the sphere guard: 28 of 65.
+// Measured (release, 2026-11-28): 64 of 65 meet the target; patch fails at -57 mm (the proxy
+// reaches 0.83 mm into the cloth). Without the sphere guard: 28 of 65; with it moving only the
+// patch's free particles, not its driven rings, patch failed at -35 mm too (two layers under the
+// proxy on 18 ticks, reach 3.9 mm).
 TEST(LayeredCloth, DISABLED_AFoldNeverClosesOnTheProxyFartherAfield) {
   for (const char* mode : {"patch", "newest", "extrapolate", "interpolate", "blend_forces"}) {
     for (int i = 0; i < 13; ++i) {
