@@ -203,6 +203,7 @@ void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
   overlay_.offset_m = patch_->DistanceFromDrive();
   Bump(counters_.patch_ticks);
   if (step.recovered) Bump(counters_.patch_nan_events);
+  counters_.patch_guard_pushes.store(patch_->counters().guard_pushes, std::memory_order_relaxed);
 }
 
 bool HapticLoop::ReadInput(uint32_t index, int64_t now_ns, Device* d) {

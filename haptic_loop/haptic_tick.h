@@ -62,6 +62,7 @@ struct HapticCounters {
   std::atomic<uint64_t> reaction_queue_full{0};  ///< ticks a staged batch waited for room
   std::atomic<uint64_t> patch_ticks{0};          ///< mode patch: ticks that stepped a window
   std::atomic<uint64_t> patch_nan_events{0};     ///< mode patch: steps restarted from the drive
+  std::atomic<uint64_t> patch_guard_pushes{0};   ///< mode patch: triangles its sphere guard pushed
 };
 
 /// The haptic loop: every device's proxy, safety state and counters, the haptic side of both

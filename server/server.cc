@@ -243,6 +243,8 @@ std::unique_ptr<ServerReport> Server::Report() const {
   r->held_spring_frames = sim_.counters().held_spring_frames.load();
   r->patch_ticks = h.patch_ticks.load();
   r->patch_nan_events = h.patch_nan_events.load();
+  r->guard_pushes = sim_.counters().guard_pushes.load();
+  r->patch_guard_pushes = h.patch_guard_pushes.load();
   for (uint32_t i = 0; i < haptic_.device_count(); ++i) {
     r->devices.push_back(ReportDevice(haptic_.device_spec(i), haptic_.device_counters(i)));
     const DeviceReport& dr = r->devices.back();
@@ -312,7 +314,9 @@ std::string Server::ReportJson(const ServerReport& r) {
                        {"cloth_nan_events", r.cloth_nan_events},
                        {"held_spring_frames", r.held_spring_frames},
                        {"patch_ticks", r.patch_ticks},
-                       {"patch_nan_events", r.patch_nan_events}};
+                       {"patch_nan_events", r.patch_nan_events},
+                       {"guard_pushes", r.guard_pushes},
+                       {"patch_guard_pushes", r.patch_guard_pushes}};
   return JsonText(Json{{"realtime", r.realtime},
                        {"sim_realtime", r.sim_realtime},
                        {"cpu_dma_latency_zero", r.cpu_dma_latency_zero},

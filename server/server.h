@@ -73,6 +73,8 @@ struct ServerReport {
   uint64_t held_spring_frames = 0;        ///< sim frames that reused the last batch's springs
   uint64_t patch_ticks = 0;               ///< mode patch: ticks that stepped a window
   uint64_t patch_nan_events = 0;          ///< mode patch: steps restarted from the 60 Hz cloth
+  uint64_t guard_pushes = 0;        ///< triangles the sim's proxy sphere guard pushed (substeps)
+  uint64_t patch_guard_pushes = 0;  ///< mode patch: triangles the patch's sphere guard pushed
   uint64_t contacts = 0;                  ///< device ticks in contact, all devices
   double peak_force_N = 0;                ///< largest |force| sent, all devices, N
   uint64_t nan_events = 0;                ///< safety NaN events, all devices

@@ -87,6 +87,7 @@ void SimLoop::Frame(double frame_dt_s, int64_t publish_ns) {
   const FrameResult result = StepFrame(
       model_, std::span<const ExternalForce>(external_.data(), count), frame_dt_s, &cloth_);
   if (result.recovered) Bump(counters_.cloth_nan_events);
+  counters_.guard_pushes.store(cloth_.counters.guard_pushes, std::memory_order_relaxed);
   PublishedSnapshot& slot = snapshots_->write_slot();
   FillSnapshotWithFrameMotion(cloth_, frame_start_x_, result.dt_s, ++frame_counter_,
                               frame_motion_v_, &slot.snapshot);

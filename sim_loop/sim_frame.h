@@ -76,6 +76,9 @@ struct SimCounters {
   std::atomic<uint64_t> cloth_nan_events{0};     ///< frames that recovered from non-finite values
   std::atomic<double> applied_impulse_N_s{0.0};  ///< sum of |reaction impulse| applied, N s
   std::atomic<uint64_t> held_spring_frames{0};   ///< frames that reused the last batch's springs
+  /// Triangles the proxy's sphere guard pushed out (self_collision.guard_proxy), summed over
+  /// substeps
+  std::atomic<uint64_t> guard_pushes{0};
 };
 
 /// The sim loop: the cloth, both handoffs and the frame. Construction is set-up (allocates,
