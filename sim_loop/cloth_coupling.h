@@ -260,6 +260,12 @@ struct SphereGuardResult {
 /// self_collision.guard_proxy. Real-time safe.
 SphereGuardResult ApplySphereGuards(const ClothModel& model, double h_s, ClothState* state);
 
+/// The first corner (lowest particle index, row * width + col) of grid cell `cell` = row (width -
+/// 1) + col on a grid `width` particles wide; the others are +1, +width and +width + 1.
+inline int32_t GuardCellCorner(int32_t width, int32_t cell) {
+  return cell / (width - 1) * width + cell % (width - 1);
+}
+
 /// The most grid cells one sphere's guard gathers in one call (GuardCellsNear); more are dropped.
 inline constexpr int32_t kMaxGuardCells = 256;
 

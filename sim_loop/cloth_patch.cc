@@ -991,7 +991,7 @@ void ClothPatch::GatherGuardCells() {
     const int32_t w = model_.width;
     int32_t kept = 0;
     for (int32_t i = 0; i < count; ++i) {
-      const int32_t cell = cells[i], p00 = cell / (w - 1) * w + cell % (w - 1);
+      const int32_t cell = cells[i], p00 = GuardCellCorner(w, cell);
       if (local_[p00] >= 0 && local_[p00 + 1] >= 0 && local_[p00 + w] >= 0 &&
           local_[p00 + w + 1] >= 0) {
         cells[kept++] = cell;
@@ -1017,7 +1017,7 @@ void ClothPatch::ApplySphereGuardsToWindows() {
   for (int32_t k = 0; k < springs_->count; ++k) {
     const CouplingSphere& sphere = spheres_[k];
     for (int32_t i = 0; i < guard_count_[k]; ++i) {
-      const int32_t cell = guard_cells_[k][i], p00 = cell / (w - 1) * w + cell % (w - 1);
+      const int32_t cell = guard_cells_[k][i], p00 = GuardCellCorner(w, cell);
       for (const int32_t p : {p00, p00 + 1, p00 + w, p00 + w + 1}) load(p);
       counters_.guard_pushes += static_cast<uint64_t>(GuardSphereCell(
           model_, sphere, cell, x_before_, x_, v_,

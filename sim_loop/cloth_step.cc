@@ -72,7 +72,8 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   const bool provot = model.provot_enabled && !model.provot_families.empty();
   const double t0 = state->time_s;
   SelfCollisionResponse* self = s.self_collision ? &*s.self_collision : nullptr;
-  const bool guard = self != nullptr && model.self_collision_guard_proxy;
+  // The proxy's sphere guard runs while a hand's contact spring acts (sim_loop/cloth_coupling.h).
+  const bool guard = self != nullptr && model.self_collision_guard_proxy && s.coupling.count > 0;
   // Self-collision passes cover several substeps (a few per frame; Bridson et al. 2002's
   // collision step): self_h is the time since the pass's BeginStep. After a frame without
   // contact, fewer, longer passes: planned from the frame-start speeds when no hand acts; with a
@@ -89,13 +90,14 @@ FrameResult StepFrame(const ClothModel& model, std::span<const ExternalForce> ex
   for (int32_t k = 0; k < substeps; ++k) {
     if (self && self_h == 0.0) self->BeginStep(state->x);  // the pass's start positions
     // Integrate, then constrain: Provot (000 slide 9), obstacles, pins at the substep's end time.
+    // The substep's start positions: the obstacles' sweeps and the sphere guard's sides.
     if (obstacles || guard) std::copy(state->x.begin(), state->x.end(), s.x_start.begin());
     if (k > 0) AdvanceCouplingSprings(k * h, &s.coupling);  // predicted hands (zero: held)
     if (!IntegrateSubstep(model, h, state)) ++state->counters.cg_not_converged;
     if (provot) ApplyProvot(model, h, state);
     if (obstacles) ApplyObstacles(model, h, state);
     // The proxy's sphere keeps the cloth's other layers out (issue 22; sim_loop/cloth_coupling.h).
-    if (guard && s.coupling.count > 0) {
+    if (guard) {
       const SphereGuardResult g = ApplySphereGuards(model, h, state);
       state->counters.guard_pushes += static_cast<uint64_t>(g.triangles);
       state->counters.guard_dropped_cells += static_cast<uint64_t>(g.dropped_cells);
