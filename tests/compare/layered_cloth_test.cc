@@ -218,11 +218,11 @@ TEST(LayeredCloth, AFoldNeverClosesOnTheProxy) {
 // failed (patch at 4 positions, newest at 5, extrapolate at 1, blend_forces at 5), and
 // blend_forces at the scene's -45 mm too: where the flap landed decided it, nothing in the sim
 // keeping another layer out of the proxy. Under a
-// sanitizer the default mode at two of the positions that failed (a run is about ten times slower
-// there).
+// sanitizer the default mode at one of the positions that failed (a run is about ten times slower
+// there; CI's 20 minutes).
 TEST(LayeredCloth, AFoldNeverClosesOnTheProxyWhereverItLands) {
   std::vector<double> positions = {-0.051, -0.049, -0.047, -0.043, -0.041, -0.039};
-  if (testing::Sanitized()) positions = {-0.049, -0.041};
+  if (testing::Sanitized()) positions = {-0.041};
   for (const std::string& mode :
        LayeredModes({"patch", "newest", "extrapolate", "interpolate", "blend_forces"})) {
     for (double x : positions) {
