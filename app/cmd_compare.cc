@@ -117,7 +117,13 @@ int Compare(const CompareArgs& args) {
   const report::MachineInfo machine = report::ReadMachineInfo();
   const Trace trace = ReadAnyTrace(args.trace, args.topic);
   const SceneDocument scene = LoadSceneDocument(args.scene);
-  CheckWholeScene(scene);  // the scene as written must be valid (errors with line and column)
+  // The scene as written must be valid (errors with line and column).
+  const double haptic_rate_hz = CheckWholeScene(scene).haptic.haptic_rate_hz;
+  try {
+    (void)LockstepTicks(trace.samples, haptic_rate_hz, args.duration_s);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(args.trace + ": " + e.what());
+  }
   const std::vector<LockstepVariant> variants = ParseVariantList(args.variants);
   LockstepOptions options;
   options.max_duration_s = args.duration_s;

@@ -59,7 +59,13 @@ int Replay(const ReplayArgs& args) {
       std::chrono::nanoseconds(static_cast<int64_t>(args.discovery_timeout_s * 1e9));
   config.forces_out = args.forces_out;
   const size_t samples = trace.samples.size();
-  transport::Replayer replayer(std::move(trace), config);
+  std::unique_ptr<transport::Replayer> made;
+  try {
+    made = std::make_unique<transport::Replayer>(std::move(trace), config);
+  } catch (const std::invalid_argument& e) {  // the trace's schedule: name the file
+    throw std::invalid_argument(args.trace + ": " + e.what());
+  }
+  transport::Replayer& replayer = *made;
 
   InstallStopHandlers();
 

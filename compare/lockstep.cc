@@ -401,17 +401,32 @@ ServerSpec VariantSpec(const SceneDocument& scene, const LockstepVariant& varian
   }
 }
 
+int64_t LockstepTicks(const std::vector<TraceSample>& samples, double rate_hz,
+                      double max_duration_s) {
+  if (samples.empty()) throw std::invalid_argument("lockstep: the trace has no samples");
+  // The first tick releases sample 0, the last the trace's last sample (or the duration cap).
+  double span_s = samples.back().t_s - samples.front().t_s;
+  if (max_duration_s > 0.0) span_s = std::min(span_s, max_duration_s);
+  const double periods = std::floor(span_s * rate_hz + 1e-6);
+  if (!(periods < static_cast<double>(kMaxLockstepTicks))) {
+    throw std::invalid_argument(
+        "the trace spans " + FormatSceneNumber(span_s) + " s of virtual time: at " +
+        FormatSceneNumber(rate_hz) + " Hz that is more than the " +
+        std::to_string(kMaxLockstepTicks) +
+        " haptic ticks (4 h at 1 kHz) a lock-step run makes; a corrupt time in the trace? "
+        "(--duration S runs its first S seconds)");
+  }
+  return static_cast<int64_t>(periods) + 1;
+}
+
 LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& samples,
                         const LockstepOptions& options) {
-  if (samples.empty()) throw std::invalid_argument("lockstep: the trace has no samples");
   const auto devices = static_cast<uint32_t>(spec.devices.size());
   const double rate_hz = spec.haptic.haptic_rate_hz;
   const double frame_rate_hz = spec.sim.integration.frame_rate_hz;
-
-  // Ticks: the first releases sample 0, the last the trace's last sample (or the duration cap).
+  const int64_t ticks = LockstepTicks(samples, rate_hz, options.max_duration_s);
   double span_s = samples.back().t_s - samples.front().t_s;
   if (options.max_duration_s > 0.0) span_s = std::min(span_s, options.max_duration_s);
-  const int64_t ticks = static_cast<int64_t>(std::floor(span_s * rate_hz + 1e-6)) + 1;
 
   // The real server, fed the trace on every device, forces kept, no threads started.
   TracePointerSource source(std::vector<std::vector<TraceSample>>(devices, samples));
@@ -609,6 +624,8 @@ CompareResult CompareVariants(const SceneDocument& scene, const std::vector<Trac
                                   ": a different number of devices than the reference");
     }
   }
+  // The run's length too (the same for every variant: one haptic rate).
+  (void)LockstepTicks(samples, specs.front().haptic.haptic_rate_hz, options.max_duration_s);
   CompareResult result;
   for (size_t i = 0; i < all.size(); ++i) {
     try {

@@ -125,6 +125,17 @@ struct LockstepRun {
   uint64_t cloth_nan_events = 0;  ///< sim frames that recovered from non-finite values
 };
 
+/// The most haptic ticks one lock-step run makes: 4 hours at 1 kHz (its arrays hold about 70 bytes
+/// a tick and device, and each tick steps the server).
+inline constexpr int64_t kMaxLockstepTicks = int64_t{4} * 3600 * 1000;
+
+/// The haptic ticks a lock-step run of `samples` at `rate_hz` makes: one per period from the first
+/// sample to the last (or to max_duration_s of virtual time when > 0). Throws
+/// std::invalid_argument for no samples, or naming the span when it needs more than
+/// kMaxLockstepTicks (a corrupt time in the trace, or a recording to cut with --duration).
+int64_t LockstepTicks(const std::vector<TraceSample>& samples, double rate_hz,
+                      double max_duration_s);
+
 /// Runs `spec` driven by `samples` (fed to every device) in lock-step virtual time (file
 /// comment). Set-up allocates; the ticks do not. Throws std::invalid_argument for an empty trace
 /// or a spec the Server refuses.

@@ -455,6 +455,15 @@ Trace ImportTrace(const std::string& path, const ImportOptions& options) {
       continue;
     }
     t_s += time_offset;
+    if (new_trial && !t.empty()) {
+      t_s = t.back() + options.trial_gap_s;  // exactly (t_s + offset may round off a huge time)
+      if (!(t_s > t.back())) {
+        throw TraceError(path, s.line,
+                         "trial " + std::to_string(s.trial) + " cannot follow the previous " +
+                             "trial's end at " + Num(t.back()) + " s by " +
+                             Num(options.trial_gap_s) + " s (a corrupt time?)");
+      }
+    }
     if (!new_trial && !(t_s > t.back())) {
       // Distinct source times that map to the same double (absurd time scales).
       ++dropped_duplicates;
@@ -465,8 +474,23 @@ Trace ImportTrace(const std::string& path, const ImportOptions& options) {
       mapped[a] = options.axes.sign[static_cast<size_t>(a)] *
                   s.p[options.axes.source_axis[static_cast<size_t>(a)]];
     }
+    const Vec3 p_D = options.scale * mapped + options.offset_D_m;
+    // MCAP samples are numbered by message, the text sources by line.
+    const int64_t line = options.format == ImportFormat::kMcap ? 0 : s.line;
+    const std::string sample =
+        options.format == ImportFormat::kMcap ? "message " + std::to_string(s.line) + ": " : "";
+    if (!std::isfinite(t_s)) {
+      throw TraceError(path, line, sample + "time " + Num(s.t) + " is not finite once scaled");
+    }
+    if (!(p_D.cwiseAbs().maxCoeff() <= kMaxImportPosition_m)) {
+      throw TraceError(path, line,
+                       sample + "position (" + Num(p_D.x()) + ", " + Num(p_D.y()) + ", " +
+                           Num(p_D.z()) + ") m after --scale and --offset is beyond " +
+                           Num(kMaxImportPosition_m) +
+                           " m (a corrupt value, or the wrong --scale)");
+    }
     t.push_back(t_s);
-    p.push_back(options.scale * mapped + options.offset_D_m);
+    p.push_back(p_D);
     buttons.push_back(s.buttons);
   }
   if (t.size() < 2) {
@@ -523,7 +547,15 @@ Trace ImportTrace(const std::string& path, const ImportOptions& options) {
 
   // Resample at k / rate: position and velocity from the interpolant, buttons sample-and-hold.
   Trace trace;
-  const int64_t count = static_cast<int64_t>(std::floor(duration_s * options.rate_hz + 1e-9)) + 1;
+  const double steps_out = std::floor(duration_s * options.rate_hz + 1e-9);
+  if (!(steps_out < static_cast<double>(kMaxImportSamples))) {
+    throw TraceError(path, 0,
+                     "the source spans " + Num(duration_s) + " s: at " + Num(options.rate_hz) +
+                         " Hz that is more than the " + std::to_string(kMaxImportSamples) +
+                         " samples an import makes (a corrupt time, or select one trial or a "
+                         "lower --rate)");
+  }
+  const int64_t count = static_cast<int64_t>(steps_out) + 1;
   trace.samples.reserve(static_cast<size_t>(count));
   size_t hold = 0;
   for (int64_t k = 0; k < count; ++k) {
@@ -531,6 +563,12 @@ Trace ImportTrace(const std::string& path, const ImportOptions& options) {
     const double t_src = t_first + t_out;
     while (hold + 1 < t.size() && t[hold + 1] <= t_src) ++hold;
     const CurvePoint point = curve.Evaluate(t_src);
+    if (!point.p.allFinite() || !point.v.allFinite()) {
+      // Bounded positions over steps so short that a tangent overflows (times 1e-300 s apart).
+      throw TraceError(path, 0,
+                       "the interpolant is not finite at t = " + Num(t_out) +
+                           " s (source samples too close in time for their positions)");
+    }
     trace.samples.push_back({t_out, point.p, point.v, buttons[hold]});
   }
 

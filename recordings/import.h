@@ -17,6 +17,13 @@
 
 namespace felt {
 
+/// The most samples an import makes (2^24: 4.7 hours at 1 kHz, about 1 GiB): a source whose time
+/// span would need more at the output rate is refused, not allocated.
+inline constexpr int64_t kMaxImportSamples = int64_t{1} << 24;
+/// The largest |coordinate| of a mapped position, m (device frame, after scale and offset): a
+/// device or a pen moves within metres; a larger value is a corrupt or mis-scaled source.
+inline constexpr double kMaxImportPosition_m = 1000.0;
+
 /// The source formats `felt trace import` reads.
 enum class ImportFormat {
   kDeviceLog,  ///< H3D/HAPI DeviceLog text: a line of field names, then whitespace-separated rows
@@ -79,7 +86,9 @@ struct ImportOptions {
 /// Throws TraceError naming the file and line (and field) for a malformed source: unreadable
 /// file, bad header row, unknown or missing column, wrong field count, non-numeric or
 /// non-finite value, time going backwards within a trial, a selected trial that does not exist,
-/// fewer than two samples. Throws std::invalid_argument for bad options.
+/// fewer than two samples, a mapped position beyond kMaxImportPosition_m, a time span needing
+/// more than kMaxImportSamples at the output rate, a resampled sample that is not finite. Throws
+/// std::invalid_argument for bad options.
 Trace ImportTrace(const std::string& path, const ImportOptions& options);
 
 }  // namespace felt

@@ -139,6 +139,12 @@ Trace ReadMcapTrace(const std::string& path, const McapTraceOptions& options, Mc
           if (found.messages == 0) found.frame_id = header.frame_id;
           ++found.messages;
           r.stamp_ns = ros2::NsFromTime(header.stamp);
+          if (options.time == McapTraceTime::kLogTime &&
+              m.log_time_ns > static_cast<uint64_t>(INT64_MAX)) {
+            throw McapError(
+                path, m.file_offset, "Message",
+                "log_time " + std::to_string(m.log_time_ns) + " ns is beyond the year 2262");
+          }
           r.t_ns = options.time == McapTraceTime::kHeaderStamp
                        ? r.stamp_ns
                        : static_cast<int64_t>(m.log_time_ns);
@@ -195,7 +201,13 @@ Trace ReadMcapTrace(const std::string& path, const McapTraceOptions& options, Mc
                    options.time == McapTraceTime::kHeaderStamp ? "header.stamp" : "log_time");
   if (!found.frame_id.empty()) trace.header.Set("ros_frame_id", found.frame_id);
   trace.samples.reserve(raw.size());
-  for (const Raw& r : raw) {
+  for (size_t i = 0; i < raw.size(); ++i) {
+    const Raw& r = raw[i];
+    if (!r.p.allFinite() || !r.v.allFinite()) {
+      throw TraceError(path, 0,
+                       "topic " + found.topic + ", pose message " + std::to_string(i + 1) +
+                           ": position or velocity not finite");
+    }
     TraceSample s;
     s.t_s = static_cast<double>(r.t_ns - raw.front().t_ns) / 1e9;
     s.p_D = r.p;

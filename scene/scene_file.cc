@@ -213,6 +213,28 @@ std::string SceneErrorMessage(std::string_view source_name, const toml::source_r
   return message;
 }
 
+toml::source_region SceneFieldRegion(const SceneDocument& doc, std::string_view dotted_field) {
+  toml::source_region where{};
+  const toml::table* table = &doc.root;
+  while (table != nullptr && !dotted_field.empty()) {
+    const size_t dot = dotted_field.find('.');
+    const std::string_view key = dotted_field.substr(0, dot);
+    const toml::node* node = nullptr;
+    for (auto&& [k, v] : *table) {
+      if (k.str() != key) continue;
+      // A value at its key, a table at its header: where the parsers' own messages put them.
+      where = v.is_table() ? v.source() : k.source();
+      node = &v;
+      break;
+    }
+    if (node == nullptr) break;
+    table = node->as_table();
+    dotted_field =
+        dot == std::string_view::npos ? std::string_view() : dotted_field.substr(dot + 1);
+  }
+  return where;
+}
+
 SceneDocument ParseSceneText(std::string_view text, std::string source_name) {
   SceneDocument doc;
   doc.source_name = std::move(source_name);

@@ -228,6 +228,10 @@ class SceneTable {
 std::string SceneErrorMessage(std::string_view source_name, const toml::source_region& where,
                               std::string_view field, std::string_view rule);
 
+/// Where a dotted field ("integration.substeps") is written: its key's region, else the
+/// deepest table on its path the file writes, else an empty region (line 0: the whole file).
+toml::source_region SceneFieldRegion(const SceneDocument& doc, std::string_view dotted_field);
+
 /// Formats a number for a message the way a user would write it (shortest round-trip form).
 std::string FormatSceneNumber(double value);
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <string_view>
 
+#include "sim_loop/cloth.h"
 #include "sim_loop/integrator_names.h"
 
 namespace felt {
@@ -294,6 +295,25 @@ SelfCollisionSpec ParseSelfCollision(const SceneTable& table, const ClothSpec& c
 
 }  // namespace
 
+namespace {
+
+// What only the built cloth shows (the auto substep count: a stable step, and at most
+// kMaxSubstepsPerFrame of them): BuildClothModel's "field: rule" errors as SceneErrors at the
+// field's line (or its section's, or the file's when the file does not write it).
+void CheckClothBuilds(const SceneDocument& doc, const SimSpec& spec) {
+  try {
+    (void)BuildClothModel(spec);
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    const size_t colon = what.find(": ");
+    const std::string field = colon == std::string::npos ? "" : what.substr(0, colon);
+    const std::string rule = colon == std::string::npos ? what : what.substr(colon + 2);
+    throw SceneError(SceneErrorMessage(doc.source_name, SceneFieldRegion(doc, field), field, rule));
+  }
+}
+
+}  // namespace
+
 SimSpec ParseSimSpec(const SceneDocument& doc) {
   SimSpec spec;
   // [cloth] is required: a scene is about a cloth.
@@ -317,6 +337,7 @@ SimSpec ParseSimSpec(const SceneDocument& doc) {
   if (const std::optional<SceneTable> self = SceneTable::Section(doc, "self_collision")) {
     spec.self_collision = ParseSelfCollision(*self, spec.cloth);
   }
+  CheckClothBuilds(doc, spec);
   return spec;
 }
 

@@ -124,6 +124,17 @@ Replayer::Impl::Impl(Trace trace, ReplayConfig config)
   const std::vector<TraceSample>& s = trace_.samples;
   const double t0_s = s.front().t_s;
   const double loop_length_s = (s.back().t_s - t0_s) + 1.0 / trace_.header.rate_hz();
+  // Every offset must fit the schedule's int64 nanoseconds (292 years): a corrupt time does not.
+  const double last_s = config_.duration_s > 0
+                            ? config_.duration_s
+                            : static_cast<double>(config_.loops) * loop_length_s / config_.rate;
+  if (!(last_s < 9.0e9)) {
+    char span[32];
+    std::snprintf(span, sizeof span, "%.6g", loop_length_s);
+    throw std::invalid_argument(std::string("replay: the trace spans ") + span +
+                                " s per pass: its schedule does not fit in nanoseconds (a corrupt "
+                                "time in the trace?)");
+  }
   const auto offset_ns = [&](uint64_t loop, size_t i) {
     const double t_s = static_cast<double>(loop) * loop_length_s + (s[i].t_s - t0_s);
     return static_cast<int64_t>(std::llround(t_s / config_.rate * 1e9));

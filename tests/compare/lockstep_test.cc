@@ -58,6 +58,25 @@ bool BitIdentical(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec3)) == 0;
 }
 
+TEST(LockstepTicks, OnePerPeriodFromTheFirstSampleToTheLastAndBounded) {
+  std::vector<TraceSample> samples(2);
+  samples[0].t_s = 1.0;
+  samples[1].t_s = 3.0;
+  EXPECT_EQ(LockstepTicks(samples, 1000.0, 0.0), 2001);
+  EXPECT_EQ(LockstepTicks(samples, 1000.0, 0.5), 501);
+  EXPECT_THROW(LockstepTicks({}, 1000.0, 0.0), std::invalid_argument);
+  // A corrupt time: 1e12 s would be 1e15 ticks. Refused before anything is allocated.
+  samples[1].t_s = 1e12;
+  try {
+    (void)LockstepTicks(samples, 1000.0, 0.0);
+    ADD_FAILURE() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("the trace spans 999999999999 s"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(LockstepTicks(samples, 1000.0, 2.0), 2001);  // --duration runs its start
+}
+
 TEST(LockstepVariants, ParsesNamesOverridesAndDefaults) {
   const std::vector<LockstepVariant> v = ParseVariantList(
       "ref: snapshot=newest ; blend:snapshot=blend_forces, structure=bvh-aabb-4;"

@@ -328,6 +328,13 @@ TEST(ImportTest, MalformedSourcesNameFileLineAndField) {
       {"log_negative_buttons", ImportFormat::kDeviceLog,
        "TIME RAW_POSITION BUTTONS\n0 0 0 0 0\n0.04 0 0 0 -1\n", 3,
        "field 5 (BUTTONS): must be an unsigned 32-bit integer"},
+      // Finite but absurd (found by tests/recordings/bad_input_test.cc's mutants): a position
+      // whose Hermite tangents overflow, a span of 1e15 output samples, a trial whose time
+      // cancels its placement offset.
+      {"csv_huge_position", ImportFormat::kCsv, "t_s,x,y,z\n0,0,0,0\n0.01,0,0,1e308\n", 3,
+       "position (0, 0, 1e+308) m after --scale and --offset is beyond 1000 m"},
+      {"csv_huge_span", ImportFormat::kCsv, "t_s,x,y\n0,0,0\n1e12,0,0\n", 0,
+       "the source spans 1e+12 s: at 1000 Hz that is more than the 16777216 samples"},
   };
   for (const BadSource& c : cases) {
     SCOPED_TRACE(c.name);
@@ -344,6 +351,13 @@ TEST(ImportTest, MalformedSourcesNameFileLineAndField) {
       EXPECT_NE(std::string(e.what()).find(c.message), std::string::npos) << e.what();
     }
   }
+  // A trial starting at a huge source time is still placed --trial-gap after the previous one
+  // ends (before, its offset cancelled to 0 and the interpolant refused the times unnamed).
+  const Trace placed = ImportTrace(
+      test::WriteFile(dir + "/far.csv", "trial,t_s,x,y\n0,0,0,0\n0,0.01,0,0\n1,1e20,0.001,0\n"),
+      ImportOptions{});
+  EXPECT_EQ(placed.samples.size(), 511u);
+  EXPECT_EQ(placed.samples.back().p_D.x(), 0.001);
   // A trial that is not there, and --select without a trial column.
   ImportOptions options;
   options.select_trial = 9;

@@ -484,6 +484,16 @@ TEST(SceneFileErrors, Substeps) {
   EXPECT_EQ(ErrorOf("[cloth]\n[integration]\nsubsteps = 2.5\n"),
             "t.toml:3:1: integration.substeps: must be \"auto\" or an integer in [1, 100000], "
             "got a float 2.5");
+  // What only the built cloth shows, at the substeps key, else at [integration], else unplaced.
+  const std::string stiff = "[cloth]\n[cloth.structural]\nstiffness_N_per_m = 1e20\n";
+  const std::string too_many =
+      "integration.substeps: auto needs 450359962737063 substeps per frame";
+  EXPECT_EQ(
+      ErrorOf(stiff + "[integration]\nsubsteps = \"auto\"\n").rfind("t.toml:5:1: " + too_many, 0),
+      0u);
+  EXPECT_EQ(ErrorOf(stiff + "[integration]\n").rfind("t.toml:4:1: " + too_many, 0), 0u)
+      << ErrorOf(stiff + "[integration]\n");
+  EXPECT_EQ(ErrorOf(stiff).rfind("t.toml: " + too_many, 0), 0u);
 }
 
 // ---- The field reader, as another module would use it ----------------------------------------

@@ -1,0 +1,158 @@
+// Mutated recordings: every reader either returns a valid trace or throws an error that names the
+// file, never crashes, hangs or asks for unbounded memory (README: "Bad input always gets a clear
+// error that names what was wrong"). Seeded mutants (tests/mutate.h) of a felt trace, a CSV and a
+// DeviceLog source and an MCAP file; under ASan+UBSan these also check every byte the readers
+// touch.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <exception>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "recordings/import.h"
+#include "recordings/mcap.h"
+#include "recordings/mcap_trace.h"
+#include "recordings/trace.h"
+#include "ros2/messages.h"
+#include "tests/mutate.h"
+#include "tests/recordings/test_util.h"
+#include "tests/test_env.h"
+
+namespace felt {
+namespace {
+
+// Mutants per source: fewer under a sanitizer (the same code paths, checked byte by byte);
+// FELT_MUTANTS=N asks for N (a longer search by hand).
+int Mutants() {
+  if (const char* n = std::getenv("FELT_MUTANTS"); n != nullptr && *n != '\0') return std::atoi(n);
+  return testing::Sanitized() ? 150 : 600;
+}
+
+// A returned trace must be one every consumer can use: samples, strictly increasing finite
+// times, finite positions and velocities, and a bounded count.
+void ExpectUsableTrace(const Trace& t, const std::string& what) {
+  ASSERT_FALSE(t.samples.empty()) << what;
+  ASSERT_LE(t.samples.size(), static_cast<size_t>(kMaxImportSamples)) << what;
+  double last = -INFINITY;
+  for (const TraceSample& s : t.samples) {
+    ASSERT_TRUE(std::isfinite(s.t_s) && s.t_s > last) << what << ": t_s " << s.t_s;
+    ASSERT_TRUE(s.p_D.allFinite() && s.v_D.allFinite()) << what << " at t " << s.t_s;
+    last = s.t_s;
+  }
+}
+
+// Runs `read` on `mutants` of `good` written to `path`: each must return a usable trace or throw
+// a std::exception whose message names the file. Returns how many were refused.
+int ExpectEveryMutantReadOrRefused(const std::string& good, const std::string& path, bool binary,
+                                   uint64_t seed, const std::function<Trace()>& read) {
+  test::Mutator mutate(seed);
+  int refused = 0;
+  for (int i = 0; i < Mutants(); ++i) {
+    test::WriteFile(path, binary ? mutate.Bytes(good) : mutate.Text(good));
+    const std::string what =
+        path + " (seed " + std::to_string(seed) + ", mutant " + std::to_string(i) + ")";
+    try {
+      ExpectUsableTrace(read(), what);
+    } catch (const std::exception& e) {
+      ++refused;
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos)
+          << what << ": the error does not name the file: " << e.what();
+    }
+    if (::testing::Test::HasFailure()) return refused;
+  }
+  return refused;
+}
+
+// The first `lines` lines of a file.
+std::string Head(const std::string& text, int lines) {
+  size_t end = 0;
+  for (int i = 0; i < lines && end != std::string::npos; ++i) end = text.find('\n', end + 1);
+  return end == std::string::npos ? text : text.substr(0, end + 1);
+}
+
+TEST(BadRecordings, MutatedTracesAreReadOrRefusedNamingTheFile) {
+  const std::string dir = test::ScratchDir("bad_traces");
+  const std::string path = dir + "/mutant.trace";
+  for (const char* name : {"circle.trace", "hard/scrub.trace"}) {
+    const std::string good =
+        Head(test::ReadFile(FELT_SOURCE_DIR "/recordings/" + std::string(name)), 120);
+    ASSERT_GT(good.size(), 1000u) << name;
+    const int refused =
+        ExpectEveryMutantReadOrRefused(good, path, false, 1, [&] { return ReadTrace(path); });
+    EXPECT_GT(refused, 0) << name;
+  }
+}
+
+TEST(BadRecordings, MutatedCsvAndDeviceLogSourcesAreImportedOrRefusedNamingTheFile) {
+  const std::string dir = test::ScratchDir("bad_imports");
+  std::string csv = "trial,t_s,x,y,z\n";
+  std::string log = "TIME RAW_POSITION RAW_ORIENTATION BUTTONS\n";
+  for (int k = 0; k < 60; ++k) {
+    const double t = 0.01 * k;
+    csv += std::to_string(k / 30) + "," + std::to_string(t) + "," +
+           std::to_string(0.01 * std::sin(t)) + "," + std::to_string(0.02 * t) + ",0.001\n";
+    log += std::to_string(0.04 * k) + " " + std::to_string(0.01 * std::cos(t)) + " 0.002 " +
+           std::to_string(-0.03 * t) + " 0 1 0 0 " + std::to_string(k % 3) + "\n";
+  }
+  ImportOptions csv_options;
+  csv_options.format = ImportFormat::kCsv;
+  const std::string csv_path = dir + "/mutant.csv";
+  EXPECT_GT(ExpectEveryMutantReadOrRefused(csv, csv_path, false, 2,
+                                           [&] { return ImportTrace(csv_path, csv_options); }),
+            0);
+  ImportOptions log_options;
+  log_options.format = ImportFormat::kDeviceLog;
+  const std::string log_path = dir + "/mutant.log";
+  EXPECT_GT(ExpectEveryMutantReadOrRefused(log, log_path, false, 3,
+                                           [&] { return ImportTrace(log_path, log_options); }),
+            0);
+}
+
+TEST(BadRecordings, MutatedMcapFilesAreReadOrRefusedNamingTheFile) {
+  const std::string dir = test::ScratchDir("bad_mcap");
+  const std::string good_path = dir + "/good.mcap";
+  {
+    McapWriterOptions options;
+    options.chunk_size_bytes = 1024;
+    McapWriter w(good_path, options);
+    const uint16_t s_pose = w.AddSchema(ros2::TypeOf<ros2::PoseStamped>().name, "ros2msg",
+                                        ros2::TypeOf<ros2::PoseStamped>().schema);
+    const uint16_t s_twist = w.AddSchema(ros2::TypeOf<ros2::TwistStamped>().name, "ros2msg",
+                                         ros2::TypeOf<ros2::TwistStamped>().schema);
+    const uint16_t c_pose = w.AddChannel(s_pose, "/dev/measured_cp", "cdr");
+    const uint16_t c_twist = w.AddChannel(s_twist, "/dev/measured_cv", "cdr");
+    std::vector<uint8_t> b;
+    for (int i = 0; i < 40; ++i) {
+      const int64_t t_ns = 1'000'000'000 + int64_t{i} * 1'000'000;
+      ros2::PoseStamped p;
+      p.header = {ros2::TimeFromNs(t_ns), "dev/device"};
+      p.pose.position = {0.01 * std::sin(i * 0.1), 0.002 * i, -0.03};
+      ros2::Serialize(p, &b);
+      w.WriteMessage(c_pose, static_cast<uint32_t>(i), static_cast<uint64_t>(t_ns),
+                     static_cast<uint64_t>(t_ns), b);
+      ros2::TwistStamped tw;
+      tw.header = p.header;
+      tw.twist.linear = {0.1 * std::cos(i * 0.1), 2.0, 0};
+      ros2::Serialize(tw, &b);
+      w.WriteMessage(c_twist, static_cast<uint32_t>(i), static_cast<uint64_t>(t_ns),
+                     static_cast<uint64_t>(t_ns), b);
+    }
+    w.Close();
+  }
+  const std::string good = test::ReadFile(good_path);
+  ASSERT_EQ(ReadMcapTrace(good_path).samples.size(), 40u);
+  const std::string path = dir + "/mutant.mcap";
+  EXPECT_GT(
+      ExpectEveryMutantReadOrRefused(good, path, true, 4, [&] { return ReadMcapTrace(path); }), 0);
+  ImportOptions options;
+  options.format = ImportFormat::kMcap;
+  EXPECT_GT(ExpectEveryMutantReadOrRefused(good, path, true, 5,
+                                           [&] { return ImportTrace(path, options); }),
+            0);
+}
+
+}  // namespace
+}  // namespace felt
