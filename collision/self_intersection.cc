@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <utility>
+#include <vector>
 
 #include "base/check.h"
 #include "collision/self_predicates.h"
@@ -378,32 +379,52 @@ bool TrianglesShareVertex(const Triangle& t, const Triangle& u) {
 
 namespace {
 
-// Calls visit(i, j) for every intersecting non-adjacent pair i < j, in increasing order.
+// Calls visit(i, j) for every intersecting non-adjacent pair i < j, in no set order. Every pair
+// whose closed boxes overlap is tested exactly, found by a sort and sweep along x (Baraff 1992's
+// sweep on one axis: with the boxes in order of their lowest x, the boxes that overlap box k along
+// x and come after it are the run that starts before box k's highest x), so the pairs tested are
+// those an all-pairs loop over the boxes would test, at O(n log n + overlaps) instead of O(n^2).
+// A box with a NaN coordinate has no place in the order: it is tested against every box.
 template <class Visit>
 void ForEachSelfIntersection(std::span<const Vec3> x, std::span<const Triangle> triangles,
                              Visit&& visit) {
   // Closed boxes of the triangles (exact: min and max of the coordinates).
   std::vector<std::pair<Vec3, Vec3>> boxes(triangles.size());
+  std::vector<int32_t> order, unordered;
   for (size_t i = 0; i < triangles.size(); ++i) {
     const Triangle& t = triangles[i];
     for (int32_t v : t) FELT_CHECK(v >= 0 && static_cast<size_t>(v) < x.size());
     boxes[i].first = x[t[0]].cwiseMin(x[t[1]]).cwiseMin(x[t[2]]);
     boxes[i].second = x[t[0]].cwiseMax(x[t[1]]).cwiseMax(x[t[2]]);
+    const bool nan = boxes[i].first.array().isNaN().any() || boxes[i].second.array().isNaN().any();
+    (nan ? unordered : order).push_back(static_cast<int32_t>(i));
   }
-  const int32_t n = static_cast<int32_t>(triangles.size());
-  for (int32_t i = 0; i < n; ++i) {
-    for (int32_t j = i + 1; j < n; ++j) {
-      if (TrianglesShareVertex(triangles[i], triangles[j])) continue;
-      const auto& bi = boxes[i];
-      const auto& bj = boxes[j];
-      if ((bi.second.array() < bj.first.array()).any() ||
-          (bj.second.array() < bi.first.array()).any()) {
-        continue;
-      }
-      const Triangle& t = triangles[i];
-      const Triangle& u = triangles[j];
-      if (TrianglesIntersect(x[t[0]], x[t[1]], x[t[2]], x[u[0]], x[u[1]], x[u[2]])) visit(i, j);
+  const auto test = [&](int32_t a, int32_t b) {
+    const int32_t i = std::min(a, b), j = std::max(a, b);
+    if (TrianglesShareVertex(triangles[i], triangles[j])) return;
+    const auto& bi = boxes[i];
+    const auto& bj = boxes[j];
+    if ((bi.second.array() < bj.first.array()).any() ||
+        (bj.second.array() < bi.first.array()).any()) {
+      return;
     }
+    const Triangle& t = triangles[i];
+    const Triangle& u = triangles[j];
+    if (TrianglesIntersect(x[t[0]], x[t[1]], x[t[2]], x[u[0]], x[u[1]], x[u[2]])) visit(i, j);
+  };
+  std::sort(order.begin(), order.end(), [&](int32_t a, int32_t b) {
+    return boxes[a].first.x() < boxes[b].first.x() ||
+           (boxes[a].first.x() == boxes[b].first.x() && a < b);
+  });
+  for (size_t k = 0; k < order.size(); ++k) {
+    const double high_x = boxes[order[k]].second.x();
+    for (size_t m = k + 1; m < order.size() && boxes[order[m]].first.x() <= high_x; ++m) {
+      test(order[k], order[m]);
+    }
+  }
+  for (size_t k = 0; k < unordered.size(); ++k) {
+    for (const int32_t other : order) test(unordered[k], other);
+    for (size_t m = k + 1; m < unordered.size(); ++m) test(unordered[k], unordered[m]);
   }
 }
 
@@ -413,6 +434,7 @@ std::vector<std::pair<int32_t, int32_t>> FindSelfIntersections(
     std::span<const Vec3> x, std::span<const Triangle> triangles) {
   std::vector<std::pair<int32_t, int32_t>> pairs;
   ForEachSelfIntersection(x, triangles, [&](int32_t i, int32_t j) { pairs.emplace_back(i, j); });
+  std::sort(pairs.begin(), pairs.end());
   return pairs;
 }
 

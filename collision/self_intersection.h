@@ -39,8 +39,9 @@ bool TrianglesShareVertex(const Triangle& t, const Triangle& u);
 
 /// Every unordered pair (i, j), i < j, of triangles of the mesh (positions x [m], triangles as
 /// indices into x) that share no vertex index and intersect by TrianglesIntersect, in increasing
-/// (i, j) order. All pairs are tested (O(n^2) closed-box tests, then the exact test): a reference
-/// for test sizes, not a culling method. Allocates its result.
+/// (i, j) order. Every pair whose closed boxes overlap is tested exactly (found by a sort and
+/// sweep of the boxes along x, which misses none): a reference independent of the culling
+/// methods, not one of them. Allocates.
 std::vector<std::pair<int32_t, int32_t>> FindSelfIntersections(std::span<const Vec3> x,
                                                                std::span<const Triangle> triangles);
 

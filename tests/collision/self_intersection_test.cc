@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "collision/self_predicates.h"
@@ -298,6 +299,36 @@ TEST(SelfIntersectionTest, DegenerateMeshMatchesReference) {
   }
   EXPECT_GT(reference, 0);  // crumpled hard enough to pass through itself
   EXPECT_EQ(CountSelfIntersections(x, tris), reference);
+}
+
+// The sort and sweep that finds the pairs to test misses none: on crumpled grids (ties in the
+// boxes' lowest x included, and a NaN vertex, whose boxes have no order) FindSelfIntersections
+// gives exactly the pairs, in order, of a loop over all pairs with the same exact test.
+TEST(SelfIntersectionTest, SweepFindsWhatAllPairsFind) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 4; ++trial) {
+    const int32_t w = 12;
+    std::vector<Vec3> x = RotatedGrid(w, w, Eigen::Matrix3d::Identity(), Vec3::Zero());
+    for (Vec3& p : x) p += Vec3(u(rng), u(rng), 3 * u(rng)) * 0.06;
+    for (int32_t c = 0; c < w; ++c) x[GridIndex(w, c, 3)].x() = x[GridIndex(w, 0, 3)].x();
+    if (trial >= 2) x[GridIndex(w, 6, 6)].y() = std::numeric_limits<double>::quiet_NaN();
+    const std::vector<Triangle> tris = MakeGridTriangles(w, w);
+    std::vector<std::pair<int32_t, int32_t>> all_pairs;
+    for (int32_t i = 0; i < static_cast<int32_t>(tris.size()); ++i) {
+      for (int32_t j = i + 1; j < static_cast<int32_t>(tris.size()); ++j) {
+        if (TrianglesShareVertex(tris[i], tris[j])) continue;
+        const Triangle& t = tris[i];
+        const Triangle& v = tris[j];
+        if (TrianglesIntersect(x[t[0]], x[t[1]], x[t[2]], x[v[0]], x[v[1]], x[v[2]])) {
+          all_pairs.emplace_back(i, j);
+        }
+      }
+    }
+    EXPECT_GT(all_pairs.size(), 10u) << trial;  // crumpled hard enough
+    EXPECT_EQ(FindSelfIntersections(x, tris), all_pairs) << trial;
+    EXPECT_EQ(CountSelfIntersections(x, tris), static_cast<int64_t>(all_pairs.size())) << trial;
+  }
 }
 
 }  // namespace
