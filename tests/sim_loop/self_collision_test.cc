@@ -405,6 +405,9 @@ void ExpectHardCaseClean(const HardCase& c) {
   EXPECT_GT(run.impulses, 0);  // the cloth did meet itself
   EXPECT_LT(run.max_speed_m_per_s, c.max_speed_m_per_s);
   EXPECT_LT(run.max_stretch, c.max_stretch);
+  // That the scene is hard (it passes through itself without the response) is physics, checked
+  // by the release run; a sanitizer run checks the response's code paths above.
+  if (testing::Sanitized()) return;
   SimSpec off = SelfCollisionSceneSpec(c.scene);
   off.self_collision.reset();
   EXPECT_GT(RunSelfScene(off, frames).max_intersections, 0) << "the scene is not hard";

