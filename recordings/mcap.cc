@@ -239,7 +239,7 @@ McapWriter::McapWriter(std::string path, McapWriterOptions options)
   if (options_.chunk_size_bytes == 0) {
     throw std::invalid_argument("McapWriterOptions.chunk_size_bytes: must be > 0");
   }
-  file_ = std::fopen(path_.c_str(), "wb");
+  file_.reset(std::fopen(path_.c_str(), "wb"));
   if (file_ == nullptr) {
     throw std::runtime_error(path_ + ": cannot create MCAP file: " + std::strerror(errno));
   }
@@ -254,13 +254,11 @@ McapWriter::McapWriter(std::string path, McapWriterOptions options)
   WriteOut(record_, true);
 }
 
-McapWriter::~McapWriter() {
-  if (file_ != nullptr) std::fclose(file_);
-}
+McapWriter::~McapWriter() = default;  // file_ closes the file if Close did not
 
 void McapWriter::WriteOut(std::span<const uint8_t> bytes, bool data_section) {
   if (data_section) data_crc_ = Crc32(bytes, data_crc_);
-  if (!bytes.empty() && std::fwrite(bytes.data(), 1, bytes.size(), file_) != bytes.size()) {
+  if (!bytes.empty() && std::fwrite(bytes.data(), 1, bytes.size(), file_.get()) != bytes.size()) {
     failed_ = true;
     throw std::runtime_error(path_ + ": MCAP write failed: " + std::strerror(errno));
   }
@@ -366,7 +364,7 @@ void McapWriter::FlushChunk() {
   chunk_.clear();
   chunk_open_ = false;
   // Bounded memory: what is written leaves this process's buffers.
-  if (std::fflush(file_) != 0) {
+  if (std::fflush(file_.get()) != 0) {
     failed_ = true;
     throw std::runtime_error(path_ + ": MCAP write failed: " + std::strerror(errno));
   }
@@ -463,21 +461,20 @@ void McapWriter::Close() {
   McapPut<uint32_t>(&record_, summary_crc);
   WriteOut(record_, false);
   WriteOut(kMcapMagic, false);
-  const bool flushed = std::fflush(file_) == 0;
-  const bool closed = std::fclose(file_) == 0;
-  file_ = nullptr;
+  const bool flushed = std::fflush(file_.get()) == 0;
+  const bool closed = std::fclose(file_.release()) == 0;
   if (failed_ || !flushed || !closed) throw std::runtime_error(path_ + ": MCAP write failed");
 }
 
 // ---- McapReader ----
 
 McapReader::McapReader(std::string path) : path_(std::move(path)) {
-  file_ = std::fopen(path_.c_str(), "rb");
+  file_.reset(std::fopen(path_.c_str(), "rb"));
   if (file_ == nullptr) {
     throw McapError(path_, 0, "file", std::string("cannot open: ") + std::strerror(errno));
   }
-  if (std::fseek(file_, 0, SEEK_END) != 0) throw McapError(path_, 0, "file", "cannot seek");
-  size_ = static_cast<uint64_t>(std::ftell(file_));
+  if (std::fseek(file_.get(), 0, SEEK_END) != 0) throw McapError(path_, 0, "file", "cannot seek");
+  size_ = static_cast<uint64_t>(std::ftell(file_.get()));
   // Leading magic and Header.
   if (size_ < sizeof(kMcapMagic) + kRecordPrefix) {
     throw McapError(path_, 0, "magic",
@@ -537,9 +534,7 @@ McapReader::McapReader(std::string path) : path_(std::move(path)) {
   }
 }
 
-McapReader::~McapReader() {
-  if (file_ != nullptr) std::fclose(file_);
-}
+McapReader::~McapReader() = default;
 
 void McapReader::ReadAt(uint64_t offset, size_t n, std::vector<uint8_t>* out, const char* record) {
   if (offset > size_ || n > size_ - offset) {
@@ -548,8 +543,8 @@ void McapReader::ReadAt(uint64_t offset, size_t n, std::vector<uint8_t>* out, co
                         std::to_string(size_ - std::min(offset, size_)) + " (truncated?)");
   }
   out->resize(n);
-  if (std::fseek(file_, static_cast<long>(offset), SEEK_SET) != 0 ||
-      (n > 0 && std::fread(out->data(), 1, n, file_) != n)) {
+  if (std::fseek(file_.get(), static_cast<long>(offset), SEEK_SET) != 0 ||
+      (n > 0 && std::fread(out->data(), 1, n, file_.get()) != n)) {
     throw McapError(path_, offset, record, "read failed");
   }
 }

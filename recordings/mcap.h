@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <functional>
 #include <map>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -88,6 +89,14 @@ struct McapWriterStats {
 
 /// Writes an MCAP file as it goes (see the file comment). One thread uses an instance. Not
 /// real-time: it allocates and writes files; feed it from a queue (transport/mcap_recorder.h).
+/// Closes a C stream (for std::unique_ptr): a file is closed however its owner's constructor or
+/// reading ends.
+struct McapFileCloser {
+  void operator()(std::FILE* f) const { std::fclose(f); }
+};
+/// An owned C stream.
+using McapFile = std::unique_ptr<std::FILE, McapFileCloser>;
+
 class McapWriter {
  public:
   /// Creates (truncates) `path` and writes the magic and the Header. Throws std::runtime_error
@@ -125,7 +134,7 @@ class McapWriter {
 
   std::string path_;
   McapWriterOptions options_;
-  std::FILE* file_ = nullptr;
+  McapFile file_;
   bool failed_ = false;
   uint64_t offset_ = 0;    // bytes written
   uint32_t data_crc_ = 0;  // CRC32 of the data section so far
@@ -194,7 +203,7 @@ class McapReader {
                   const std::vector<uint16_t>& channel_ids);
 
   std::string path_;
-  std::FILE* file_ = nullptr;
+  McapFile file_;
   uint64_t size_ = 0;
   std::string profile_;
   bool indexed_ = false;

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <vector>
@@ -64,6 +65,13 @@ int ExpectEveryMutantReadOrRefused(const std::string& good, const std::string& p
     if (::testing::Test::HasFailure()) return refused;
   }
   return refused;
+}
+
+// The file descriptors this process holds (Linux: /proc/self/fd).
+int OpenFds() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) ++n;
+  return n;
 }
 
 // The first `lines` lines of a file.
@@ -144,6 +152,9 @@ TEST(BadRecordings, MutatedMcapFilesAreReadOrRefusedNamingTheFile) {
   }
   const std::string good = test::ReadFile(good_path);
   ASSERT_EQ(ReadMcapTrace(good_path).samples.size(), 40u);
+  // A refused file is closed too (the reader's constructor once left it open when it threw:
+  // 20000 mutants ran out of file descriptors).
+  const int fds_before = OpenFds();
   const std::string path = dir + "/mutant.mcap";
   EXPECT_GT(
       ExpectEveryMutantReadOrRefused(good, path, true, 4, [&] { return ReadMcapTrace(path); }), 0);
@@ -152,6 +163,34 @@ TEST(BadRecordings, MutatedMcapFilesAreReadOrRefusedNamingTheFile) {
   EXPECT_GT(ExpectEveryMutantReadOrRefused(good, path, true, 5,
                                            [&] { return ImportTrace(path, options); }),
             0);
+
+  // A Touch driver's OmniState topic (millimetres, its own velocity and buttons), read by log time.
+  const std::string omni_path = dir + "/omni.mcap";
+  {
+    McapWriter w(omni_path);
+    const uint16_t s = w.AddSchema(ros2::TypeOf<ros2::OmniState>().name, "ros2msg",
+                                   ros2::TypeOf<ros2::OmniState>().schema);
+    const uint16_t c = w.AddChannel(s, "/phantom/state", "cdr");
+    std::vector<uint8_t> b;
+    for (int i = 0; i < 40; ++i) {
+      ros2::OmniState m;
+      m.header = {ros2::TimeFromNs(5'000'000'000 + int64_t{i} * 1'000'000), "phantom"};
+      m.pose.position = {10.0 * std::sin(i * 0.1), -20.0, 30.0};  // mm
+      m.velocity = {0.01, 0, 0};                                  // m/s
+      m.close_gripper = i % 2 == 1;
+      ros2::Serialize(m, &b);
+      w.WriteMessage(c, static_cast<uint32_t>(i),
+                     7'000'000'000 + static_cast<uint64_t>(i) * 1'000'000, 0, b);
+    }
+    w.Close();
+  }
+  ASSERT_EQ(ReadMcapTrace(omni_path).samples.size(), 40u);
+  McapTraceOptions by_log;
+  by_log.time = McapTraceTime::kLogTime;
+  EXPECT_GT(ExpectEveryMutantReadOrRefused(test::ReadFile(omni_path), path, true, 6,
+                                           [&] { return ReadMcapTrace(path, by_log); }),
+            0);
+  EXPECT_EQ(OpenFds(), fds_before);
 }
 
 }  // namespace
