@@ -42,12 +42,13 @@ constexpr double kRunBudget = 2.0e5;
 TEST(BadScenes, MutatedScenesAreRefusedNamingTheFileOrRunWithBoundedForces) {
   const std::string dir = test::ScratchDir("bad_scenes");
   const Trace poke = ReadTrace(FELT_SOURCE_DIR "/recordings/poke_hold.trace");
-  // 0.15 s from the press: 150 ticks, 9 frames.
+  // 0.15 s from the press: 150 ticks, 9 frames (under a sanitizer 0.05 s: 50 ticks, 3 frames).
+  const double end_s = testing::Sanitized() ? 1.05 : 1.15;
   std::vector<TraceSample> samples;
   for (const TraceSample& s : poke.samples) {
-    if (s.t_s >= 1.0 && s.t_s < 1.15) samples.push_back(s);
+    if (s.t_s >= 1.0 && s.t_s < end_s) samples.push_back(s);
   }
-  ASSERT_GT(samples.size(), 100u);
+  ASSERT_GT(samples.size(), 40u);
   uint64_t seed = 100;
   int refused = 0, accepted = 0, ran = 0;
   for (const auto& entry : std::filesystem::directory_iterator(FELT_SOURCE_DIR "/scenes")) {
