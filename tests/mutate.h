@@ -8,6 +8,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -15,7 +16,16 @@
 #include <string_view>
 #include <vector>
 
+#include "tests/test_env.h"
+
 namespace felt::test {
+
+/// How many mutants a test makes: FELT_MUTANTS=N when set (a longer search by hand), else
+/// `release`, or `sanitized` under a sanitizer (the same code paths, checked byte by byte).
+inline int MutantCount(int release, int sanitized) {
+  if (const char* n = std::getenv("FELT_MUTANTS"); n != nullptr && *n != '\0') return std::atoi(n);
+  return testing::Sanitized() ? sanitized : release;
+}
 
 /// Numbers a hand-edited or corrupted file may hold where a normal value stood.
 inline constexpr std::array<std::string_view, 22> kHostileNumbers = {

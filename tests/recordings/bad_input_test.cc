@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <exception>
 #include <filesystem>
 #include <functional>
@@ -25,12 +24,8 @@
 namespace felt {
 namespace {
 
-// Mutants per source: fewer under a sanitizer (the same code paths, checked byte by byte);
-// FELT_MUTANTS=N asks for N (a longer search by hand).
-int Mutants() {
-  if (const char* n = std::getenv("FELT_MUTANTS"); n != nullptr && *n != '\0') return std::atoi(n);
-  return testing::Sanitized() ? 150 : 600;
-}
+// Mutants per source (tests/mutate.h, MutantCount).
+int Mutants() { return test::MutantCount(600, 150); }
 
 // A returned trace must be one every consumer can use: samples, strictly increasing finite
 // times, finite positions and velocities, and a bounded count.

@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <exception>
 #include <filesystem>
 #include <string>
@@ -24,15 +23,9 @@
 namespace felt {
 namespace {
 
-// Mutants per scene (FELT_MUTANTS=N asks for N), and of those accepted, how many run.
-int Mutants() {
-  if (const char* n = std::getenv("FELT_MUTANTS"); n != nullptr && *n != '\0') return std::atoi(n);
-  return testing::Sanitized() ? 20 : 150;
-}
-int Runs() {
-  if (const char* n = std::getenv("FELT_MUTANTS"); n != nullptr && *n != '\0') return std::atoi(n);
-  return testing::Sanitized() ? 1 : 8;
-}
+// Mutants per scene (tests/mutate.h, MutantCount), and of those accepted, how many run.
+int Mutants() { return test::MutantCount(150, 20); }
+int Runs() { return test::MutantCount(8, 1); }
 
 // Particle-substeps per frame up to which an accepted mutant is run (the bundled 32 x 32 curtain
 // is about 6k): a mutant may legally ask for a 4096 x 4096 cloth or 100000 substeps, which is a
