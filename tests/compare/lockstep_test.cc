@@ -8,7 +8,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
@@ -455,6 +458,55 @@ TEST(LockstepPatch, HardTracesNeitherPopThroughNorReachIntoThePatch) {
     EXPECT_LT(s.max_reach_mm, 0.5);
     EXPECT_EQ(s.nan_events, 0u);
     EXPECT_GT(s.contacts, 100u);
+  }
+}
+
+// Real handwriting played 2 and 4 times faster than it was written (every 2nd / 4th sample of the
+// 1 kHz trace, velocities scaled): real hand motion harder than any bundled trace. On the shipped
+// curtain the truth does not converge there (the truth at twice the rate is 0.2-1.0 N RMS from
+// it), so forces are not judged; what must hold whatever the motion: no pop-through, no NaN, the
+// force within the device's limit. Trials 1, 11 and 15: over all 20, played from trace files (6
+// decimals), the proxy reached furthest into the cloth on 15 and 11 at 2x (3.5 and 1.0 mm); at
+// full precision, as here, their contacts take other courses (0.1 mm). Reads
+// ../shared/data/real-motion in place; skipped without it, and under a sanitizer (physics; the
+// bundled hard traces cover the code paths).
+TEST(LockstepRealMotion, HandwritingTwiceAndFourTimesFasterNeverPopsThrough) {
+  if (testing::Sanitized()) GTEST_SKIP() << "physics only; the release run checks it";
+  const std::string dir = FELT_SOURCE_DIR "/../shared/data/real-motion";
+  if (!std::filesystem::exists(dir + "/" + kRealPenFile)) {
+    GTEST_SKIP() << "no real-motion data at " << dir;
+  }
+  const SceneDocument scene =
+      LoadSceneDocument(std::string(FELT_SOURCE_DIR "/scenes/curtain.toml"));
+  const ServerSpec spec = VariantSpec(scene, ParseVariantList("scene").front(), 1);
+  for (const int64_t trial : {1, 11, 15}) {
+    const Trace pen = RealPenTrace(dir, trial);
+    for (const int speed : {2, 4}) {
+      SCOPED_TRACE("trial " + std::to_string(trial) + " at " + std::to_string(speed) + "x");
+      std::vector<TraceSample> fast;
+      for (size_t k = 0; k < pen.samples.size(); k += static_cast<size_t>(speed)) {
+        TraceSample s = pen.samples[k];
+        s.t_s = static_cast<double>(k / static_cast<size_t>(speed)) * 1e-3;
+        s.v_D *= speed;
+        fast.push_back(s);
+      }
+      const LockstepRun run = RunLockstep(spec, fast);
+      size_t popped = 0, contacts = 0;
+      for (size_t k = 0; k < run.force_D_N.size(); ++k) {
+        popped += run.popped[k];
+        contacts += run.in_contact[k];
+        ASSERT_TRUE(run.force_D_N[k].allFinite()) << "tick " << k;
+        ASSERT_LE(run.force_D_N[k].norm(), spec.devices[0].max_force_N * (1 + 1e-12)) << k;
+      }
+      EXPECT_EQ(popped, 0u);
+      EXPECT_EQ(run.nan_events, 0u);
+      EXPECT_GT(contacts, 300u);  // the pen wrote on the cloth
+      // Reported, not judged here: how far the proxy was inside the cloth (ProbeProxy), where the
+      // bundled hard traces are held under 0.5 mm on the 64 x 64 cloth (LockstepPatch above).
+      std::printf("real_pen_%lld at %dx: %zu contact ticks, max reach %.3f mm\n",
+                  static_cast<long long>(trial), speed, contacts,
+                  1e3 * *std::max_element(run.reach_m.begin(), run.reach_m.end()));
+    }
   }
 }
 
