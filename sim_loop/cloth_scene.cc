@@ -293,10 +293,6 @@ SelfCollisionSpec ParseSelfCollision(const SceneTable& table, const ClothSpec& c
   return spec;
 }
 
-}  // namespace
-
-namespace {
-
 // What only the built cloth shows (the auto substep count: a stable step, and at most
 // kMaxSubstepsPerFrame of them): BuildClothModel's "field: rule" errors as SceneErrors at the
 // field's line (or its section's, or the file's when the file does not write it).

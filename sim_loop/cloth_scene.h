@@ -13,7 +13,8 @@ namespace felt {
 /// required. A spring table that is absent means that spring type is left out (no springs of that
 /// type); present, its missing keys take cloth_spec.h's defaults for that type. Every value is
 /// checked here (ranges, unit axes, box min < max, pins inside the grid...) so the error carries
-/// its line; BuildClothModel (sim_loop/cloth.h) validates again. Throws SceneError.
+/// its line; then the cloth is built once (BuildClothModel, sim_loop/cloth.h), so that what only
+/// the built cloth shows (the auto substep count) is refused at its line too. Throws SceneError.
 SimSpec ParseSimSpec(const SceneDocument& doc);
 
 /// `spec` with its cloth regridded to `grid` x `grid` particles over the same square (spacing
