@@ -138,10 +138,11 @@ constexpr TracePin kTracePins[] = {
 };
 
 TEST(SameBits, EveryBundledTraceKeepsItsCompareForces) {
-  // Under a sanitizer the first trace only (tests/test_env.h: the bits are the release run's to
-  // check; the sanitizer's is the memory of the same code path).
-  const size_t traces = felt::testing::Sanitized() ? 1 : std::size(kTracePins);
-  for (const TracePin& pin : std::span(kTracePins).first(traces)) {
+  // Under a sanitizer the shortest trace only, fast_swipe (6 s; tests/test_env.h: the bits are
+  // the release run's to check; the sanitizer's is the memory of the same code path).
+  const std::span<const TracePin> pins =
+      felt::testing::Sanitized() ? std::span(kTracePins).subspan(1, 1) : std::span(kTracePins);
+  for (const TracePin& pin : pins) {
     std::vector<std::string> per_variant;
     const std::string got = Hex(CompareHash(pin.trace, &per_variant));
     std::string detail;
