@@ -105,13 +105,16 @@ TEST(RestartTest, ANewServerReceivesAClientThatKeptPublishing) {
         std::chrono::milliseconds(ms + 1000), std::chrono::milliseconds(1));
   };
 
-  // First server: the child's samples arrive, its force reader is matched, forces flow for 100 ms.
+  // First server: the child's samples arrive, its force reader is matched, forces flow for 500 ms.
   auto server = std::make_unique<ServerTransport>(config);
   ASSERT_TRUE(WaitForFreshSample(*server, 0));
   ASSERT_TRUE(WaitUntil([&] { return server->MatchedForceReaders() >= 1; }, kWait));
   PointerSampleView first;
   ASSERT_TRUE(server->LatestPointer(0, &first));
-  answer_for(*server, 100, 0);
+  // 500 ms: the server's writer has matched the child's reader, but the child's reader may not
+  // have discovered the writer yet, and takes nothing from it until then (CI's TSan run once
+  // ended with no force from this server after 100 ms of answers).
+  answer_for(*server, 500, 0);
 
   // Restart: the domain goes away with the only server in this process, then comes back.
   server.reset();
