@@ -425,8 +425,6 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
   const double rate_hz = spec.haptic.haptic_rate_hz;
   const double frame_rate_hz = spec.sim.integration.frame_rate_hz;
   const int64_t ticks = LockstepTicks(samples, rate_hz, options.max_duration_s);
-  double span_s = samples.back().t_s - samples.front().t_s;
-  if (options.max_duration_s > 0.0) span_s = std::min(span_s, options.max_duration_s);
 
   // The real server, fed the trace on every device, forces kept, no threads started.
   TracePointerSource source(std::vector<std::vector<TraceSample>>(devices, samples));
@@ -443,7 +441,9 @@ LockstepRun RunLockstep(const ServerSpec& spec, const std::vector<TraceSample>& 
   run.reach_m.assign(static_cast<size_t>(ticks) * devices, 0.0);
   run.popped.assign(static_cast<size_t>(ticks) * devices, 0);
   std::vector<ProxyProbeMemory> probe_memory(devices);
-  run.frame_cpu_ms.reserve(static_cast<size_t>(span_s * frame_rate_hz) + 2);
+  // ticks / rate_hz is at least the run's span: as many frames as it holds, and two more.
+  run.frame_cpu_ms.reserve(
+      static_cast<size_t>(static_cast<double>(ticks) / rate_hz * frame_rate_hz) + 2);
 
   // The timer's own cost: back-to-back reads.
   std::vector<double> empty_us;

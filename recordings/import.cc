@@ -476,18 +476,15 @@ Trace ImportTrace(const std::string& path, const ImportOptions& options) {
     }
     const Vec3 p_D = options.scale * mapped + options.offset_D_m;
     // MCAP samples are numbered by message, the text sources by line.
-    const int64_t line = options.format == ImportFormat::kMcap ? 0 : s.line;
-    const std::string sample =
-        options.format == ImportFormat::kMcap ? "message " + std::to_string(s.line) + ": " : "";
-    if (!std::isfinite(t_s)) {
-      throw TraceError(path, line, sample + "time " + Num(s.t) + " is not finite once scaled");
-    }
+    const auto fail = [&](const std::string& message) {
+      if (options.format != ImportFormat::kMcap) throw TraceError(path, s.line, message);
+      throw TraceError(path, 0, "message " + std::to_string(s.line) + ": " + message);
+    };
+    if (!std::isfinite(t_s)) fail("time " + Num(s.t) + " is not finite once scaled");
     if (!(p_D.cwiseAbs().maxCoeff() <= kMaxImportPosition_m)) {
-      throw TraceError(path, line,
-                       sample + "position (" + Num(p_D.x()) + ", " + Num(p_D.y()) + ", " +
-                           Num(p_D.z()) + ") m after --scale and --offset is beyond " +
-                           Num(kMaxImportPosition_m) +
-                           " m (a corrupt value, or the wrong --scale)");
+      fail("position (" + Num(p_D.x()) + ", " + Num(p_D.y()) + ", " + Num(p_D.z()) +
+           ") m after --scale and --offset is beyond " + Num(kMaxImportPosition_m) +
+           " m (a corrupt value, or the wrong --scale)");
     }
     t.push_back(t_s);
     p.push_back(p_D);

@@ -87,8 +87,6 @@ struct McapWriterStats {
   size_t max_chunk_bytes = 0;  ///< the largest chunk's records [bytes] (memory held)
 };
 
-/// Writes an MCAP file as it goes (see the file comment). One thread uses an instance. Not
-/// real-time: it allocates and writes files; feed it from a queue (transport/mcap_recorder.h).
 /// Closes a C stream (for std::unique_ptr): a file is closed however its owner's constructor or
 /// reading ends.
 struct McapFileCloser {
@@ -97,6 +95,8 @@ struct McapFileCloser {
 /// An owned C stream.
 using McapFile = std::unique_ptr<std::FILE, McapFileCloser>;
 
+/// Writes an MCAP file as it goes (see the file comment). One thread uses an instance. Not
+/// real-time: it allocates and writes files; feed it from a queue (transport/mcap_recorder.h).
 class McapWriter {
  public:
   /// Creates (truncates) `path` and writes the magic and the Header. Throws std::runtime_error

@@ -124,10 +124,12 @@ Replayer::Impl::Impl(Trace trace, ReplayConfig config)
   const std::vector<TraceSample>& s = trace_.samples;
   const double t0_s = s.front().t_s;
   const double loop_length_s = (s.back().t_s - t0_s) + 1.0 / trace_.header.rate_hz();
-  // Every offset must fit the schedule's int64 nanoseconds (292 years): a corrupt time does not.
-  const double last_s = config_.duration_s > 0
-                            ? config_.duration_s
-                            : static_cast<double>(config_.loops) * loop_length_s / config_.rate;
+  // Every offset computed must fit the schedule's int64 nanoseconds (292 years): the loops asked
+  // for, or up to the duration plus the pass it stops in. A corrupt time does not.
+  const double pass_s = loop_length_s / config_.rate;
+  const double last_s =
+      (config_.duration_s > 0 ? config_.duration_s : static_cast<double>(config_.loops) * pass_s) +
+      pass_s;
   if (!(last_s < 9.0e9)) {
     char span[32];
     std::snprintf(span, sizeof span, "%.6g", loop_length_s);

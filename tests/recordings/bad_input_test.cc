@@ -100,18 +100,21 @@ TEST(BadRecordings, MutatedCsvAndDeviceLogSourcesAreImportedOrRefusedNamingTheFi
     log += std::to_string(0.04 * k) + " " + std::to_string(0.01 * std::cos(t)) + " 0.002 " +
            std::to_string(-0.03 * t) + " 0 1 0 0 " + std::to_string(k % 3) + "\n";
   }
-  ImportOptions csv_options;
-  csv_options.format = ImportFormat::kCsv;
-  const std::string csv_path = dir + "/mutant.csv";
-  EXPECT_GT(ExpectEveryMutantReadOrRefused(csv, csv_path, false, 2,
-                                           [&] { return ImportTrace(csv_path, csv_options); }),
-            0);
-  ImportOptions log_options;
-  log_options.format = ImportFormat::kDeviceLog;
-  const std::string log_path = dir + "/mutant.log";
-  EXPECT_GT(ExpectEveryMutantReadOrRefused(log, log_path, false, 3,
-                                           [&] { return ImportTrace(log_path, log_options); }),
-            0);
+  struct Source {
+    const std::string& good;
+    ImportFormat format;
+    std::string path;
+    uint64_t seed;
+  };
+  for (const Source& source : {Source{csv, ImportFormat::kCsv, dir + "/mutant.csv", 2},
+                               Source{log, ImportFormat::kDeviceLog, dir + "/mutant.log", 3}}) {
+    ImportOptions options;
+    options.format = source.format;
+    EXPECT_GT(ExpectEveryMutantReadOrRefused(source.good, source.path, false, source.seed,
+                                             [&] { return ImportTrace(source.path, options); }),
+              0)
+        << source.path;
+  }
 }
 
 TEST(BadRecordings, MutatedMcapFilesAreReadOrRefusedNamingTheFile) {
