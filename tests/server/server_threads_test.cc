@@ -82,8 +82,11 @@ TEST(ServerThreads, RatesStatsAndHandoffsOverOneSecond) {
   // test-tsan set FELT_SANITIZER) a tick or frame can outlast its period, so fewer are allowed.
   const bool sanitized = testing::Sanitized();
   // The lower bounds are loose on purpose: CI is a shared 2-core VM running two tests at once.
-  const double haptic_min = sanitized ? 0.4 : 0.6;
-  const double sim_min = sanitized ? 0.2 : 0.5;
+  // Under a sanitizer they only ask that both loops kept running: the rate there measures the
+  // instrumentation, not Felt (CI's TSan run of 8de6eec got 349 haptic ticks in 1.006 s beside
+  // another test, with the sim thread and this feeder on the same two cores).
+  const double haptic_min = sanitized ? 0.2 : 0.6;
+  const double sim_min = sanitized ? 0.1 : 0.5;
   const double haptic_ticks = static_cast<double>(r->haptic.ticks);
   const double sim_frames = static_cast<double>(r->sim.ticks);
   EXPECT_GE(haptic_ticks, haptic_min * 1000.0 * seconds);
