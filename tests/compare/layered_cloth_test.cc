@@ -217,12 +217,12 @@ TEST(LayeredCloth, AFoldNeverClosesOnTheProxy) {
 // other layers out (self_collision.guard_proxy; sim_loop/cloth_coupling.h) 15 of these 30 runs
 // failed (patch at 4 positions, newest at 5, extrapolate at 1, blend_forces at 5), and
 // blend_forces at the scene's -45 mm too: where the flap landed decided it, nothing in the sim
-// keeping another layer out of the proxy. Under a
-// sanitizer the default mode at one of the positions that failed (a run is about ten times slower
-// there; CI's 20 minutes).
+// keeping another layer out of the proxy. Physics only: under a sanitizer the same scene, mode
+// and code paths are AFoldNeverClosesOnTheProxy's run (a run is about ten times slower there;
+// CI's 20 minutes).
 TEST(LayeredCloth, AFoldNeverClosesOnTheProxyWhereverItLands) {
-  std::vector<double> positions = {-0.051, -0.049, -0.047, -0.043, -0.041, -0.039};
-  if (testing::Sanitized()) positions = {-0.041};
+  if (testing::Sanitized()) GTEST_SKIP() << "physics only; the release run checks it";
+  const std::vector<double> positions = {-0.051, -0.049, -0.047, -0.043, -0.041, -0.039};
   for (const std::string& mode :
        LayeredModes({"patch", "newest", "extrapolate", "interpolate", "blend_forces"})) {
     for (double x : positions) {
