@@ -286,6 +286,7 @@ TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
   state.pose.orientation.w = 1.0;
   int feedbacks = 0, finite = 0;
   double max_proxy_x = 0;  // mm
+  std::string at_max;      // the feedback that set max_proxy_x
   std::string accepted;
   void* ptrs[16] = {};
   dds_sample_info_t infos[16];
@@ -305,7 +306,14 @@ TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
       if (std::isfinite(f->force.x) && std::isfinite(f->force.y) && std::isfinite(f->force.z)) {
         ++finite;
       }
-      max_proxy_x = std::max(max_proxy_x, std::abs(f->position.x));
+      if (std::abs(f->position.x) > max_proxy_x) {  // kept for the failure message below
+        max_proxy_x = std::abs(f->position.x);
+        at_max = "feedback " + std::to_string(feedbacks) + " at state " + std::to_string(k) +
+                 ": position (" + std::to_string(f->position.x) + ", " +
+                 std::to_string(f->position.y) + ", " + std::to_string(f->position.z) +
+                 ") mm, force (" + std::to_string(f->force.x) + ", " +
+                 std::to_string(f->force.y) + ", " + std::to_string(f->force.z) + ") N";
+      }
     }
     if (n > 0) (void)dds_return_loan(reader.get(), ptrs, n);
     n = dds_take(diagnostics.get(), ptrs, infos, 16, 16);
@@ -332,7 +340,10 @@ TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
   // The proxy follows the tip, which swings to 10 mm in x (the cloth may push it further, tens
   // of mm): in millimetres its |x| exceeds 5, in metres it would stay below 0.1.
   EXPECT_GT(max_proxy_x, 5.0) << "the lock position is the proxy in millimetres";
-  EXPECT_LT(max_proxy_x, 500.0);
+  // Failed once (TSan, 1 of about 12 runs of the suite on two loaded cores, session 32):
+  // max_proxy_x 21920 mm; not reproduced in 30 runs of this test alone under load. The message
+  // names the feedback and the server's log, for whoever meets it next.
+  EXPECT_LT(max_proxy_x, 500.0) << at_max << "\n" << ReadFile(server.log);
   EXPECT_FALSE(accepted.empty()) << "no DiagnosticArray with pointer_accepted on /diagnostics";
   EXPECT_NE(accepted, "0");
 }
