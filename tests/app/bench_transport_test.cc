@@ -12,6 +12,7 @@
 
 #include "base/json.h"
 #include "tests/app/felt_process.h"
+#include "tests/test_domain.h"
 
 namespace {
 
@@ -35,9 +36,10 @@ TEST(BenchTransport, EndToEndRunWritesEveryKey) {
   const std::string json =
       (std::filesystem::path(::testing::TempDir()) / "felt_bench_transport.json").string();
   std::filesystem::remove(json);
-  const Outcome outcome =
-      RunFelt("bench transport --seconds 1 --domain 43 --json " + json + " --scene " + kSource +
-              "/scenes/curtain.toml --trace " + kSource + "/recordings/poke_hold.trace");
+  const Outcome outcome = RunFelt("bench transport --seconds 1 --domain " +
+                                  std::to_string(felt::testing::ExclusiveDdsDomain()) + " --json " +
+                                  json + " --scene " + kSource + "/scenes/curtain.toml --trace " +
+                                  kSource + "/recordings/poke_hold.trace");
   ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
   EXPECT_NE(outcome.output.find("end to end: publish -> force received"), std::string::npos)
       << outcome.output;
@@ -73,8 +75,9 @@ TEST(BenchTransport, EndToEndRunWritesEveryKey) {
 
 TEST(BenchTransport, BadTraceIsRefusedBeforeMeasuring) {
   const Outcome outcome =
-      RunFelt("bench transport --seconds 1 --domain 43 --trace /nonexistent/x.trace --scene " +
-              kSource + "/scenes/curtain.toml");
+      RunFelt("bench transport --seconds 1 --domain " +
+              std::to_string(felt::testing::ExclusiveDdsDomain()) +
+              " --trace /nonexistent/x.trace --scene " + kSource + "/scenes/curtain.toml");
   EXPECT_NE(outcome.exit_code, 0);
   EXPECT_NE(outcome.output.find("/nonexistent/x.trace"), std::string::npos) << outcome.output;
 }

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "tests/app/felt_process.h"
+#include "tests/test_domain.h"
 
 namespace felt::test {
 namespace {
@@ -44,8 +45,8 @@ TEST_F(ReplayCommand, BadRateAndDurationExitTwo) {
 }
 
 TEST_F(ReplayCommand, NoServerGivesUpAfterTheDiscoveryTimeout) {
-  // A domain nobody serves: 200 + pid % 30.
-  const std::string domain = std::to_string(200 + getpid() % 30);
+  // A domain nobody serves: this process's own.
+  const std::string domain = std::to_string(felt::testing::ExclusiveDdsDomain());
   const Outcome outcome =
       RunFelt("replay " + kPokeHoldTrace + " --domain " + domain + " --discovery-timeout 0.5");
   EXPECT_EQ(outcome.exit_code, 1) << outcome.output;

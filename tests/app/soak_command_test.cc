@@ -16,14 +16,15 @@
 #include <vector>
 
 #include "tests/app/felt_process.h"
+#include "tests/test_domain.h"
 
 namespace felt::test {
 namespace {
 
 const std::string kScene = kSource + "/scenes/curtain.toml";
 
-// A DDS domain for this test process: 160..199, away from 0 and the transport tests' 42.
-std::string Domain() { return std::to_string(160 + getpid() % 40); }
+// A DDS domain of this test process's own (tests/test_domain.h).
+std::string Domain() { return std::to_string(felt::testing::ExclusiveDdsDomain()); }
 
 // Pids of the live children of `parent` (from /proc/*/stat's ppid field).
 std::set<pid_t> ChildrenOf(pid_t parent) {

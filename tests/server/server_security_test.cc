@@ -15,6 +15,7 @@
 #include <string>
 
 #include "base/process.h"
+#include "tests/test_domain.h"
 #include "tests/test_env.h"
 #include "transport/security.h"
 
@@ -62,7 +63,7 @@ TEST(ServeSecurity, TheExampleDriverFeelsTheCurtainOnlyWithItsIdentity) {
   // The default scene with security turned on in its [transport] section.
   const std::string scene = InTemp("serve_security.toml");
   std::ofstream(scene) << ReadWhole(kSecScene) << "\n[transport]\nsecurity = \"" << dir << "\"\n";
-  const std::string domain = std::to_string(170 + getpid() % 20);
+  const std::string domain = std::to_string(felt::testing::ExclusiveDdsDomain());
   const std::string server_log = InTemp("serve_security.log");
   Process server = StartLogged(
       kSecFelt + " serve --no-realtime --duration 60 --domain " + domain + " --scene " + scene,

@@ -20,6 +20,7 @@
 #include "base/json.h"
 #include "base/process.h"
 #include "ros2_types.h"
+#include "tests/test_domain.h"
 #include "transport/dds_config.h"
 
 namespace {
@@ -118,7 +119,7 @@ TEST_F(ServeTest, TraceRunTouchesTheCloth) {
 // and the server says so once, naming the ids it has.
 TEST_F(ServeTest, TheExampleDriverFeelsTheDefaultScene) {
   if (!std::filesystem::exists(kDeviceClient)) GTEST_SKIP() << kDeviceClient << " not built";
-  const std::string domain = std::to_string(200 + getpid() % 30);
+  const std::string domain = std::to_string(felt::testing::ExclusiveDdsDomain());
   Child server = StartServe("--scene " + kScene + " --duration 30 --no-realtime --domain " + domain,
                             "serve_example");
   const auto run_client = [&](const std::string& args, const std::string& name) {
@@ -160,7 +161,7 @@ TEST_F(ServeTest, TheExampleDriverFeelsTheDefaultScene) {
 // with the default scene on the ROS 2 profile, and every force it reads carries the stamp of a
 // pose it sent.
 TEST_F(ServeTest, ARos2OnlyDriverDrivesTheServer) {
-  const int domain = 200 + getpid() % 30;
+  const int domain = static_cast<int>(felt::testing::ExclusiveDdsDomain());
   const std::string scene = (std::filesystem::path(testing::TempDir()) / "ros2_profile.toml");
   std::ofstream(scene) << ReadFile(kScene) << "\n[transport]\nprofile = \"ros2\"\n";
   Child server = StartServe(
@@ -250,7 +251,7 @@ TEST_F(ServeTest, ARos2OnlyDriverDrivesTheServer) {
 // /phantom/force_feedback, whose lock position is the proxy in millimetres; `felt serve` also
 // publishes its status on /diagnostics, where the same participant reads the accepted count.
 TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
-  const int domain = 200 + (getpid() + 15) % 30;
+  const int domain = static_cast<int>(felt::testing::ExclusiveDdsDomain());
   const std::string scene = (std::filesystem::path(testing::TempDir()) / "omni_preset.toml");
   std::ofstream(scene) << ReadFile(kScene)
                        << "\n[transport]\n[[transport.devices]]\nid = \"default\"\n"
@@ -311,8 +312,8 @@ TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
         at_max = "feedback " + std::to_string(feedbacks) + " at state " + std::to_string(k) +
                  ": position (" + std::to_string(f->position.x) + ", " +
                  std::to_string(f->position.y) + ", " + std::to_string(f->position.z) +
-                 ") mm, force (" + std::to_string(f->force.x) + ", " +
-                 std::to_string(f->force.y) + ", " + std::to_string(f->force.z) + ") N";
+                 ") mm, force (" + std::to_string(f->force.x) + ", " + std::to_string(f->force.y) +
+                 ", " + std::to_string(f->force.z) + ") N";
       }
     }
     if (n > 0) (void)dds_return_loan(reader.get(), ptrs, n);
@@ -343,7 +344,9 @@ TEST_F(ServeTest, ATouchDriverSpeakingOmniMsgsDrivesTheServer) {
   // Failed once (TSan, 1 of about 12 runs of the suite on two loaded cores, session 32):
   // max_proxy_x 21920 mm, not understood; not reproduced in 95 TSan runs since (alone, beside two
   // busy loops, beside SecurityTest). The message names the feedback and prints the server's log,
-  // for whoever meets it next.
+  // for whoever meets it next. Until session 33 the DDS domains of tests running side by side
+  // could coincide (by pid modulo 30; now tests/test_domain.h); whether that had to do with it
+  // is not known.
   EXPECT_LT(max_proxy_x, 500.0) << at_max << "\n" << ReadFile(server.log);
   EXPECT_FALSE(accepted.empty()) << "no DiagnosticArray with pointer_accepted on /diagnostics";
   EXPECT_NE(accepted, "0");

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "base/process.h"
+#include "tests/test_domain.h"
 #include "tests/test_env.h"
 #include "tests/transport/transport_test_util.h"
 #include "transport/dds_config.h"
@@ -48,7 +49,7 @@ const std::string& SecurityTestDir() {
 }
 
 // A domain of this test process's own (secure participants stay away from other tests' domain).
-uint32_t SecurityTestDomain() { return 140 + static_cast<uint32_t>(getpid() % 20); }
+uint32_t SecurityTestDomain() { return felt::testing::ExclusiveDdsDomain(); }
 
 std::string ErrorOf(const std::function<void()>& f) {
   try {
