@@ -78,8 +78,8 @@ struct ScenePin {
 // the limit, auto substeps at 0.75 of the stable step; the defaults, and so every other scene and
 // every trace's forces, kept their bits), and again for its cheaper settings (one sweep 2 % under
 // the limit, 0.8 of the stable step, the haptic patch's own sweeps; its spacing written to the
-// last digit), and again when the finishing worklist took 1 % of slack instead of 0.1 % and the scene 0.9 of the
-// stable step.
+// last digit), and again when the finishing worklist took 1 % of slack instead of 0.1 % and the
+// scene 0.9 of the stable step.
 constexpr ScenePin kScenePins[] = {
     {"curtain.toml", 120, "27b5bdfccef33f40"},      {"curtain_128.toml", 60, "84fd5f7bad2156a1"},
     {"curtain_rail.toml", 120, "7325cec5c4d8069b"}, {"flag.toml", 120, "4bd2eb07ed83701f"},
