@@ -133,6 +133,8 @@ class HapticLoop {
   };
 
   TickCloth TakeNewestSnapshot(int64_t now_ns, bool* arrived);
+  // How long past its snapshot the tick's cloth may be extrapolated [s].
+  double ExtrapolationHorizon(const TickCloth& cloth) const;
   void StepPatch(const TickCloth& cloth, double dt_s);
   // Mode patch: copies this tick's contact springs for the next tick's StepPatch.
   void KeepPatchSprings();
@@ -167,7 +169,7 @@ class HapticLoop {
   // Mode patch: the local patch, the overlay the proxies read, and the tick's scratch.
   std::unique_ptr<ClothPatch> patch_;
   PatchOverlay overlay_;
-  std::vector<int32_t> patch_centres_;       // [devices]
+  std::vector<int32_t> patch_centres_;        // [devices]
   std::vector<ExternalForce> patch_springs_;  // [devices] the last tick's contact springs
   int32_t patch_spring_count_ = 0;            // entries of patch_springs_ in use
 };

@@ -498,10 +498,9 @@ ClothPatch::ClothPatch(const ClothModel& model, int32_t radius, int32_t max_wind
       guard_cells_(kMaxCouplingSprings),
       guard_count_(kMaxCouplingSprings, 0) {
   if (radius < kMinPatchRadius || radius > kMaxPatchRadius) {
-    throw std::invalid_argument("proxy.patch_radius: must be in [" +
-                                std::to_string(kMinPatchRadius) + ", " +
-                                std::to_string(kMaxPatchRadius) + "], got " +
-                                std::to_string(radius));
+    throw std::invalid_argument(
+        "proxy.patch_radius: must be in [" + std::to_string(kMinPatchRadius) + ", " +
+        std::to_string(kMaxPatchRadius) + "], got " + std::to_string(radius));
   }
   if (follow < 1 || follow > radius) {
     throw std::invalid_argument("proxy.patch_follow: must be in [1, " + std::to_string(radius) +
@@ -579,10 +578,9 @@ void ClothPatch::MarkRoles(std::span<const PatchWindow> windows, PatchRole* role
       for (int32_t c = win.col0; c <= win.col1; ++c) {
         const int32_t p = r * w + c;
         // The outer two rings are driven, except where the window ends on the cloth's own edge.
-        const bool ring = (c - win.col0 < 2 && win.col0 > 0) ||
-                          (win.col1 - c < 2 && win.col1 < w - 1) ||
-                          (r - win.row0 < 2 && win.row0 > 0) ||
-                          (win.row1 - r < 2 && win.row1 < h - 1);
+        const bool ring =
+            (c - win.col0 < 2 && win.col0 > 0) || (win.col1 - c < 2 && win.col1 < w - 1) ||
+            (r - win.row0 < 2 && win.row0 > 0) || (win.row1 - r < 2 && win.row1 < h - 1);
         roles[p] = ring || model_.inv_mass_per_kg[p] == 0.0 ? PatchRole::kDriven : PatchRole::kFree;
       }
     }
@@ -751,6 +749,7 @@ void ClothPatch::StorePositions(Vec3* x) const {
 
 void ClothPatch::Place(std::span<const int32_t> centres, const ClothSnapshot& drive, double tau_s,
                        double dt_s) {
+  tau_s = std::min(tau_s, drive_horizon_s_);
   const int32_t w = model_.width, h = model_.height, n = model_.num_particles();
   const auto window_of = [&](int32_t anchor) {
     const int32_t ac = anchor % w, ar = anchor / w;
@@ -1125,7 +1124,7 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
     // particles to the substep's end, where the constraints see them.
     SubstepForces(s == 0 ? x_before_ : x_);
     args.h_old = h_last_s_ > 0.0 ? h_last_s_ : h;
-    args.drive_tau_s = tau_s - dt_s + (s + 1) * h;
+    args.drive_tau_s = std::min(tau_s - dt_s + (s + 1) * h, drive_horizon_s_);
     kernels.integrate(args);
     h_last_s_ = h;
     if (provot) ApplyProvotToWindows(h);
@@ -1134,7 +1133,7 @@ PatchStepResult ClothPatch::Step(std::span<const ExternalForce> external, double
   }
   if (!AllFinite()) {
     ++counters_.nan_events;
-    RestartFromDrive(tau_s);
+    RestartFromDrive(std::min(tau_s, drive_horizon_s_));
     max2 = 0.0;  // the step now starts where it ends (x_before_ = x_)
     out.recovered = true;
   }

@@ -42,6 +42,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -89,21 +90,21 @@ inline constexpr double kPatchMaxLinger_s = 0.25;
 
 /// What one Step did.
 struct PatchStepResult {
-  int32_t substeps = 0;        ///< substeps integrated (0: no window)
-  int32_t springs = 0;         ///< contact springs applied
-  bool recovered = false;      ///< non-finite values appeared: the windows restarted from the drive
+  int32_t substeps = 0;    ///< substeps integrated (0: no window)
+  int32_t springs = 0;     ///< contact springs applied
+  bool recovered = false;  ///< non-finite values appeared: the windows restarted from the drive
 };
 
 /// Counters of a patch since it was made.
 struct PatchCounters {
-  uint64_t steps = 0;                  ///< Step calls with at least one window
-  uint64_t placements = 0;             ///< windows placed or moved
-  uint64_t merges = 0;                 ///< windows merged with another
-  uint64_t nan_events = 0;             ///< steps that restarted from the drive
-  uint64_t springs_outside = 0;        ///< contact springs too near a window's edge, not applied
-  ClothCounters coupling;              ///< AddCouplingSpring's counts (invalid, reduced, dropped)
-  uint64_t guard_pushes = 0;           ///< triangles the sphere guard pushed (ApplySphereGuards)
-  uint64_t guard_dropped_cells = 0;    ///< cells past the guard's capacity, not tested
+  uint64_t steps = 0;                ///< Step calls with at least one window
+  uint64_t placements = 0;           ///< windows placed or moved
+  uint64_t merges = 0;               ///< windows merged with another
+  uint64_t nan_events = 0;           ///< steps that restarted from the drive
+  uint64_t springs_outside = 0;      ///< contact springs too near a window's edge, not applied
+  ClothCounters coupling;            ///< AddCouplingSpring's counts (invalid, reduced, dropped)
+  uint64_t guard_pushes = 0;         ///< triangles the sphere guard pushed (ApplySphereGuards)
+  uint64_t guard_dropped_cells = 0;  ///< cells past the guard's capacity, not tested
 };
 
 /// The local patch (file comment). Owned by the haptic thread.
@@ -136,6 +137,12 @@ class ClothPatch {
   /// the start of the step (x_before). Real-time safe.
   PatchStepResult Step(std::span<const ExternalForce> external, double dt_s,
                        const ClothSnapshot& drive, double tau_s);
+
+  /// The drive's snapshot is extrapolated along its velocities at most this long past it [s]
+  /// (+inf by default): Place and Step take min(tau_s, horizon), each substep's drive time too.
+  /// The haptic loop sets its sim-stall threshold, so that a stalled sim leaves the windows' rims
+  /// where the extrapolation was then instead of carrying them on along the last velocities.
+  void set_drive_horizon(double horizon_s) { drive_horizon_s_ = horizon_s; }
 
   /// Largest distance [m] of a window particle's position, now or at the start of the last step,
   /// from `s`'s position of it (0 without windows). Real-time safe; O(window particles).
@@ -196,7 +203,7 @@ class ClothPatch {
 
   const ClothModel& model_;
   int32_t radius_;
-  double h_max_s_;  // the patch's longest substep, s
+  double h_max_s_;                         // the patch's longest substep, s
   int32_t recentre_;                       // a window follows its centre this many particles away
   std::vector<PatchWindow> windows_;       // [max_windows]
   std::vector<PatchWindow> next_windows_;  // [max_windows], scratch of Place
@@ -231,8 +238,9 @@ class ClothPatch {
   // window k's are [attach_base_[k], attach_base_[k + 1]); room for every attachment of the model.
   std::vector<PatchAttachment> attach_;
   std::vector<int32_t> attach_base_;  // [max_windows + 1]
-  double h_last_s_ = 0.0;        // the last substep's length (leapfrog's history), s
-  double drive_distance_m_ = 0.0;             // DistanceFromDrive
+  double h_last_s_ = 0.0;             // the last substep's length (leapfrog's history), s
+  double drive_distance_m_ = 0.0;     // DistanceFromDrive
+  double drive_horizon_s_ = std::numeric_limits<double>::infinity();  // set_drive_horizon
   std::unique_ptr<CouplingSprings> springs_;  // the contact springs of the step
   // Their spheres at the step's start (the sphere guard; ApplySphereGuardsToWindows).
   std::vector<CouplingSphere> spheres_;  // [kMaxCouplingSprings]

@@ -14,6 +14,7 @@
 #include "server/server.h"
 #include "tests/alloc_counter.h"  // FELT_DEFINE_ALLOC_COUNTER is in alloc_counter_test.cc
 #include "tests/server/server_test_util.h"
+#include "tests/test_env.h"
 
 namespace felt {
 namespace {
@@ -99,8 +100,8 @@ TEST(ServerTick, TwoDevicesInModePatchShareOneWindowWhereTheyMeet) {
   // Two hands 3 cm apart on the small curtain (16 x 16, 33 mm spacing): their windows merge into
   // one simulation; 36 cm apart: two windows (radius 3). Both hands feel the cloth either way.
   for (double half_gap : {0.015, 0.18}) {
-    ServerSpec spec = QuickRamp({DeviceAt("left", Vec3(-half_gap, 0.0, 0.0)),
-                                 DeviceAt("right", Vec3(half_gap, 0.0, 0.0))});
+    ServerSpec spec = QuickRamp(
+        {DeviceAt("left", Vec3(-half_gap, 0.0, 0.0)), DeviceAt("right", Vec3(half_gap, 0.0, 0.0))});
     spec.proxy.snapshot_mode = SnapshotMode::kPatch;
     spec.proxy.patch_radius = 3;
     LatestPointerSource source(2);
@@ -267,6 +268,60 @@ TEST(ServerTick, StalledSimIsFlaggedAndTheTickRunsOnTheLastSnapshot) {
   server.SimFrame(1.0 / 60.0, now);
   server.HapticTick(now, 1e-3);
   EXPECT_FALSE(Newest(sink).flags & kSafetySimStalled);
+}
+
+// The sim stalls for 20 s while a still hand presses the swinging cloth. The modes that
+// extrapolate the last snapshot along its velocities (extrapolate, and patch at the rims of its
+// windows) extrapolate at most haptic.sim_stall_s (100 ms) past it: the tick goes on rendering
+// the cloth as extrapolated then (flagged "sim stalled"), so once the stall is older than that
+// the proxy stays about where it is, and the device is told so (felt/force's proxy position,
+// OmniFeedback's lock position). Unbounded, the proxy went 1.37 m (device frame) in mode
+// extrapolate and 0.45 m in mode patch over the stall.
+TEST(ServerTick, ALongStallDoesNotCarryTheProxyAway) {
+  for (SnapshotMode mode : kSnapshotModes) {
+    ServerSpec spec = QuickRamp();
+    spec.proxy.snapshot_mode = mode;
+    OneDevice one(spec);
+    auto& [source, sink, server, driver] = one;
+    for (int i = 0; i < 300; ++i) driver.Tick(1, PressFeed());
+    const double max_N = server.spec().devices[0].max_force_N;
+    const int64_t stall_ticks = static_cast<int64_t>(spec.haptic.sim_stall_s * 1000.0);
+    int64_t now = driver.now_ns();
+    const int64_t last_frame = now;  // driver.Tick ran a frame within the last 17 ticks
+    Vec3 settled = Vec3::Zero(), halfway = Vec3::Zero();
+    double farthest = 0.0, drift = 0.0;
+    // 20 s (12 s under a sanitizer: the same paths, tests/test_env.h).
+    const int ticks = felt::testing::Sanitized() ? 12000 : 20000;
+    for (int i = 0; i < ticks; ++i) {
+      PointerInput in;
+      in.seq = 1'000'000 + static_cast<uint64_t>(i);
+      in.receive_time_ns = now;
+      in.p_D_m = testing_server::PressPosition(1000.0);
+      source.Set(0, in);
+      server.HapticTick(now, 1e-3);
+      const ForceOutput f = Newest(sink);
+      ASSERT_TRUE(f.proxy_D_m.allFinite()) << SnapshotModeName(mode) << " tick " << i;
+      ASSERT_LE(f.force_D_N.norm(), max_N + 1e-9) << SnapshotModeName(mode) << " tick " << i;
+      // 50 ticks past the horizon (the patch's windows settle onto their fixed rims).
+      const int64_t age_ticks = (now - last_frame) / testing_server::kTickNs;
+      if (age_ticks == stall_ticks + 50) settled = f.proxy_D_m;
+      if (age_ticks > stall_ticks + 50) {
+        farthest = std::max(farthest, (f.proxy_D_m - settled).norm());
+      }
+      if (i == ticks / 2) halfway = f.proxy_D_m;
+      if (i > ticks / 2) drift = std::max(drift, (f.proxy_D_m - halfway).norm());
+      now += testing_server::kTickNs;
+    }
+    // Past the horizon only mode patch's windows still move, settling under the hand onto their
+    // fixed rims: 0.42 mm in the device frame at most, then within 4 um (8 um in 12 s) over the
+    // stall's second half.
+    EXPECT_LT(farthest, 1e-3) << SnapshotModeName(mode);
+    EXPECT_LT(drift, 2e-5) << SnapshotModeName(mode);
+    std::printf(
+        "%s: past the horizon the proxy moved at most %.2e m, over the second half %.2e m "
+        "(device frame)\n",
+        SnapshotModeName(mode), farthest, drift);
+  }
 }
 
 TEST(ServerTick, BundledTraceTouchesTheCloth) {
