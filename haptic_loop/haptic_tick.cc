@@ -122,6 +122,12 @@ HapticLoop::TickCloth HapticLoop::TakeNewestSnapshot(int64_t now_ns, bool* arriv
   if (cloth.stalled) Bump(counters_.sim_stalled_ticks);
   counters_.sim_stalled.store(cloth.stalled, std::memory_order_relaxed);
   cloth.since_newest_s = std::max(0.0, static_cast<double>(age_ns) * 1e-9);
+  // Modes extrapolate and patch carry the snapshot along its velocities for the time since it
+  // was published: at most the stall threshold (or one frame, so that mode interpolate still
+  // reaches the newest); past it the tick renders the cloth as extrapolated then. Unbounded, a
+  // 20 s stall carried the proxy 1.37 m (device frame) in mode extrapolate and 0.45 m in mode
+  // patch (ServerTick.ALongStallDoesNotCarryTheProxyAway).
+  cloth.horizon_s = std::max(static_cast<double>(stall_ns_) * 1e-9, cloth.newest->frame_dt_s);
   return cloth;
 }
 
@@ -194,7 +200,7 @@ void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
   }
   // Particles entering a window start where the previous tick's cloth had them.
   const double tau_s = cloth.since_newest_s;
-  patch_->set_drive_horizon(ExtrapolationHorizon(cloth));
+  patch_->set_drive_horizon(cloth.horizon_s);
   patch_->Place(patch_centres_, *cloth.newest, std::max(0.0, tau_s - dt_s), dt_s);
   if (!patch_->active()) return;
   const PatchStepResult step =
@@ -205,15 +211,6 @@ void HapticLoop::StepPatch(const TickCloth& cloth, double dt_s) {
   Bump(counters_.patch_ticks);
   if (step.recovered) Bump(counters_.patch_nan_events);
   counters_.patch_guard_pushes.store(patch_->counters().guard_pushes, std::memory_order_relaxed);
-}
-
-double HapticLoop::ExtrapolationHorizon(const TickCloth& cloth) const {
-  // Modes extrapolate and patch carry the snapshot along its velocities for the time since it
-  // was published: at most the stall threshold (or one frame, so that mode interpolate still
-  // reaches the newest); past it the tick renders the cloth as extrapolated then. Unbounded, a
-  // 20 s stall carried the proxy 1.37 m (device frame) in mode extrapolate and 0.45 m in mode
-  // patch (ServerTick.ALongStallDoesNotCarryTheProxyAway).
-  return std::max(static_cast<double>(stall_ns_) * 1e-9, cloth.newest->frame_dt_s);
 }
 
 bool HapticLoop::ReadInput(uint32_t index, int64_t now_ns, Device* d) {
@@ -241,7 +238,7 @@ void HapticLoop::TickDevice(uint32_t index, int64_t now_ns, double dt_s, const T
     DeviceSample sample;
     sample.p_D_m = d.input.p_D_m;
     sample.v_D_m_per_s = d.input.v_D_m_per_s;
-    const double since_s = std::min(cloth.since_newest_s, ExtrapolationHorizon(cloth));
+    const double since_s = std::min(cloth.since_newest_s, cloth.horizon_s);
     d.last_result =
         ProxyTick(d.model, *cloth.newest, cloth.previous, since_s, sample, dt_s, &d.proxy,
                   patch_ != nullptr && patch_->active() ? &overlay_ : nullptr);

@@ -129,12 +129,11 @@ class HapticLoop {
     const ClothSnapshot* newest = nullptr;
     const ClothSnapshot* previous = nullptr;  ///< nullptr before the second snapshot
     double since_newest_s = 0.0;              ///< time since the newest was published, s
-    bool stalled = false;                     ///< older than the [haptic] sim_stall limit
+    double horizon_s = 0.0;  ///< the newest is extrapolated at most this long past it, s
+    bool stalled = false;    ///< older than the [haptic] sim_stall limit
   };
 
   TickCloth TakeNewestSnapshot(int64_t now_ns, bool* arrived);
-  // How long past its snapshot the tick's cloth may be extrapolated [s].
-  double ExtrapolationHorizon(const TickCloth& cloth) const;
   void StepPatch(const TickCloth& cloth, double dt_s);
   // Mode patch: copies this tick's contact springs for the next tick's StepPatch.
   void KeepPatchSprings();

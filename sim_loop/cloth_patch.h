@@ -140,8 +140,8 @@ class ClothPatch {
 
   /// The drive's snapshot is extrapolated along its velocities at most this long past it [s]
   /// (+inf by default): Place and Step take min(tau_s, horizon), each substep's drive time too.
-  /// The haptic loop sets its sim-stall threshold, so that a stalled sim leaves the windows' rims
-  /// where the extrapolation was then instead of carrying them on along the last velocities.
+  /// The haptic loop sets its sim-stall threshold (at least a frame), so that a stalled sim leaves
+  /// the windows' rims where the extrapolation was then instead of carrying them on.
   void set_drive_horizon(double horizon_s) { drive_horizon_s_ = horizon_s; }
 
   /// Largest distance [m] of a window particle's position, now or at the start of the last step,

@@ -25,11 +25,9 @@ TEST(BenchTransportSecurity, WritesBothConditionsAndTheRatio) {
   const std::string prefix =
       (std::filesystem::path(::testing::TempDir()) / "felt_bench_security").string();
   std::filesystem::remove(prefix + ".json");
-  const Outcome outcome = RunFelt("bench transport --security-cost --seconds 1 --domain " +
-                                  std::to_string(felt::testing::ExclusiveDdsDomain()) +
-                                  " "
-                                  "--security-out " +
-                                  prefix);
+  const Outcome outcome =
+      RunFelt("bench transport --security-cost --seconds 1 --domain " +
+              std::to_string(felt::testing::ExclusiveDdsDomain()) + " --security-out " + prefix);
   ASSERT_EQ(outcome.exit_code, 0) << outcome.output;
   EXPECT_NE(outcome.output.find("| ratio on/off |"), std::string::npos) << outcome.output;
   const felt::Json json = felt::ParseJson(ReadFile(prefix + ".json"), prefix + ".json");
