@@ -57,7 +57,7 @@ struct Args {
   int32_t min_passes_per_frame = SelfCollisionSettings{}.min_passes_per_frame;
   double slow_pass_motion = SelfCollisionSettings{}.slow_pass_motion;
   double hand_pass_motion = SelfCollisionSettings{}.hand_pass_motion;
-  std::string methods = "spatial_hash,bvh,bvh_cones";  // culling methods of the response rows
+  std::string methods = "spatial_hash,bvh,bvox_aabb,bvh_cones";  // methods of the response rows
   std::string detect_methods = "bvh_cones";            // culling methods of the detection row
   bool reference = true;  // compare with AllPairsCcd (off: for profiling the response alone)
   bool plot = true;       // gnuplot on gnuplot_script: <out>/self_collision.png
@@ -291,7 +291,7 @@ std::string SelfCommand(const Args& args) {
     cmd += " --slow-pass-motion " + Sig(args.slow_pass_motion, 3);
   if (args.hand_pass_motion != defaults.hand_pass_motion)
     cmd += " --hand-pass-motion " + Sig(args.hand_pass_motion, 3);
-  if (args.methods != "spatial_hash,bvh,bvh_cones") cmd += " --methods " + args.methods;
+  if (args.methods != "spatial_hash,bvh,bvox_aabb,bvh_cones") cmd += " --methods " + args.methods;
   if (args.detect_methods != "bvh_cones") cmd += " --detect-methods " + args.detect_methods;
   if (!args.reference) cmd += " --no-reference";
   if (!args.json.empty()) cmd += " --json " + args.json;

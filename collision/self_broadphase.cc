@@ -342,10 +342,10 @@ SelfBroadPhaseStats SelfSpatialHash::FindCandidates(std::span<const Vec3> x0,
 }
 
 // ---------------------------------------------------------------------------------------------
-// SelfBvh
+// SelfTriangleTree
 
-SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
-                 const SelfBroadPhaseOptions& options)
+SelfTriangleTree::SelfTriangleTree(std::span<const Triangle> triangles, std::span<const Vec3> x,
+                                   const SelfBroadPhaseOptions& options)
     : SelfBroadPhase(triangles, static_cast<int32_t>(x.size()), options) {
   const int32_t nt = static_cast<int32_t>(triangles_.size());
   // Each triangle's owned vertices and edges (-1 padded).
@@ -373,6 +373,76 @@ SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
   edge_lo_.resize(edges_.size());
   edge_hi_.resize(edges_.size());
   edge_stamp_.assign(edges_.size(), 0);
+}
+
+double SelfTriangleTree::BoxPadding(double thickness_m) { return SelfBroadPadding(thickness_m); }
+
+void SelfTriangleTree::VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1,
+                                 double pad, double start_pad) {
+  vertex_lo_[v] = x0[v].cwiseMin(x1[v]).array() - pad;
+  vertex_hi_[v] = x0[v].cwiseMax(x1[v]).array() + pad;
+  if (start_pad > pad) {
+    vertex_lo_[v] = vertex_lo_[v].cwiseMin(Vec3(x0[v].array() - start_pad));
+    vertex_hi_[v] = vertex_hi_[v].cwiseMax(Vec3(x0[v].array() + start_pad));
+  }
+}
+
+void SelfTriangleTree::NewBoxStamp() {
+  if (++box_stamp_ == 0) {  // wrapped: no edge may keep a stale stamp
+    std::fill(edge_stamp_.begin(), edge_stamp_.end(), 0u);
+    box_stamp_ = 1;
+  }
+}
+
+void SelfTriangleTree::EdgeBox(int32_t e) {
+  if (edge_stamp_[e] == box_stamp_) return;
+  edge_stamp_[e] = box_stamp_;
+  const MeshEdge& m = edges_[e];
+  edge_lo_[e] = vertex_lo_[m[0]].cwiseMin(vertex_lo_[m[1]]);
+  edge_hi_[e] = vertex_hi_[m[0]].cwiseMax(vertex_hi_[m[1]]);
+}
+
+void SelfTriangleTree::PairTriangles(int32_t ta, int32_t tb, const Vec3& alo, const Vec3& ahi,
+                                     const Vec3& blo, const Vec3& bhi,
+                                     SelfBroadPhaseStats* stats) {
+  using Kind = CcdPairHit::Kind;
+  // Vertices owned by one triangle against the other triangle.
+  for (int32_t side = 0; side < 2; ++side) {
+    const int32_t owner = side == 0 ? ta : tb;
+    const int32_t other = side == 0 ? tb : ta;
+    const Vec3& olo = side == 0 ? blo : alo;
+    const Vec3& ohi = side == 0 ? bhi : ahi;
+    for (int32_t v : owned_vertices_[owner]) {
+      if (v < 0) break;
+      if (SelfHasCorner(triangles_[other], v)) continue;
+      if (SelfBoxesOverlap(vertex_lo_[v], vertex_hi_[v], olo, ohi)) {
+        Emit(Kind::kVertexTriangle, v, other, stats);
+      }
+    }
+  }
+  // Edges owned by one against edges owned by the other (EdgeBox: each edge's swept box made
+  // once a broad phase, when a pair first needs it; most edges are in none).
+  for (int32_t e : owned_edges_[ta]) {
+    if (e < 0) break;
+    EdgeBox(e);
+    for (int32_t f : owned_edges_[tb]) {
+      if (f < 0) break;
+      if (SelfEdgesTouch(edges_[e], edges_[f])) continue;
+      EdgeBox(f);
+      if (SelfBoxesOverlap(edge_lo_[e], edge_hi_[e], edge_lo_[f], edge_hi_[f])) {
+        Emit(Kind::kEdgeEdge, std::min(e, f), std::max(e, f), stats);
+      }
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// SelfBvh
+
+SelfBvh::SelfBvh(std::span<const Triangle> triangles, std::span<const Vec3> x,
+                 const SelfBroadPhaseOptions& options)
+    : SelfTriangleTree(triangles, x, options) {
+  const int32_t nt = static_cast<int32_t>(triangles_.size());
   if (nt == 0) return;
 
   // Top-down median split of the centroids along the longest axis of their box; nodes in
@@ -880,13 +950,6 @@ void SelfBvh::RefitParents() {
   }
 }
 
-void SelfBvh::NewBoxStamp() {
-  if (++box_stamp_ == 0) {  // wrapped: no edge may keep a stale stamp
-    std::fill(edge_stamp_.begin(), edge_stamp_.end(), 0u);
-    box_stamp_ = 1;
-  }
-}
-
 bool SelfBvh::Overlap(int32_t a, int32_t b) const {
   return SelfBoxesOverlap(node_lo_[a], node_hi_[a], node_lo_[b], node_hi_[b]);
 }
@@ -894,18 +957,6 @@ bool SelfBvh::Overlap(int32_t a, int32_t b) const {
 SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
                                             double thickness_m) {
   return FindCandidates(x0, x1, thickness_m, 0.0);
-}
-
-// Vertex v's box: its sweep x0 -> x1 padded by `pad`, and, when start_pad is larger, its start
-// position padded by start_pad [m].
-void SelfBvh::VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1, double pad,
-                        double start_pad) {
-  vertex_lo_[v] = x0[v].cwiseMin(x1[v]).array() - pad;
-  vertex_hi_[v] = x0[v].cwiseMax(x1[v]).array() + pad;
-  if (start_pad > pad) {
-    vertex_lo_[v] = vertex_lo_[v].cwiseMin(Vec3(x0[v].array() - start_pad));
-    vertex_hi_[v] = vertex_hi_[v].cwiseMax(Vec3(x0[v].array() + start_pad));
-  }
 }
 
 SelfBroadPhaseStats SelfBvh::FindCandidates(std::span<const Vec3> x0, std::span<const Vec3> x1,
@@ -1100,45 +1151,9 @@ void SelfBvh::Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats) {
   }
 }
 
-void SelfBvh::EdgeBox(int32_t e) {
-  if (edge_stamp_[e] == box_stamp_) return;
-  edge_stamp_[e] = box_stamp_;
-  const MeshEdge& m = edges_[e];
-  edge_lo_[e] = vertex_lo_[m[0]].cwiseMin(vertex_lo_[m[1]]);
-  edge_hi_[e] = vertex_hi_[m[0]].cwiseMax(vertex_hi_[m[1]]);
-}
-
 void SelfBvh::LeafPair(int32_t na, int32_t nb, SelfBroadPhaseStats* stats) {
-  using Kind = CcdPairHit::Kind;
-  const int32_t ta = right_[na], tb = right_[nb];
-  // Vertices owned by one triangle against the other triangle.
-  for (int32_t side = 0; side < 2; ++side) {
-    const int32_t owner = side == 0 ? ta : tb;
-    const int32_t other = side == 0 ? tb : ta;
-    const int32_t other_node = side == 0 ? nb : na;
-    for (int32_t v : owned_vertices_[owner]) {
-      if (v < 0) break;
-      if (SelfHasCorner(triangles_[other], v)) continue;
-      if (SelfBoxesOverlap(vertex_lo_[v], vertex_hi_[v], node_lo_[other_node],
-                           node_hi_[other_node])) {
-        Emit(Kind::kVertexTriangle, v, other, stats);
-      }
-    }
-  }
-  // Edges owned by one against edges owned by the other (EdgeBox: each edge's swept box made
-  // once a broad phase, when a leaf pair first needs it; most edges are in none).
-  for (int32_t e : owned_edges_[ta]) {
-    if (e < 0) break;
-    EdgeBox(e);
-    for (int32_t f : owned_edges_[tb]) {
-      if (f < 0) break;
-      if (SelfEdgesTouch(edges_[e], edges_[f])) continue;
-      EdgeBox(f);
-      if (SelfBoxesOverlap(edge_lo_[e], edge_hi_[e], edge_lo_[f], edge_hi_[f])) {
-        Emit(Kind::kEdgeEdge, std::min(e, f), std::max(e, f), stats);
-      }
-    }
-  }
+  PairTriangles(right_[na], right_[nb], node_lo_[na], node_hi_[na], node_lo_[nb], node_hi_[nb],
+                stats);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -6,13 +6,15 @@
 // primitive stays in its box for all t in [0, 1], and two boxes more than h apart hold primitives
 // more than h apart), so running the narrow phase over the candidates gives exactly its hits.
 //
-// Two culling methods with the same interface:
+// Three culling methods with the same interface:
 // - SelfSpatialHash: spatial hashing of the swept boxes (Teschner, Heidelberger, Mueller,
 //   Pomeranets & Gross 2003, "Optimized Spatial Hashing for Collision Detection of Deformable
 //   Objects"; 000_25210a744b053ca5.txt, the slides on spatial hashing), cells about the mean edge
 //   length;
 // - SelfBvh: a binary AABB tree over the triangles, refitted bottom-up from swept boxes every
-//   step, traversed against itself (000's BVH self-traversal, without normal cones).
+//   step, traversed against itself (000's BVH self-traversal, without normal cones);
+// - SelfBvox (collision/self_bvox.h): an AABB tree built anew every step by grouping the
+//   triangles in voxels (Baciu & Wong 2004's BVOX-AABB).
 //
 // Allocation: every array is sized at construction; FindCandidates and SelfCcd never allocate.
 // Overflow never drops a pair silently: the candidate buffer has a fixed capacity and a full
@@ -156,14 +158,49 @@ class SelfSpatialHash final : public SelfBroadPhase {
   std::vector<int32_t> oversized_;     ///< [max(vertices, edges)] ids not in the table
 };
 
+/// What the tree methods (SelfBvh, SelfBvox) share: each vertex's swept, padded box, each edge's
+/// box made from its ends' when a leaf pair first needs it, and the pairing of two triangles'
+/// features. Each vertex and edge belongs to one triangle (the first that uses it), and only an
+/// owner's primitives are paired with the other triangle's, so a traversal that meets every
+/// overlapping pair of triangles once emits every candidate once; pairs sharing a vertex
+/// (adjacent triangles' shared features) are skipped.
+class SelfTriangleTree : public SelfBroadPhase {
+ protected:
+  /// Numbers the owned features and sizes the box arrays for `triangles` over x [m]. Throws as
+  /// SelfBroadPhase.
+  SelfTriangleTree(std::span<const Triangle> triangles, std::span<const Vec3> x,
+                   const SelfBroadPhaseOptions& options);
+  /// Half the thickness h [m], widened by 1e-5 relative: every box's padding per side [m].
+  static double BoxPadding(double thickness_m);
+  /// Vertex v's box: its sweep x0 -> x1 padded by `pad`, and, when start_pad is larger, its
+  /// start position padded by start_pad [m].
+  void VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1, double pad,
+                 double start_pad);
+  /// New vertex boxes: every edge box is stale (made again by EdgeBox when needed).
+  void NewBoxStamp();
+  /// Edge e's swept box from its ends' vertex boxes, made once per box stamp.
+  void EdgeBox(int32_t e);
+  /// The candidates of triangles ta and tb (ta != tb) whose boxes (the unions of their vertex
+  /// boxes) are [alo, ahi] and [blo, bhi] [m]: the owned vertices of each against the other
+  /// triangle, and the owned edges of ta against those of tb, where their boxes overlap.
+  void PairTriangles(int32_t ta, int32_t tb, const Vec3& alo, const Vec3& ahi, const Vec3& blo,
+                     const Vec3& bhi, SelfBroadPhaseStats* stats);
+
+  std::vector<Vec3> vertex_lo_;  ///< [vertices] swept, padded vertex box [m]
+  std::vector<Vec3> vertex_hi_;
+  std::vector<Vec3> edge_lo_;  ///< [edges] swept, padded edge box [m], valid when stamped
+  std::vector<Vec3> edge_hi_;
+  std::vector<uint32_t> edge_stamp_;  ///< [edges] box_stamp_ when the edge's box was made
+  uint32_t box_stamp_ = 0;            ///< this broad phase's vertex boxes (NewBoxStamp)
+  std::vector<std::array<int32_t, 3>> owned_vertices_;  ///< [triangles] owned vertices, -1 pad
+  std::vector<std::array<int32_t, 3>> owned_edges_;     ///< [triangles] owned edges, -1 pad
+};
+
 /// Method (b): a binary AABB tree over the triangles (median split of centroids at
 /// construction), refitted bottom-up every step from the triangles' swept boxes and traversed
 /// against itself: (A, A) -> its children's pairs, overlapping (A, B) -> recurse, leaf pairs ->
-/// vertex-triangle and edge-edge candidates. Each vertex and edge belongs to one triangle (the
-/// first that uses it), and only an owner's primitives are paired with the other leaf's, so every
-/// candidate comes once; pairs sharing a vertex (adjacent triangles' shared features) are
-/// skipped.
-class SelfBvh final : public SelfBroadPhase {
+/// vertex-triangle and edge-edge candidates (SelfTriangleTree::PairTriangles).
+class SelfBvh final : public SelfTriangleTree {
  public:
   /// Builds the tree for `triangles` over positions x [m] (rest or current). Throws
   /// std::invalid_argument on an index out of range or a bad option.
@@ -243,13 +280,7 @@ class SelfBvh final : public SelfBroadPhase {
   static FatBound MergeFat(const FatBound& l, const FatBound& r);
   void Traverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats);
   void LeafPair(int32_t ta, int32_t tb, SelfBroadPhaseStats* stats);
-  // Edge e's swept box from its ends' vertex boxes, made once per box stamp.
-  void EdgeBox(int32_t e);
-  // New vertex boxes: every edge box is stale (made again by EdgeBox when needed).
-  void NewBoxStamp();
   bool Overlap(int32_t a, int32_t b) const;
-  void VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1, double pad,
-                 double start_pad);
   void RefitLeaf(int32_t node, std::span<const Vec3> x0, std::span<const Vec3> x1);
   void RefitParent(int32_t node);
   // A leaf's box from its triangle's vertex boxes.
@@ -269,14 +300,6 @@ class SelfBvh final : public SelfBroadPhase {
   std::vector<int32_t> level_start_;   ///< parent_order_'s levels: [level_start_[k], [k + 1])
   std::vector<double> merge_in_;       ///< [10 parents] the children's cones (RefitParents)
   std::vector<double> merge_out_;      ///< [5 parents] the merged cones
-  std::vector<Vec3> vertex_lo_;       ///< [vertices] swept, padded vertex box [m]
-  std::vector<Vec3> vertex_hi_;
-  std::vector<Vec3> edge_lo_;  ///< [edges] swept, padded edge box [m], valid when stamped
-  std::vector<Vec3> edge_hi_;
-  std::vector<uint32_t> edge_stamp_;  ///< [edges] box_stamp_ when the edge's box was made
-  uint32_t box_stamp_ = 0;            ///< this broad phase's vertex boxes (NewBoxStamp)
-  std::vector<std::array<int32_t, 3>> owned_vertices_;  ///< [triangles] owned vertices, -1 pad
-  std::vector<std::array<int32_t, 3>> owned_edges_;     ///< [triangles] owned edges, -1 pad
   // Normal cones (options.normal_cones; Volino & Magnenat-Thalmann 1994, Provot 1997, with the
   // continuous normal cones of Tang et al. 2009 and the star contours of Schvartzman et al.
   // 2010): per node its cone over the step, and, for nodes that may be skipped, a center

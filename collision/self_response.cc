@@ -65,6 +65,7 @@ std::optional<SelfCullingMethod> SelfCullingMethodFromName(std::string_view name
   if (name == "spatial_hash") return SelfCullingMethod::kSpatialHash;
   if (name == "bvh") return SelfCullingMethod::kBvh;
   if (name == "bvh_cones") return SelfCullingMethod::kBvhCones;
+  if (name == "bvox_aabb") return SelfCullingMethod::kBvox;
   return std::nullopt;
 }
 
@@ -74,6 +75,8 @@ std::string_view SelfCullingMethodName(SelfCullingMethod method) {
       return "bvh";
     case SelfCullingMethod::kBvhCones:
       return "bvh_cones";
+    case SelfCullingMethod::kBvox:
+      return "bvox_aabb";
     case SelfCullingMethod::kSpatialHash:
       break;
   }
@@ -127,6 +130,8 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
     options.normal_cones = true;
     bvh_.emplace(triangles, x, options);
     cones_ = true;
+  } else if (settings.method == SelfCullingMethod::kBvox) {
+    bvox_.emplace(triangles, x);
   } else {
     hash_.emplace(triangles, x);
   }
@@ -175,6 +180,13 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
 
 SelfBroadPhase* SelfCollisionResponse::Broad() {
   if (bvh_) return &*bvh_;
+  if (bvox_) return &*bvox_;
+  return &*hash_;
+}
+
+const SelfBroadPhase* SelfCollisionResponse::Broad() const {
+  if (bvh_) return &*bvh_;
+  if (bvox_) return &*bvox_;
   return &*hash_;
 }
 
@@ -219,7 +231,7 @@ bool SelfResponseBoxesMeet(const Vec3& alo, const Vec3& ahi, const Vec3& blo, co
 // meet cannot be reported by the test (the broad phase's own argument), so it is skipped first.
 bool SelfCollisionResponse::NarrowTest(int32_t candidate, std::span<const Vec3> x1,
                                        const AllPairsCcdOptions& options, CcdPairHit* hit) {
-  const SelfBroadPhase* broad = bvh_ ? static_cast<const SelfBroadPhase*>(&*bvh_) : &*hash_;
+  const SelfBroadPhase* broad = Broad();
   const SelfCandidate& c = broad->candidates()[candidate];
   if (c.kind == CcdPairHit::Kind::kVertexTriangle) {
     const Triangle& t = triangles_[c.second];

@@ -30,6 +30,7 @@
 // (inverse mass 0) never move. Allocation only at construction; Resolve is real-time safe.
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -39,6 +40,7 @@
 #include "collision/ccd_all_pairs.h"
 #include "collision/mesh.h"
 #include "collision/self_broadphase.h"
+#include "collision/self_bvox.h"
 
 namespace felt {
 
@@ -54,7 +56,14 @@ enum class SelfCullingMethod : uint8_t {
   /// traversing again only where vertices moved (SelfBvh::UpdateCandidates) and re-testing only
   /// those pairs.
   kBvhCones,
+  /// SelfBvox: an AABB tree rebuilt every step by voxels (Baciu & Wong 2004's BVOX-AABB).
+  kBvox,
 };
+
+/// Every culling method, in the order above (for tests and benches that try them all).
+inline constexpr std::array<SelfCullingMethod, 4> kSelfCullingMethods = {
+    SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones,
+    SelfCullingMethod::kBvox};
 
 /// Settings of the response (SelfCollisionSpec in sim_loop/cloth_spec.h, validated).
 struct SelfCollisionSettings {
@@ -189,6 +198,7 @@ class SelfCollisionResponse {
 
  private:
   SelfBroadPhase* Broad();
+  const SelfBroadPhase* Broad() const;
   int64_t Detect(std::span<const Vec3> x1, SelfCollisionStats* stats);
   int64_t DetectAll(std::span<const Vec3> x1, SelfCollisionStats* stats);
   int64_t DetectCones(std::span<const Vec3> x1, SelfCollisionStats* stats);
@@ -215,6 +225,7 @@ class SelfCollisionResponse {
   std::vector<double> inv_mass_;
   std::optional<SelfSpatialHash> hash_;
   std::optional<SelfBvh> bvh_;
+  std::optional<SelfBvox> bvox_;
   bool cones_ = false;  ///< kBvhCones: one cone-culled broad phase per pass, carried over
   /// kBvhCones: the BVH's candidates hold for x_before_ -> x_trial_ up to the vertices in
   /// moved_list_ (false after an overflow: the next detection runs a full broad phase).
@@ -264,10 +275,11 @@ class SelfCollisionResponse {
   double particle_mass_kg_ = 0.0;  ///< mass of a free particle for the spring impulse, kg
 };
 
-/// Parses a culling method name ("spatial_hash", "bvh"); nullopt for any other.
+/// Parses a culling method name ("spatial_hash", "bvh", "bvh_cones", "bvox_aabb"); nullopt for
+/// any other.
 std::optional<SelfCullingMethod> SelfCullingMethodFromName(std::string_view name);
 
-/// The name of a culling method ("spatial_hash" or "bvh").
+/// The name of a culling method (as SelfCullingMethodFromName reads it).
 std::string_view SelfCullingMethodName(SelfCullingMethod method);
 
 }  // namespace felt

@@ -230,6 +230,7 @@ TEST(BenchSmoke, SelfCollisionQuickWritesItsFiles) {
                               "frame_ms_median", "intersections_end_of_frame"});
   const std::string md = ReadFile(dir + "/self_collision.md");
   EXPECT_NE(md.find("| bvh | 16 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| bvox_aabb | 16 |"), std::string::npos) << md;
   EXPECT_EQ(ReadFile(dir + "/self_collision.csv").rfind("# felt bench self-collision", 0), 0u);
   // The cost of every frame over the animation, and its plot.
   const std::string frames = ReadFile(dir + "/self_collision_frames.csv");

@@ -167,8 +167,7 @@ TEST(SelfResponse, ProximityRepelsLayersWithinTheThickness) {
 TEST(SelfResponse, ResolveDoesNotAllocate) {
   const TwoSheets sheets = MakeTwoSheets(6, 0.004);
   const std::vector<double> inv_mass(sheets.x.size(), 100.0);
-  for (SelfCullingMethod method :
-       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
+  for (SelfCullingMethod method : kSelfCullingMethods) {
     SelfCollisionSettings settings;
     settings.thickness_m = 1e-3;
     settings.iterations = 0;
@@ -198,8 +197,7 @@ TEST(SelfResponse, ResolveDoesNotAllocate) {
 TEST(SelfResponse, IncrementalRoundsLeaveNoCollisionByTheAllPairsReference) {
   const TwoSheets sheets = MakeTwoSheets(7, 0.004);
   const std::vector<double> inv_mass(sheets.x.size(), 100.0);
-  for (SelfCullingMethod method :
-       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
+  for (SelfCullingMethod method : kSelfCullingMethods) {
     for (double drive_m : {0.002, 0.008}) {
       SelfCollisionSettings settings;
       settings.thickness_m = 3e-3;
@@ -252,6 +250,10 @@ TEST(SelfResponse, MethodNames) {
   EXPECT_EQ(SelfCullingMethodFromName("spatial_hash"), SelfCullingMethod::kSpatialHash);
   EXPECT_FALSE(SelfCullingMethodFromName("octree").has_value());
   EXPECT_EQ(SelfCullingMethodName(SelfCullingMethod::kBvh), "bvh");
+  for (SelfCullingMethod method : kSelfCullingMethods) {
+    EXPECT_EQ(SelfCullingMethodFromName(SelfCullingMethodName(method)), method);
+  }
+  EXPECT_EQ(SelfCullingMethodFromName("bvox_aabb"), SelfCullingMethod::kBvox);
 }
 
 }  // namespace

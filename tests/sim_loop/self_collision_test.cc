@@ -103,9 +103,8 @@ TEST(SelfCollisionScene, TwistIntersectsWithoutTheResponse) {
   EXPECT_GT(run.max_intersections, 0);
 }
 
-TEST(SelfCollisionScene, BothCullingMethodsKeepTheFoldDropClean) {
-  for (SelfCullingMethod method :
-       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
+TEST(SelfCollisionScene, EveryCullingMethodKeepsTheFoldDropClean) {
+  for (SelfCullingMethod method : kSelfCullingMethods) {
     SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
     spec.self_collision->method = method;
     const SelfRun run = RunSelfScene(spec, kSelfFrames / 2);
@@ -151,8 +150,7 @@ TEST(SelfCollisionScene, CountersAndOptInIntersectionCount) {
 // StepFrame with [self_collision] allocates nothing, once the folds have formed, with every
 // culling method.
 TEST(SelfCollisionScene, StepFrameDoesNotAllocate) {
-  for (SelfCullingMethod method :
-       {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
+  for (SelfCullingMethod method : kSelfCullingMethods) {
     SCOPED_TRACE(SelfCullingMethodName(method));
     SimSpec spec = SelfCollisionSceneSpec("self_fold_drop.toml");
     spec.self_collision->method = method;
@@ -187,8 +185,7 @@ TEST(SelfCollisionScene, CopiedStateStepsTheSame) {
 TEST(SelfCollisionScene, CulledDetectionEqualsTheAllPairsReferenceOnEveryFrame) {
   int64_t reference_hits = 0;
   for (const char* scene : {"self_fold_drop.toml", "self_twist.toml"}) {
-    for (SelfCullingMethod method :
-         {SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones}) {
+    for (SelfCullingMethod method : kSelfCullingMethods) {
       SimSpec spec = SelfCollisionSceneSpec(scene);
       spec.self_collision->method = method;
       const ClothModel model = BuildClothModel(spec);
@@ -531,6 +528,13 @@ TEST(SelfCollisionSection, ParsesAndValidates) {
   EXPECT_EQ(spec.self_collision->hand_pass_motion, 0.3);
   EXPECT_EQ(BuildClothModel(spec).self_collision.hand_pass_motion, 0.3);
   EXPECT_EQ(BuildClothModel(spec).self_collision.min_passes_per_frame, 2);
+  for (SelfCullingMethod method : kSelfCullingMethods) {
+    const std::string name(SelfCullingMethodName(method));
+    const SimSpec named = ParseSimSpec(ParseSceneText(
+        "[cloth]\nwidth = 4\nheight = 4\n[self_collision]\nmethod = \"" + name + "\"\n",
+        "ok.toml"));
+    EXPECT_EQ(named.self_collision->method, method) << name;
+  }
   EXPECT_FALSE(spec.self_collision->guard_proxy);
   EXPECT_FALSE(BuildClothModel(spec).self_collision_guard_proxy);
   EXPECT_FALSE(ParseSimSpec(ParseSceneText("[cloth]\nwidth = 4\n", "x.toml")).self_collision);
