@@ -48,8 +48,8 @@ struct Args {
   // haptic curtain, at each grid over its own 0.496 m square, hanging from its two top corners
   // and released from rest: issue 22's "64 x 64 curtain with self-collision on").
   std::string case_name = "fold_drop";
-  int32_t detect_grid = 150;                 // the ~45k-triangle detection row (0: none)
-  int32_t detect_frames = 60;                // its frames
+  int32_t detect_grid = 150;   // the ~45k-triangle detection row (0: none)
+  int32_t detect_frames = 60;  // its frames
   // The response's pass and padding settings, the shipped defaults unless given.
   int32_t passes_per_frame = SelfCollisionSettings{}.passes_per_frame;
   double broad_inflation = SelfCollisionSettings{}.broad_inflation;
@@ -57,15 +57,15 @@ struct Args {
   int32_t min_passes_per_frame = SelfCollisionSettings{}.min_passes_per_frame;
   double slow_pass_motion = SelfCollisionSettings{}.slow_pass_motion;
   double hand_pass_motion = SelfCollisionSettings{}.hand_pass_motion;
-  std::string methods = "spatial_hash,bvh,bvox_aabb,bvh_cones";  // methods of the response rows
-  std::string detect_methods = "bvh_cones";            // culling methods of the detection row
+  std::string methods = "spatial_hash,bvh,bvox_aabb,apccd,bvh_cones";  // response rows' methods
+  std::string detect_methods = "bvh_cones";  // culling methods of the detection row
   bool reference = true;  // compare with AllPairsCcd (off: for profiling the response alone)
   bool plot = true;       // gnuplot on gnuplot_script: <out>/self_collision.png
   std::string gnuplot_script = "bench/self_collision.gp";
 };
 
 struct Row {
-  std::string method;  // "spatial_hash", "bvh" or "off"
+  std::string method;             // a culling method's name, or "off"
   std::string kind = "response";  // "response" (32, 64, ...) or "detection" (--detect-grid)
   int32_t grid = 0;
   int64_t triangles = 0;
@@ -89,8 +89,8 @@ struct Row {
   double first_detect_ms_median = 0.0;
   double passes_per_frame = 0.0;
   double broad_phases_per_frame = 0.0;
-  double broad_reuses_per_frame = 0.0;  // detections that skipped the broad phase (APCCD)
-  double broad_updates_per_frame = 0.0;  // bvh_cones: broad phases carried over (UpdateCandidates)
+  double broad_reuses_per_frame = 0.0;   // detections that skipped the broad phase (APCCD)
+  double broad_updates_per_frame = 0.0;  // bvh_cones, apccd: broad phases carried over
   double narrow_tests_per_frame = 0.0;
   // The first CCD detection of each checked frame against AllPairsCcd on the same motion.
   int32_t reference_frames = 0;
@@ -291,7 +291,8 @@ std::string SelfCommand(const Args& args) {
     cmd += " --slow-pass-motion " + Sig(args.slow_pass_motion, 3);
   if (args.hand_pass_motion != defaults.hand_pass_motion)
     cmd += " --hand-pass-motion " + Sig(args.hand_pass_motion, 3);
-  if (args.methods != "spatial_hash,bvh,bvox_aabb,bvh_cones") cmd += " --methods " + args.methods;
+  if (args.methods != "spatial_hash,bvh,bvox_aabb,apccd,bvh_cones")
+    cmd += " --methods " + args.methods;
   if (args.detect_methods != "bvh_cones") cmd += " --detect-methods " + args.detect_methods;
   if (!args.reference) cmd += " --no-reference";
   if (!args.json.empty()) cmd += " --json " + args.json;

@@ -27,6 +27,11 @@ constexpr int64_t kConeShareMovedDen = 16;
 // than 1 / kConeUpdateMovedDen of the vertices moved since (the traversal would be nearly
 // full, and the carried-over list must also be filtered).
 constexpr int64_t kConeUpdateMovedDen = 4;
+// apccd: when some vertices left the last broad phase's boxes, at most 1 / kDanglingDen of them,
+// only theirs are made again and the tree traversed again where they are (APCCD's dangling
+// vertices and triangles, 004_aff31237b107e6f0.txt; SelfBvh::UpdateCandidates); more, and a full
+// broad phase runs (the cones' threshold, for the same reason).
+constexpr int64_t kDanglingDen = 4;
 
 // Distances below this [m] give no usable direction between closest points: the face normal (or
 // the edges' cross product) is used instead.
@@ -66,6 +71,7 @@ std::optional<SelfCullingMethod> SelfCullingMethodFromName(std::string_view name
   if (name == "bvh") return SelfCullingMethod::kBvh;
   if (name == "bvh_cones") return SelfCullingMethod::kBvhCones;
   if (name == "bvox_aabb") return SelfCullingMethod::kBvox;
+  if (name == "apccd") return SelfCullingMethod::kApccd;
   return std::nullopt;
 }
 
@@ -77,6 +83,8 @@ std::string_view SelfCullingMethodName(SelfCullingMethod method) {
       return "bvh_cones";
     case SelfCullingMethod::kBvox:
       return "bvox_aabb";
+    case SelfCullingMethod::kApccd:
+      return "apccd";
     case SelfCullingMethod::kSpatialHash:
       break;
   }
@@ -123,8 +131,9 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
     throw std::invalid_argument("self-collision: positions and masses differ in size");
   }
   const int32_t n = static_cast<int32_t>(x.size());
-  if (settings.method == SelfCullingMethod::kBvh) {
+  if (settings.method == SelfCullingMethod::kBvh || settings.method == SelfCullingMethod::kApccd) {
     bvh_.emplace(triangles, x);
+    apccd_ = settings.method == SelfCullingMethod::kApccd;
   } else if (settings.method == SelfCullingMethod::kBvhCones) {
     SelfBroadPhaseOptions options;
     options.normal_cones = true;
@@ -146,6 +155,7 @@ SelfCollisionResponse::SelfCollisionResponse(std::span<const Triangle> triangles
   }
   cand_hit_.assign(static_cast<size_t>(Broad()->max_candidates()), 0);
   moved_.assign(static_cast<size_t>(n), 0);
+  dangling_.assign(static_cast<size_t>(n), 0);
   moved_list_.reserve(static_cast<size_t>(n));
   if (!(settings.broad_inflation >= 0.0) || !std::isfinite(settings.broad_inflation)) {
     throw std::invalid_argument("self_collision.broad_inflation: must be >= 0");
@@ -266,6 +276,42 @@ void SelfCollisionResponse::RunBroadPhase(std::span<const Vec3> x1, SelfCollisio
   }
 }
 
+// The broad phase for x_before_ -> x1 when the last one no longer covers it: some vertex lies
+// more than margin_m [m] outside its sweep there (WithinBroadBoxes). With apccd (the fixed tree),
+// when those dangling vertices are few (kDanglingDen), only their boxes are made again and the
+// tree is traversed again where they are (SelfBvh::UpdateCandidates): every other vertex's box
+// still holds its sweep padded for the test (the reuse argument of DetectAll), so the candidates
+// among the triangles none of whose vertices dangles still cover their pairs, and each pair with a
+// dangling triangle is found again against the boxes the tree holds. Otherwise a full broad phase.
+void SelfCollisionResponse::RefreshBroadPhase(std::span<const Vec3> x1, double margin_m,
+                                              SelfCollisionStats* stats) {
+  const int32_t n = static_cast<int32_t>(x_before_.size());
+  if (apccd_ && broad_valid_) {
+    int64_t count = 0;
+    for (int32_t p = 0; p < n; ++p) {
+      const bool out =
+          !(WithinBroadBoxes(p, x_before_[p], margin_m) && WithinBroadBoxes(p, x1[p], margin_m));
+      dangling_[p] = out ? 1 : 0;
+      count += out ? 1 : 0;
+    }
+    if (count * kDanglingDen <= n) {
+      narrow_valid_ = false;
+      const SelfBroadPhaseStats bs =
+          bvh_->UpdateCandidates(x_before_, x1, 2.0 * broad_pad_m_ / (1.0 + 1e-5), 0.0, dangling_);
+      ++stats->broad_updates;
+      broad_valid_ = !bs.overflow;
+      if (bs.overflow) ++stats->overflows;
+      for (int32_t p = 0; p < n; ++p) {
+        if (!dangling_[p]) continue;
+        broad_lo_[p] = x_before_[p].cwiseMin(x1[p]);
+        broad_hi_[p] = x_before_[p].cwiseMax(x1[p]);
+      }
+      return;
+    }
+  }
+  RunBroadPhase(x1, stats);
+}
+
 // True when q lies within margin_m [m] of vertex p's box in the last broad phase.
 bool SelfCollisionResponse::WithinBroadBoxes(int32_t p, const Vec3& q, double margin_m) const {
   return (q.array() >= broad_lo_[p].array() - margin_m).all() &&
@@ -290,7 +336,7 @@ int64_t SelfCollisionResponse::DetectAll(std::span<const Vec3> x1, SelfCollision
   if (reuse) {
     ++stats->broad_reuses;
   } else {
-    RunBroadPhase(x1, stats);
+    RefreshBroadPhase(x1, ccd_margin_m_, stats);
   }
   narrow_valid_ = false;
   if (!broad_valid_) {
@@ -525,7 +571,7 @@ void SelfCollisionResponse::Proximity(double h_s, SelfCollisionStats* stats) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   } else if (!reuse) {
     const auto start = std::chrono::steady_clock::now();
-    RunBroadPhase(x_before_, stats);
+    RefreshBroadPhase(x_before_, prox_margin_m_, stats);
     stats->detect_s +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }

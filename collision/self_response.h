@@ -58,12 +58,17 @@ enum class SelfCullingMethod : uint8_t {
   kBvhCones,
   /// SelfBvox: an AABB tree rebuilt every step by voxels (Baciu & Wong 2004's BVOX-AABB).
   kBvox,
+  /// APCCD (Wong 2009, 004_aff31237b107e6f0.txt) on SelfBvh: kBvh's inflated boxes reused across
+  /// passes (skipped broad phases), and when some vertices leave their boxes ("dangling"), only
+  /// their boxes made again and the tree traversed again where they are
+  /// (SelfBvh::UpdateCandidates), instead of a new broad phase.
+  kApccd,
 };
 
 /// Every culling method, in the order above (for tests and benches that try them all).
-inline constexpr std::array<SelfCullingMethod, 4> kSelfCullingMethods = {
+inline constexpr std::array<SelfCullingMethod, 5> kSelfCullingMethods = {
     SelfCullingMethod::kSpatialHash, SelfCullingMethod::kBvh, SelfCullingMethod::kBvhCones,
-    SelfCullingMethod::kBvox};
+    SelfCullingMethod::kBvox, SelfCullingMethod::kApccd};
 
 /// Settings of the response (SelfCollisionSpec in sim_loop/cloth_spec.h, validated).
 struct SelfCollisionSettings {
@@ -147,8 +152,9 @@ struct SelfCollisionStats {
   int64_t overflows = 0;  ///< detections whose candidate or hit buffer overflowed (then fail-safe)
   int32_t broad_phases = 0;  ///< broad-phase runs (FindCandidates), proximity's included
   int32_t broad_reuses = 0;  ///< detections that reused an earlier broad phase's candidates
-  /// bvh_cones: detections that carried the last broad phase over to their motion by
-  /// SelfBvh::UpdateCandidates (traversing again only where vertices moved) instead of a new one.
+  /// Broad phases carried over by SelfBvh::UpdateCandidates (traversing again only where vertices
+  /// moved) instead of a new one: bvh_cones' detections, and apccd's where a few vertices left
+  /// their boxes (its dangling vertices).
   int32_t broad_updates = 0;
   /// Detections that re-tested only the candidates with a vertex moved since the last one.
   int32_t incremental_detections = 0;
@@ -206,6 +212,7 @@ class SelfCollisionResponse {
   void TestCandidate(int32_t i, std::span<const Vec3> x1, const AllPairsCcdOptions& options,
                      SelfCollisionStats* stats, int64_t* hits);
   void RunBroadPhase(std::span<const Vec3> x1, SelfCollisionStats* stats);
+  void RefreshBroadPhase(std::span<const Vec3> x1, double margin_m, SelfCollisionStats* stats);
   bool WithinBroadBoxes(int32_t p, const Vec3& q, double margin_m) const;
   bool CanDetectIncrementally() const;
   bool NarrowTest(int32_t candidate, std::span<const Vec3> x1, const AllPairsCcdOptions& options,
@@ -227,6 +234,7 @@ class SelfCollisionResponse {
   std::optional<SelfBvh> bvh_;
   std::optional<SelfBvox> bvox_;
   bool cones_ = false;  ///< kBvhCones: one cone-culled broad phase per pass, carried over
+  bool apccd_ = false;  ///< kApccd: dangling vertices re-traversed (RefreshBroadPhase)
   /// kBvhCones: the BVH's candidates hold for x_before_ -> x_trial_ up to the vertices in
   /// moved_list_ (false after an overflow: the next detection runs a full broad phase).
   bool cone_valid_ = false;
@@ -252,15 +260,16 @@ class SelfCollisionResponse {
   bool narrow_valid_ = false;
   std::vector<uint8_t> cand_hit_;  ///< [max candidates]
   std::vector<uint8_t> moved_;     ///< [n]
+  std::vector<uint8_t> dangling_;  ///< [n] apccd: outside their boxes (RefreshBroadPhase)
   std::vector<int32_t> moved_list_;
   std::vector<Vec3> ccd_lo_, ccd_hi_;  ///< [n] swept box padded for the CCD thickness, m
   SelfCollisionStats totals_;
   bool keep_first_pass_ = false;
   std::vector<Vec3> first_end_;
   std::vector<CcdPairHit> first_hits_;
-  std::vector<Vec3> x_trial_;     ///< [n] x_before + h vel (exactly x where vel is untouched)
-  std::vector<Vec3> vel_;         ///< [n] candidate average velocity of the substep, m/s
-  std::vector<uint8_t> dirty_;    ///< [n] 1 if vel_ changed since x_trial_ was updated
+  std::vector<Vec3> x_trial_;   ///< [n] x_before + h vel (exactly x where vel is untouched)
+  std::vector<Vec3> vel_;       ///< [n] candidate average velocity of the substep, m/s
+  std::vector<uint8_t> dirty_;  ///< [n] 1 if vel_ changed since x_trial_ was updated
   std::vector<int32_t> dirty_list_;
   // Impact zones (union-find over vertices) and their per-root sums.
   std::vector<int32_t> parent_;
@@ -275,8 +284,8 @@ class SelfCollisionResponse {
   double particle_mass_kg_ = 0.0;  ///< mass of a free particle for the spring impulse, kg
 };
 
-/// Parses a culling method name ("spatial_hash", "bvh", "bvh_cones", "bvox_aabb"); nullopt for
-/// any other.
+/// Parses a culling method name ("spatial_hash", "bvh", "bvh_cones", "bvox_aabb", "apccd");
+/// nullopt for any other.
 std::optional<SelfCullingMethod> SelfCullingMethodFromName(std::string_view name);
 
 /// The name of a culling method (as SelfCullingMethodFromName reads it).

@@ -270,11 +270,12 @@ SelfCollisionSpec ParseSelfCollision(const SceneTable& table, const ClothSpec& c
                "must be < cloth.spacing_m / 2 = " + FormatSceneNumber(0.5 * cloth.spacing_m) +
                    " m, got " + FormatSceneNumber(spec.thickness_m));
   }
-  static constexpr std::array<NamedValue<SelfCullingMethod>, 4> kMethods = {
+  static constexpr std::array<NamedValue<SelfCullingMethod>, 5> kMethods = {
       {{"spatial_hash", SelfCullingMethod::kSpatialHash},
        {"bvh", SelfCullingMethod::kBvh},
        {"bvh_cones", SelfCullingMethod::kBvhCones},
-       {"bvox_aabb", SelfCullingMethod::kBvox}}};
+       {"bvox_aabb", SelfCullingMethod::kBvox},
+       {"apccd", SelfCullingMethod::kApccd}}};
   spec.method = table.Choice<SelfCullingMethod>("method", spec.method, kMethods);
   spec.iterations = table.Integer("iterations", spec.iterations, InRange(0, 100));
   spec.friction = table.Number("friction", spec.friction, AtLeast(0.0));
