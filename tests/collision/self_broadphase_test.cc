@@ -253,8 +253,8 @@ TEST(SelfBroadPhaseTest, DegenerateInputsMatchAllPairs) {
 
 TEST(SelfBroadPhaseTest, LargerGridsGiveTheBoxSetAndTheSameHitsByEveryMethod) {
   // Deeper trees and fuller tables than the cases above; the all-pairs narrow phase would be too
-  // slow here, so the candidates are checked against the brute-force box set and the two
-  // methods' hits against each other.
+  // slow here, so the candidates are checked against the brute-force box set and every method's
+  // hits against the first's.
   const int32_t w = 40;
   const double step = 0.02, h = 0.001, pi = std::numbers::pi;
   const std::vector<Triangle> tris = MakeGridTriangles(w, w);
