@@ -57,19 +57,21 @@ bool SelfBvox::Overlap(int32_t a, int32_t b) const {
          (node_lo_[b].array() <= node_hi_[a].array()).all();
 }
 
-int32_t SelfBvox::GroupLevel(int32_t count, int32_t d, const Vec3& lo, const Vec3& size) {
-  const std::array<int32_t, 3> n = VoxelSplit(size, d);
-  // Voxel of an item: the cell holding its box's center along each axis (clamped to the grid; a
-  // coordinate that is not a number goes to cell 0), packed as i + j 2^n0 + k 2^(n0 + n1).
+int32_t SelfBvox::GroupLevel(int32_t count, int32_t d, const Vec3& lo, const Vec3& half) {
+  const std::array<int32_t, 3> n = VoxelSplit(half, d);
+  // Voxel of an item: the cell holding its box's center c along each axis, from
+  // u = (c - lo) / (hi - lo) in [0, 1], computed in halves (c / 2 - lo / 2) / half so that no
+  // sum overflows, however far apart finite coordinates lie (clamped to the grid; a coordinate
+  // that is not a number goes to cell 0). Packed as i + j 2^n0 + k 2^(n0 + n1).
   std::array<double, 3> scale{};
-  for (int32_t a = 0; a < 3; ++a) scale[a] = std::ldexp(1.0, n[a]) / size[a];
+  for (int32_t a = 0; a < 3; ++a) scale[a] = half[a] > 0.0 ? std::ldexp(1.0, n[a]) / half[a] : 0.0;
   for (int32_t i = 0; i < count; ++i) {
     const int32_t node = items_[i];
     int32_t key = 0, shift = 0;
     for (int32_t a = 0; a < 3; ++a) {
       const int32_t cells = 1 << n[a];
-      const double f =
-          std::floor((0.5 * (node_lo_[node][a] + node_hi_[node][a]) - lo[a]) * scale[a]);
+      const double f = std::floor(
+          (0.25 * node_lo_[node][a] + 0.25 * node_hi_[node][a] - 0.5 * lo[a]) * scale[a]);
       const int32_t cell = f > 0.0 ? (f < cells ? static_cast<int32_t>(f) : cells - 1) : 0;
       key |= cell << shift;
       shift += n[a];
@@ -135,9 +137,9 @@ SelfBroadPhaseStats SelfBvox::FindCandidates(std::span<const Vec3> x0, std::span
   root_ = -1;
   if (count == 0) return stats;
   // Level by level from the finest voxels (2^d of them at depth d) up.
-  const Vec3 size = hi - lo;
+  const Vec3 half = 0.5 * hi - 0.5 * lo;  // half the root box's sides (finite for finite boxes)
   for (int32_t d = max_levels_; d >= 1 && count > 1; --d) {
-    count = GroupLevel(count, d, lo, size);
+    count = GroupLevel(count, d, lo, half);
     ++levels_;
   }
   if (count == 1) {

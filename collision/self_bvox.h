@@ -58,8 +58,9 @@ class SelfBvox final : public SelfTriangleTree {
   static std::array<int32_t, 3> VoxelSplit(const Vec3& b, int32_t d);
 
  private:
-  // Groups the current level's items (node ids) by voxel at depth d; returns the new count.
-  int32_t GroupLevel(int32_t count, int32_t d, const Vec3& lo, const Vec3& size);
+  // Groups the current level's items (node ids) by voxel at depth d of the root box with low
+  // corner lo and half sides `half` [m]; returns the new count.
+  int32_t GroupLevel(int32_t count, int32_t d, const Vec3& lo, const Vec3& half);
   void SelfTraverse(int32_t node, SelfBroadPhaseStats* stats);
   void PairTraverse(int32_t a, int32_t b, SelfBroadPhaseStats* stats);
   bool Overlap(int32_t a, int32_t b) const;

@@ -433,5 +433,30 @@ TEST(SelfBvoxTest, TheTreeIsBuiltFromVoxelsAndSkipsNonFiniteTriangles) {
   }
 }
 
+
+TEST(SelfBvoxTest, FarApartFiniteCoordinatesStillSplitTheTree) {
+  // Two halves of a cloth 2e308 m apart: the root box's sides overflow a double, its halves do
+  // not (SelfBvox works in halves), so the voxels still part the halves and the candidates are
+  // still the box set.
+  const int32_t w = 8;
+  const double h = 0.002;
+  const std::vector<Triangle> tris = MakeGridTriangles(w, w);
+  const std::vector<Vec3> rest = SpacedGrid(w, w, 0.05);
+  std::vector<Vec3> x0(rest.size());
+  for (size_t i = 0; i < x0.size(); ++i) {  // the grid in the y-z plane, its halves at x = +-1e308
+    x0[i] = Vec3(i < x0.size() / 2 ? -1e308 : 1e308, rest[i].x(), rest[i].y());
+  }
+  const std::vector<Vec3> x1 = x0;
+  SelfBvox bvox(tris, rest);
+  const SelfBroadPhaseStats st = bvox.FindCandidates(x0, x1, h);
+  EXPECT_FALSE(st.overflow);
+  EXPECT_GT(bvox.num_inner_nodes(), 1);  // one node holding everything is what overflow gave
+  std::set<PairKey> cand;
+  for (const SelfCandidate& c : bvox.candidates()) {
+    cand.insert({static_cast<int>(c.kind), c.first, c.second});
+  }
+  EXPECT_EQ(cand, BruteForceCandidates(x0, x1, tris, h));
+}
+
 }  // namespace
 }  // namespace felt
