@@ -377,6 +377,11 @@ SelfTriangleTree::SelfTriangleTree(std::span<const Triangle> triangles, std::spa
 
 double SelfTriangleTree::BoxPadding(double thickness_m) { return SelfBroadPadding(thickness_m); }
 
+bool SelfTriangleTree::BoxesOverlap(const Vec3& alo, const Vec3& ahi, const Vec3& blo,
+                                    const Vec3& bhi) {
+  return SelfBoxesOverlap(alo, ahi, blo, bhi);
+}
+
 void SelfTriangleTree::VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1,
                                  double pad, double start_pad) {
   vertex_lo_[v] = x0[v].cwiseMin(x1[v]).array() - pad;

@@ -172,6 +172,8 @@ class SelfTriangleTree : public SelfBroadPhase {
                    const SelfBroadPhaseOptions& options);
   /// Half the thickness h [m], widened by 1e-5 relative: every box's padding per side [m].
   static double BoxPadding(double thickness_m);
+  /// True when the closed boxes [alo, ahi] and [blo, bhi] [m] share a point (false with a NaN).
+  static bool BoxesOverlap(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3& bhi);
   /// Vertex v's box: its sweep x0 -> x1 padded by `pad`, and, when start_pad is larger, its
   /// start position padded by start_pad [m].
   void VertexBox(int32_t v, std::span<const Vec3> x0, std::span<const Vec3> x1, double pad,

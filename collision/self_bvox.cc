@@ -53,8 +53,7 @@ std::array<int32_t, 3> SelfBvox::VoxelSplit(const Vec3& b, int32_t d) {
 }
 
 bool SelfBvox::Overlap(int32_t a, int32_t b) const {
-  return (node_lo_[a].array() <= node_hi_[b].array()).all() &&
-         (node_lo_[b].array() <= node_hi_[a].array()).all();
+  return BoxesOverlap(node_lo_[a], node_hi_[a], node_lo_[b], node_hi_[b]);
 }
 
 int32_t SelfBvox::GroupLevel(int32_t count, int32_t d, const Vec3& lo, const Vec3& half) {
